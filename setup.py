@@ -1,0 +1,57 @@
+"""ament_python / pip build script for rft_sim_ros.
+
+The same file serves `colcon build` (ROS 2) and `pip install .` (no ROS): scenes, models and
+launch files go to share/rft_sim_ros, where `rft_sim_ros.resources` finds them in both cases.
+"""
+import os
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'rft_sim_ros'
+
+
+def share_tree(folder):
+    """data_files entries that install `folder` (recursively) under share/rft_sim_ros."""
+    entries = {}
+    for path in glob(os.path.join(folder, '**', '*'), recursive=True):
+        if os.path.isfile(path):
+            target = os.path.join('share', PACKAGE, os.path.dirname(path))
+            entries.setdefault(target, []).append(path)
+    return sorted(entries.items())
+
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        *share_tree('config'),
+        *share_tree('models'),
+        *share_tree('launch'),
+    ],
+    python_requires='>=3.10',
+    install_requires=[
+        'numpy>=1.24',
+        'mujoco>=3.2',
+        'trimesh>=4.0',
+        'pyyaml>=6.0',
+        'numba>=0.59',
+        'rosbags>=0.10',
+        'matplotlib>=3.7',
+    ],
+    extras_require={'test': ['pytest>=7', 'hypothesis>=6.80']},
+    zip_safe=False,
+    maintainer='rft_sim_ros developers',
+    maintainer_email='dev@rft-sim-ros.invalid',
+    description='MuJoCo + 3D granular Resistive Force Theory sand simulation for ROS 2.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'rft-sim = rft_sim_ros.cli:main',
+        ],
+    },
+)
