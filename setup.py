@@ -35,7 +35,7 @@ setup(
     python_requires='>=3.10',
     install_requires=[
         'numpy>=1.24',
-        'mujoco>=3.2',
+        'mujoco>=3.3',
         'trimesh>=4.0',
         'pyyaml>=6.0',
         'numba>=0.59',

@@ -1,0 +1,183 @@
+"""SandEngine: RFT sand forces on the bodies of a MuJoCo model, applied every step.
+
+Each step: `mj_step1` computes positions and velocities; the engine finds the plates in the
+sand, computes their RFT forces from that same state (no one-step lag), treats them at low
+velocity (implicit by default, see `coupling`), sums them per body into a wrench about the
+body's centre of mass and writes all of them at once into `mjData.xfrc_applied`; `mj_step2`
+integrates. The engine owns the xfrc_applied rows of its sand bodies.
+
+Only the bodies a scene names carry plates; a body whose plates are all above the surface is
+skipped after one bounding-sphere test, so cost grows with plates in the sand.
+"""
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..rft.coefficients import normalisation as find_normalisation
+from ..rft.force_law import DynamicTerm
+from ..rft.plates import Plates
+from ..units import validated_zeta, zeta_to_si
+from . import coupling
+
+LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
+
+
+@dataclass(frozen=True)
+class LowVelocity:
+    """How RFT is treated where the direction of motion is ill-defined (|v| -> 0).
+
+    method: 'implicit' (default): the sand may stop a plate within a step but not reverse
+            it; below `rest_speed` (m/s) the law is a stiff damper solved implicitly.
+            'ema': the RFT-SiM paper's exponential moving average of each plate force with
+            factor `ema_alpha` (0.1 in the paper's text, 0.5 in its code), explicit.
+            'none': raw explicit RFT.
+    """
+    method: str = 'implicit'
+    rest_speed: float = 1e-4
+    ema_alpha: float = 0.1
+
+    def __post_init__(self):
+        if self.method not in LOW_VELOCITY_METHODS:
+            raise ValueError(f'low_velocity.method must be one of {LOW_VELOCITY_METHODS}, '
+                             f'got {self.method!r}')
+        if not self.rest_speed > 0:
+            raise ValueError(f'low_velocity.rest_speed must be > 0 m/s, got {self.rest_speed}')
+        if not 0 < self.ema_alpha <= 1:
+            raise ValueError(f'low_velocity.ema_alpha must be in (0, 1], got {self.ema_alpha}')
+
+
+class SandEngine:
+    """RFT sand under a MuJoCo model.
+
+    model, data: the MuJoCo model and its data (integrator Euler, implicit or implicitfast).
+    body_plates: {body name: Plates in that body's frame (xpos/xmat), m}.
+    zeta: N/cm^3. surface_height: z of the horizontal sand surface, m.
+    normalisation: 'treers' or 'rft_sim'. dynamic: DynamicTerm or None.
+    """
+
+    def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
+                 normalisation='treers', dynamic=None, low_velocity=LowVelocity()):
+        if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+            raise ValueError('the RFT engine needs the Euler, implicit or implicitfast '
+                             'integrator (RK4 cannot be split into mj_step1/mj_step2)')
+        self.model, self.data = model, data
+        self.body_names = tuple(body_plates)
+        self.body_ids = np.array([model.body(name).id for name in self.body_names],
+                                 dtype=np.int64)
+        plates = [body_plates[name] for name in self.body_names]
+        counts = np.array([len(p) for p in plates], dtype=np.int64)
+        self.plate_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        joined = Plates.concatenate(plates)
+        self.local_pos = np.ascontiguousarray(joined.centroids)
+        self.local_normal = np.ascontiguousarray(joined.normals)
+        self.areas = np.ascontiguousarray(joined.areas)
+        self.radii = np.array([np.linalg.norm(p.centroids, axis=1).max() if len(p) else 0.0
+                               for p in plates])
+        self.surface_height = float(surface_height)
+        norm = find_normalisation(normalisation)
+        self._a4, self._b4 = norm.a4, norm.b4
+        self.dynamic = dynamic
+        self._dyn = 0.0 if dynamic is None else dynamic.lam * dynamic.density
+        self.low_velocity = low_velocity
+        self.zeta = zeta
+
+        n, nb = len(self.areas), len(self.body_names)
+        self._plate = np.zeros(n, dtype=np.int64)
+        self._slot = np.zeros(n, dtype=np.int64)
+        self._lever = np.zeros((n, 3))
+        self._force = np.zeros((n, 3))
+        self._dir = np.zeros((n, 3))
+        self._speed = np.zeros(n)
+        self._applied = np.zeros((n, 3))
+        self._slot_body = np.zeros(nb, dtype=np.int64)
+        self._slot_wrench = np.zeros((nb, 6))
+        self._jac = np.zeros((6 * nb, model.nv))
+        self._rhs = np.zeros((6 * nb + 1, model.nv))
+        self._minv = np.zeros((6 * nb + 1, model.nv))
+        self._ema_force = np.zeros((n, 3))
+        self._ema_step = np.full(n, -2, dtype=np.int64)
+        self._step = 0
+        self._k = self._slots = self.plates_active = 0
+        self.body_wrenches = np.zeros((nb, 6))
+        self._views()
+
+    def _views(self):
+        """Cache the numpy views of mjModel/mjData arrays used every step."""
+        m, d = self.model, self.data
+        self._xpos, self._xmat, self._xipos = d.xpos, d.xmat, d.xipos
+        self._cvel, self._subtree_com, self._cdof = d.cvel, d.subtree_com, d.cdof
+        self._qvel, self._xfrc = d.qvel, d.xfrc_applied
+        self._qfrc = (d.qfrc_passive, d.qfrc_actuator, d.qfrc_applied, d.qfrc_bias)
+        self._model_arrays = (m.body_rootid, m.body_dofnum, m.body_dofadr, m.body_parentid,
+                              m.dof_parentid)
+
+    @property
+    def zeta(self):
+        """Sand stiffness, N/cm^3. Setting it validates and takes effect on the next step."""
+        return self._zeta
+
+    @zeta.setter
+    def zeta(self, value):
+        self._zeta = validated_zeta(value)
+        self._zeta_si = zeta_to_si(self._zeta)
+
+    @property
+    def plates_total(self):
+        """Number of plates on all sand bodies."""
+        return len(self.areas)
+
+    def step(self):
+        """Advance the model one timestep with sand forces."""
+        mujoco.mj_step1(self.model, self.data)
+        self.apply()
+        mujoco.mj_step2(self.model, self.data)
+
+    def apply(self):
+        """Compute the sand wrenches from the current state (after mj_step1) and write them
+        into xfrc_applied of the sand bodies."""
+        method = self.low_velocity.method
+        self._step += 1
+        k, self.plates_active, slots = coupling.gather_plates(
+            self.body_ids, self.radii, self.plate_start, self.local_pos, self.local_normal,
+            self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
+            self._model_arrays[0], self.surface_height, self._zeta_si, self._a4, self._b4,
+            self._dyn, method == 'ema', self._plate, self._slot, self._lever, self._force,
+            self._dir, self._speed, self._slot_body)
+        if slots and method == 'implicit':
+            self._implicit(k, slots)
+        elif slots:
+            alpha = self.low_velocity.ema_alpha if method == 'ema' else 1.0
+            coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._lever,
+                                       self._force, alpha, self._step, self._ema_force,
+                                       self._ema_step, self._applied, self._slot_wrench)
+        self._k, self._slots = k, slots
+        self.body_wrenches[:] = 0.0
+        self.body_wrenches[self._slot_body[:slots]] = self._slot_wrench[:slots]
+        self._xfrc[self.body_ids] = self.body_wrenches
+
+    def _implicit(self, k, slots):
+        m, d = self.model, self.data
+        mujoco.mj_fwdActuation(m, d)
+        coupling.slot_jacobians(slots, self._slot_body, self.body_ids, self._xipos,
+                                self._subtree_com, self._cdof, *self._model_arrays, self._jac)
+        n6 = 6 * slots
+        rhs = self._rhs[:n6 + 1]
+        rhs[:n6] = self._jac[:n6]
+        passive, actuator, applied, bias = self._qfrc
+        np.subtract(passive + actuator + applied, bias, out=rhs[n6])
+        minv = self._minv[:n6 + 1]
+        mujoco.mj_solveM(m, d, minv, rhs)
+        coupling.implicit_wrenches(k, slots, self._slot, self._lever, self._force, self._dir,
+                                   self._speed, self.low_velocity.rest_speed, self._jac, minv,
+                                   self._qvel, m.opt.timestep, self._applied, self._slot_wrench)
+
+    def active_plates(self):
+        """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
+        (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
+        k = self._k
+        plates = self._plate[:k]
+        forces = self._applied[:k].copy()
+        lever = self._lever[:k]
+        com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
+        return lever + com, forces, self.areas[plates]

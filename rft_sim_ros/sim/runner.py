@@ -1,0 +1,173 @@
+"""Headless scene runs: step a Simulation for a duration, feed recorders at the publish rate,
+and write summary.json, a time series and plots.
+
+`run_scene` is what `rft-sim run` calls; recorders (e.g. the rosbag2 writer) receive the same
+SimState snapshots the ROS node publishes, at the scene's publish rate (Hz of sim time).
+"""
+import json
+import math
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from .. import __version__
+from .simulation import Simulation, SimulationDiverged
+
+
+class ProgressBar:
+    """A one-line progress bar on a terminal; silent when the stream is not a TTY."""
+
+    def __init__(self, total, stream=sys.stderr, label=''):
+        self.total, self.stream, self.label = total, stream, label
+        self.enabled = hasattr(stream, 'isatty') and stream.isatty()
+        self._last = -1
+
+    def update(self, done):
+        if not self.enabled:
+            return
+        percent = int(100 * done / self.total) if self.total else 100
+        if percent != self._last:
+            self._last = percent
+            filled = percent * 30 // 100
+            self.stream.write(f'\r{self.label} [{"#" * filled}{"." * (30 - filled)}] {percent:3d}%')
+            self.stream.flush()
+
+    def close(self):
+        if self.enabled:
+            self.stream.write('\n')
+            self.stream.flush()
+
+
+def machine_info():
+    """Where a run was measured: CPU, cores, Python, MuJoCo and numpy versions."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open('/proc/cpuinfo') as info:
+            for line in info:
+                if line.startswith('model name'):
+                    cpu = line.split(':', 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {'cpu': cpu, 'cores': os.cpu_count(), 'python': platform.python_version(),
+            'mujoco': mujoco.__version__, 'numpy': np.__version__,
+            'rft_sim_ros': __version__, 'platform': platform.platform()}
+
+
+def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True):
+    """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
+
+    out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
+    recorders: objects with record(SimState) and close(), fed at the publish rate.
+    Returns the summary dict (see design section 4 for its fields).
+    """
+    started = time.perf_counter()
+    sim = Simulation(scene)
+    startup = time.perf_counter() - started
+    duration = scene.duration if duration is None else float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f'duration must be a positive number of seconds, got {duration}')
+    steps = int(round(duration / sim.timestep))
+    publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
+    bar = ProgressBar(steps, label=scene.name) if progress else ProgressBar(0, stream=None)
+    series = []
+    active_sum = 0
+    reason = None
+    loop_started = time.perf_counter()
+    done = 0
+    try:
+        while done < steps:
+            chunk = min(publish_every - done % publish_every, steps - done)
+            sim.step(chunk)
+            done += chunk
+            active_sum += sim.engine.plates_active
+            if done % publish_every == 0 or done == steps:
+                state = sim.state(with_plates=any(getattr(r, 'wants_plates', False)
+                                                  for r in recorders))
+                series.append(_series_row(state))
+                for recorder in recorders:
+                    recorder.record(state)
+                bar.update(done)
+    except SimulationDiverged as error:
+        reason = f'diverged {error}'
+    finally:
+        wall = time.perf_counter() - loop_started
+        bar.close()
+        for recorder in recorders:
+            recorder.close()
+    sim_time = done * sim.timestep
+    metrics = sim.scenario.metrics(sim) if done else {}
+    summary = {
+        'scene': scene.name,
+        'description': scene.description,
+        'zeta': sim.zeta,
+        'timestep_s': sim.timestep,
+        'sim_time_s': sim_time,
+        'wall_time_s': wall,
+        'startup_time_s': startup,
+        'real_time_factor': sim_time / wall if wall > 0 else float('inf'),
+        'steps': done,
+        'plates_total': sim.engine.plates_total,
+        'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
+                            for i, name in enumerate(sim.engine.body_names)},
+        'plates_active_mean': active_sum / max(1, len(series)),
+        'low_velocity': sim.engine.low_velocity.method,
+        'normalisation': scene.normalisation,
+        'stable': reason is None,
+        'reason': reason,
+        'metrics': _finite(metrics),
+        'scene_config': scene.raw,
+        'machine': machine_info(),
+    }
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / 'summary.json').write_text(json.dumps(summary, indent=2, default=_json_default))
+        _write_series(out / 'timeseries.csv', series, scene)
+        if plots and series:
+            from .plots import plot_timeseries
+            plot_timeseries(out / 'timeseries.png', series, scene)
+    return summary
+
+
+def _series_row(state):
+    return {'time_s': state.time,
+            'base_x_m': state.base_position[0], 'base_y_m': state.base_position[1],
+            'base_z_m': state.base_position[2],
+            'base_speed_mps': float(np.linalg.norm(state.base_linear_velocity)),
+            'plates_active': state.plates_active,
+            **{f'{leg.name}_force_z_N': leg.force[2] for leg in state.legs}}
+
+
+def _write_series(path, series, scene):
+    if not series:
+        return
+    columns = list(series[0])
+    lines = [','.join(columns)]
+    lines += [','.join(f'{row[c]:.9g}' for c in columns) for row in series]
+    path.write_text('\n'.join(lines) + '\n')
+
+
+def _finite(metrics):
+    """Metrics with non-finite floats replaced by None (JSON has no NaN)."""
+    clean = {}
+    for key, value in metrics.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            value = None
+        clean[key] = value
+    return clean
+
+
+def _json_default(value):
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f'not JSON serialisable: {type(value).__name__}')

@@ -1,0 +1,65 @@
+"""Scenarios: the behaviour of each scene (model edits, initial state, control, metrics).
+
+A scene YAML names its scenario module (`scenario: plate_drop` -> module
+`rft_sim_ros.sim.scenarios.plate_drop`), which defines a class `Scenario` derived from
+`BaseScenario`. Adding a scene needs no registry: a YAML under config/ and a module here.
+"""
+import importlib
+import math
+
+from ..scene import SceneError
+
+
+class BaseScenario:
+    """Hooks a scene's scenario overrides; all optional. Units SI, world frame z up.
+
+    observe_interval: call `observe` every this many steps (1 = every step).
+    """
+    observe_interval = 1
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.params = scene.params
+
+    def number(self, name, minimum=None, maximum=None, positive=False):
+        """Scene value `name` as a float, validated (SceneError names the problem)."""
+        value = self.params.get(name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise SceneError(f'scene {self.scene.name}: {name} must be a finite number, '
+                             f'got {value!r}')
+        if positive and value <= 0:
+            raise SceneError(f'scene {self.scene.name}: {name} must be > 0, got {value!r}')
+        if minimum is not None and value < minimum:
+            raise SceneError(f'scene {self.scene.name}: {name} must be >= {minimum}, '
+                             f'got {value!r}')
+        if maximum is not None and value > maximum:
+            raise SceneError(f'scene {self.scene.name}: {name} must be <= {maximum}, '
+                             f'got {value!r}')
+        return float(value)
+
+    def edit_model(self, spec):
+        """Change the model (mujoco.MjSpec) from scene values before it is compiled."""
+
+    def initialize(self, sim):
+        """Set the initial state (sim.data) after the model is built or reset."""
+
+    def control(self, sim):
+        """Set controls before each step (sim time sim.time, s)."""
+
+    def observe(self, sim):
+        """Record what the metrics need, after a step."""
+
+    def metrics(self, sim):
+        """The scene's outputs: {name: value}, SI units in the names."""
+        return {}
+
+
+def load_scenario(scene):
+    """Instantiate the scenario that `scene` (a SceneConfig) names."""
+    try:
+        module = importlib.import_module(f'{__name__}.{scene.scenario}')
+    except ModuleNotFoundError as error:
+        if error.name and error.name.endswith(scene.scenario):
+            raise SceneError(f'scene {scene.name}: unknown scenario {scene.scenario!r}') from None
+        raise
+    return module.Scenario(scene)

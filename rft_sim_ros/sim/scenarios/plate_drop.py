@@ -1,0 +1,66 @@
+"""plate_drop: a free thin horizontal plate dropped onto sand.
+
+Analytic reference: RFT resists only while the plate intrudes, with force zeta A z on the
+bottom face at depth z, so the impact depth solves m g (h + z) = zeta A z^2 / 2 (energy),
+z = (m g + sqrt((m g)^2 + 2 zeta A m g h)) / (zeta A). After impact the plate must stay in
+the sand (no bounce) and come to rest.
+"""
+import numpy as np
+
+from ...units import zeta_to_si
+from . import BaseScenario
+
+
+def expected_impact_depth(mass, area, zeta, drop_height, gravity=9.81):
+    """Depth (m) at which a thin plate (kg, m^2, N/cm^3, m) dropped from drop_height stops."""
+    k = zeta_to_si(zeta) * area
+    weight = mass * gravity
+    return (weight + np.sqrt(weight ** 2 + 2 * k * weight * drop_height)) / k
+
+
+class Scenario(BaseScenario):
+    def __init__(self, scene):
+        super().__init__(scene)
+        self.mass = self.number('mass', positive=True)
+        self.side = self.number('side', positive=True)
+        self.thickness = self.number('thickness', positive=True)
+        self.drop_height = self.number('drop_height', minimum=0.0)
+        self.depths = []
+        self.speeds = []
+
+    def edit_model(self, spec):
+        geom = spec.geom('plate_geom')
+        geom.size = [self.side / 2, self.side / 2, self.thickness / 2]
+        geom.mass = self.mass
+
+    def initialize(self, sim):
+        qpos = sim.data.joint('plate_free').qpos
+        qpos[:3] = (0.0, 0.0, self.scene.surface_height + self.drop_height + self.thickness / 2)
+        qpos[3:] = (1.0, 0.0, 0.0, 0.0)
+
+    def observe(self, sim):
+        bottom = sim.data.body('plate').xpos[2] - self.thickness / 2
+        self.depths.append(self.scene.surface_height - bottom)
+        self.speeds.append(float(np.linalg.norm(sim.data.joint('plate_free').qvel[:3])))
+
+    def metrics(self, sim):
+        depth = np.asarray(self.depths)
+        speed = np.asarray(self.speeds)
+        gravity = float(-sim.model.opt.gravity[2])
+        expected = expected_impact_depth(self.mass, self.side ** 2, sim.engine.zeta,
+                                         self.drop_height, gravity)
+        touched = np.flatnonzero(depth > 0)
+        rebound = 0.0
+        if touched.size:
+            after = depth[touched[0]:]
+            rebound = float(np.max(np.maximum.accumulate(after) - after))
+        tail = max(1, int(round(0.5 / sim.timestep)))
+        return {
+            'max_depth_m': float(depth.max()),
+            'expected_max_depth_m': float(expected),
+            'max_depth_error': float(depth.max() / expected - 1.0),
+            'final_depth_m': float(depth[-1]),
+            'static_depth_m': float(self.mass * gravity / (zeta_to_si(sim.engine.zeta) * self.side ** 2)),
+            'rebound_m': rebound,
+            'rest_speed_mps': float(speed[-tail:].mean()),
+        }

@@ -1,0 +1,54 @@
+"""plate_press: a thin horizontal plate driven straight down into sand at constant speed.
+
+The vertical force on a horizontal plate pushed straight down is zeta A z (the definition
+of zeta), so the fitted slope of force against depth must equal zeta A (SI: N/m).
+"""
+import numpy as np
+
+from ...units import zeta_to_si
+from . import BaseScenario
+
+
+class Scenario(BaseScenario):
+    def __init__(self, scene):
+        super().__init__(scene)
+        self.side = self.number('side', positive=True)
+        self.thickness = self.number('thickness', positive=True)
+        self.speed = self.number('speed', positive=True)
+        self.start_height = self.number('start_height', minimum=0.0)
+        self.depths = []
+        self.forces = []
+        self.lateral = []
+
+    def edit_model(self, spec):
+        spec.geom('plate_geom').size = [self.side / 2, self.side / 2, self.thickness / 2]
+        spec.body('plate').pos = [0.0, 0.0, self.scene.surface_height + self.start_height
+                                  + self.thickness / 2]
+
+    def initialize(self, sim):
+        sim.data.joint('press').qvel[:] = -self.speed
+
+    def control(self, sim):
+        sim.data.actuator('press').ctrl[:] = -self.speed
+
+    def observe(self, sim):
+        bottom = sim.data.body('plate').xpos[2] - self.thickness / 2
+        wrench = sim.engine.body_wrenches[0]
+        self.depths.append(self.scene.surface_height - bottom)
+        self.forces.append(wrench[2])
+        self.lateral.append(np.hypot(wrench[0], wrench[1]))
+
+    def metrics(self, sim):
+        depth = np.asarray(self.depths)
+        force = np.asarray(self.forces)
+        inside = depth > 0.2 * depth.max()
+        slope = float(np.polyfit(depth[inside], force[inside], 1)[0]) if inside.sum() > 2 else 0.0
+        expected = zeta_to_si(sim.engine.zeta) * self.side ** 2
+        return {
+            'force_per_depth_N_per_m': slope,
+            'expected_force_per_depth_N_per_m': float(expected),
+            'force_per_depth_error': slope / expected - 1.0,
+            'max_depth_m': float(depth.max()),
+            'max_force_N': float(force.max()),
+            'max_lateral_force_N': float(max(self.lateral)),
+        }

@@ -1,0 +1,154 @@
+"""SandEngine: kinematics, culling, forces vs the reference law, low-velocity treatments."""
+import mujoco
+import numpy as np
+import pytest
+
+from rft_sim_ros.rft import body_wrench
+from rft_sim_ros.sim import coupling
+from rft_sim_ros.sim.engine import LowVelocity, SandEngine
+from rft_sim_ros.sim.geoms import body_plates
+
+ARM = """
+<mujoco><option timestep="0.001" integrator="implicitfast"/>
+<worldbody>
+  <body name="base" pos="0 0 0.3"><freejoint/>
+    <geom type="box" size="0.1 0.05 0.02" mass="2"/>
+    <body name="upper" pos="0.1 0 0"><joint name="hip" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.1 0 -0.1" size="0.01" mass="0.2"/>
+      <body name="lower" pos="0.1 0 -0.1"><joint name="knee" type="ball"/>
+        <geom type="capsule" fromto="0 0 0 0 0.05 -0.15" size="0.008" mass="0.1"/>
+        <body name="fixed_tip" pos="0 0.05 -0.15"><geom type="sphere" size="0.01" mass="0.01"/></body>
+      </body>
+    </body>
+  </body>
+</worldbody></mujoco>"""
+
+
+def _arm(**engine_options):
+    model = mujoco.MjModel.from_xml_string(ARM)
+    data = mujoco.MjData(model)
+    plates = {name: body_plates(model, model.body(name).id, count=300)
+              for name in ('upper', 'lower', 'fixed_tip')}
+    return model, data, SandEngine(model, data, plates, zeta=2.0, **engine_options)
+
+
+def _random_state(model, data, seed):
+    rng = np.random.default_rng(seed)
+    data.qpos[:3] = [0.0, 0.0, 0.22]
+    quat = rng.normal(size=4)
+    data.qpos[3:7] = quat / np.linalg.norm(quat) * np.sign(quat[0])
+    data.qpos[3:7] = 0.9 * np.array([1, 0, 0, 0]) + 0.1 * data.qpos[3:7]
+    data.qpos[3:7] /= np.linalg.norm(data.qpos[3:7])
+    data.qpos[7] = rng.uniform(-0.5, 0.5)
+    ball = rng.normal(size=4) * 0.2 + [1, 0, 0, 0]
+    data.qpos[8:12] = ball / np.linalg.norm(ball)
+    data.qvel[:] = rng.normal(size=model.nv) * 0.3
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_slot_jacobians_match_mujoco(seed):
+    model, data, engine = _arm()
+    _random_state(model, data, seed)
+    mujoco.mj_forward(model, data)
+    bodies = np.arange(len(engine.body_ids))
+    jac = np.zeros((6 * len(bodies), model.nv))
+    coupling.slot_jacobians(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
+                            data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
+                            model.body_parentid, model.dof_parentid, jac)
+    for slot, body in enumerate(engine.body_ids):
+        jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+        mujoco.mj_jac(model, data, jacp, jacr, data.xipos[body], body)
+        assert np.allclose(jac[6 * slot:6 * slot + 3], jacp, atol=1e-12)
+        assert np.allclose(jac[6 * slot + 3:6 * slot + 6], jacr, atol=1e-12)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_explicit_engine_wrench_equals_the_reference_law(seed):
+    """Plate kinematics from MuJoCo's com-based velocities + compiled law == body_wrench."""
+    model, data, engine = _arm(low_velocity=LowVelocity(method='none'))
+    _random_state(model, data, seed)
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    assert engine.plates_active > 0
+    for i, name in enumerate(engine.body_names):
+        body = model.body(name).id
+        velocity = np.zeros(6)  # [omega; v] of the body origin, world axes
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, body, velocity, 0)
+        plates = body_plates(model, body, count=300)
+        force, torque = body_wrench(plates, data.xpos[body], data.xmat[body].reshape(3, 3),
+                                    velocity[3:], velocity[:3], 2.0)
+        torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
+        assert np.allclose(engine.body_wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
+        assert np.allclose(engine.body_wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
+        assert np.allclose(data.xfrc_applied[body], engine.body_wrenches[i])
+
+
+def test_bodies_above_the_sand_are_skipped_and_cost_nothing():
+    model, data, engine = _arm()
+    data.qpos[2] = 2.0
+    data.qvel[:3] = [0.0, 0.0, -1.0]
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    assert engine.plates_active == 0 and engine._slots == 0
+    assert not data.xfrc_applied.any()
+
+
+def test_fast_motion_gets_the_full_rft_force_with_the_implicit_treatment():
+    explicit = _arm(low_velocity=LowVelocity(method='none'))
+    implicit = _arm()
+    for model, data, engine in (explicit, implicit):
+        _random_state(model, data, 3)
+        data.qvel[2] = -0.5  # intruding fast: the sand cannot stop it within a step
+        mujoco.mj_step1(model, data)
+        engine.apply()
+    assert np.allclose(implicit[2].body_wrenches, explicit[2].body_wrenches, rtol=1e-12)
+
+
+def test_zeta_change_applies_on_the_next_step():
+    model, data, engine = _arm(low_velocity=LowVelocity(method='none'))
+    _random_state(model, data, 1)
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    before = engine.body_wrenches.copy()
+    engine.zeta = 4.0
+    engine.apply()
+    assert np.allclose(engine.body_wrenches, 2 * before, rtol=1e-12)
+    with pytest.raises(ValueError, match='zeta must be'):
+        engine.zeta = float('nan')
+    assert engine.zeta == 4.0
+
+
+def test_ema_history_is_dropped_when_a_plate_leaves_the_sand():
+    model, data, engine = _arm(low_velocity=LowVelocity(method='ema', ema_alpha=0.25))
+    _random_state(model, data, 2)
+    data.qvel[:] = 0.0
+    data.qvel[2] = -0.3
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    raw = engine.body_wrenches.copy()  # first step in the sand: no history, raw force
+    engine.apply()
+    assert np.allclose(engine.body_wrenches, raw)  # same state: smoothed == raw again
+    data.qpos[2] = 2.0  # out of the sand for a step: history must go
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    assert engine.plates_active == 0
+    data.qpos[2] = 0.22
+    data.qvel[2] = -0.6
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    fresh = SandEngine(model, data, {n: body_plates(model, model.body(n).id, count=300)
+                                     for n in engine.body_names}, zeta=2.0,
+                       low_velocity=LowVelocity(method='none'))
+    fresh.apply()
+    assert np.allclose(engine.body_wrenches, fresh.body_wrenches)
+
+
+def test_rk4_and_bad_low_velocity_settings_are_refused():
+    model = mujoco.MjModel.from_xml_string(ARM)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    with pytest.raises(ValueError, match='RK4'):
+        SandEngine(model, mujoco.MjData(model), {}, zeta=1.0)
+    with pytest.raises(ValueError, match='method'):
+        LowVelocity(method='magic')
+    with pytest.raises(ValueError, match='ema_alpha'):
+        LowVelocity(method='ema', ema_alpha=0.0)

@@ -1,0 +1,106 @@
+"""Plates made from MuJoCo geoms: geometry, refinement and mesh convergence of the force."""
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+
+from rft_sim_ros.rft import Plates, body_wrench, refine
+from rft_sim_ros.sim.geoms import body_plates, body_plates_at_edge
+
+GEOMS = """
+<mujoco><asset><mesh name="cone" vertex="{cone_vertices}" face="{cone_faces}"/></asset>
+<worldbody>
+  <body name="sphere"><geom type="sphere" size="0.03"/></body>
+  <body name="capsule"><geom type="capsule" size="0.01 0.04" euler="0 30 0"/></body>
+  <body name="cylinder"><geom type="cylinder" size="0.02 0.03" pos="0.01 0 0"/></body>
+  <body name="box"><geom type="box" size="0.05 0.04 0.005"/></body>
+  <body name="ellipsoid"><geom type="ellipsoid" size="0.03 0.02 0.015"/></body>
+  <body name="cone"><geom type="mesh" mesh="cone" euler="180 0 0"/></body>
+  <body name="union"><geom type="sphere" size="0.02"/><geom type="sphere" pos="0.02 0 0" size="0.02"/></body>
+  <body name="plane_body"><geom type="plane" size="1 1 0.1"/></body>
+</worldbody></mujoco>"""
+
+AREAS = {'sphere': 4 * np.pi * 0.03 ** 2,
+         'capsule': 2 * np.pi * 0.01 * 0.08 + 4 * np.pi * 0.01 ** 2,
+         'cylinder': 2 * np.pi * 0.02 * 0.06 + 2 * np.pi * 0.02 ** 2,
+         'box': 2 * (0.1 * 0.08 + 0.1 * 0.01 + 0.08 * 0.01)}
+
+
+@pytest.fixture(scope='module')
+def model():
+    cone = trimesh.creation.cone(radius=0.02, height=0.06, sections=64)
+    xml = GEOMS.format(cone_vertices=' '.join(map(str, cone.vertices.ravel())),
+                       cone_faces=' '.join(map(str, cone.faces.ravel())))
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+@pytest.mark.parametrize('name', sorted(AREAS))
+def test_plate_area_converges_to_the_surface_area(model, name):
+    plates = body_plates(model, model.body(name).id, count=6000)
+    assert plates.total_area == pytest.approx(AREAS[name], rel=5e-3)
+
+
+@pytest.mark.parametrize('name', ['sphere', 'capsule', 'cylinder', 'box', 'ellipsoid'])
+def test_normals_are_unit_and_outward(model, name):
+    body = model.body(name).id
+    plates = body_plates(model, body, count=800)
+    assert np.allclose(np.linalg.norm(plates.normals, axis=1), 1.0)
+    geom = model.body_geomadr[body]
+    outward = np.einsum('ij,ij->i', plates.centroids - model.geom_pos[geom], plates.normals)
+    assert np.all(outward > 0)
+
+
+def test_overlapping_geoms_keep_only_the_outer_surface(model):
+    plates = body_plates(model, model.body('union').id, count=2000)
+    to_first = np.linalg.norm(plates.centroids, axis=1)
+    to_second = np.linalg.norm(plates.centroids - [0.02, 0, 0], axis=1)
+    # every plate lies on one sphere (chord sag < 0.5 mm) and none deep inside the other
+    assert np.all(np.minimum(to_first, to_second) > 0.02 - 5e-4)
+    exact = 2 * 4 * np.pi * 0.02 ** 2 - 2 * 2 * np.pi * 0.02 * 0.01  # two spheres minus caps
+    assert plates.total_area == pytest.approx(exact, rel=0.03)
+
+
+@pytest.mark.parametrize('count', [200, 500, 5000])
+def test_plate_count_target(model, count):
+    plates = body_plates(model, model.body('capsule').id, count=count)
+    assert abs(len(plates) - count) <= 0.25 * count
+
+
+def test_density_target_sets_plate_size(model):
+    plates = body_plates(model, model.body('box').id, density_per_mm2=0.03)
+    assert len(plates) / (plates.total_area * 1e6) == pytest.approx(0.03, rel=0.25)
+
+
+def test_unsupported_geom_and_bad_targets_are_refused(model):
+    with pytest.raises(ValueError, match='cannot carry RFT plates'):
+        body_plates(model, model.body('plane_body').id, count=10)
+    with pytest.raises(ValueError, match='exactly one'):
+        body_plates(model, model.body('box').id)
+    with pytest.raises(ValueError, match='> 0'):
+        body_plates(model, model.body('box').id, density_per_mm2=-1.0)
+
+
+def test_refine_bisects_slivers_into_well_shaped_plates():
+    sliver = trimesh.Trimesh(vertices=[[0, 0, 0], [0.1, 0, 0], [0.05, 0.001, 0]],
+                             faces=[[0, 1, 2]])
+    refined = refine(sliver, 0.005)
+    assert refined.area == pytest.approx(sliver.area, rel=1e-12)
+    assert refined.edges_unique_length.max() <= 0.005
+    assert np.allclose(refined.face_normals, sliver.face_normals[0])
+    plates = Plates.from_mesh(refined)
+    centroid = (plates.centroids * plates.areas[:, None]).sum(0) / plates.total_area
+    assert np.allclose(centroid, sliver.triangles_center[0], atol=1e-12)
+
+
+@pytest.mark.parametrize('name, position', [('sphere', [0, 0, 0.0123]), ('cone', [0, 0, 0.0071])])
+def test_mesh_convergence_of_the_body_force(model, name, position):
+    """Force on a partly buried body moving down and sideways: the two finest plate sets
+    agree within 2 %."""
+    forces = []
+    for edge in (0.004, 0.002, 0.001):
+        plates = body_plates_at_edge(model, model.body(name).id, edge)
+        force, _ = body_wrench(plates, position, np.eye(3), [0.05, 0.02, -0.05], [0, 0, 0], 3.75)
+        forces.append(force)
+    change = np.linalg.norm(forces[2] - forces[1]) / np.linalg.norm(forces[2])
+    assert change < 0.02
+    assert np.linalg.norm(forces[2]) > 1.0
