@@ -1,7 +1,7 @@
 """The RFT force law against analytic values, the published coefficient table and symmetries."""
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from rft_sim_ros.rft import DynamicTerm, alpha_x, alpha_z, body_wrench, plate_forces
@@ -134,7 +134,6 @@ unit = st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(
     lambda v: np.linalg.norm(v) > 1e-3)
 
 
-@settings(max_examples=200, deadline=None)
 @given(normal=unit, velocity=unit, depth=st.floats(1e-4, 0.2), angle=st.floats(-np.pi, np.pi))
 def test_turning_the_scene_about_the_vertical_turns_the_force(normal, velocity, depth, angle):
     n = np.array(normal) / np.linalg.norm(normal)
@@ -148,7 +147,6 @@ def test_turning_the_scene_about_the_vertical_turns_the_force(normal, velocity, 
     assert np.allclose(after, turn @ before, atol=1e-9 * max(1.0, np.linalg.norm(before)))
 
 
-@settings(max_examples=200, deadline=None)
 @given(normal=unit, velocity=unit, depth=st.floats(1e-4, 0.2))
 def test_sand_never_does_positive_work_and_mirrors(normal, velocity, depth):
     n = np.array(normal) / np.linalg.norm(normal)
@@ -158,3 +156,14 @@ def test_sand_never_does_positive_work_and_mirrors(normal, velocity, depth):
     mirror = np.diag([1.0, -1.0, 1.0])
     mirrored = plate_forces([[0, 0, -depth]], [mirror @ n], [1e-4], [mirror @ v], ZETA)[0]
     assert np.allclose(mirrored, mirror @ force, atol=1e-12 * max(1.0, np.linalg.norm(force)))
+
+
+def test_nearly_horizontal_plate_moving_vertically_turns_with_the_scene():
+    """Regression: e2 fell back to a fixed +x here, breaking rotation invariance."""
+    n = np.array([0.0, 0.03125, 1.0]) / np.linalg.norm([0.0, 0.03125, 1.0])
+    c, s = np.cos(1.0), np.sin(1.0)
+    turn = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    before = plate_forces([[0, 0, -0.1]], [n], [1e-4], [[0, 0, 1.0]], ZETA)[0]
+    after = plate_forces([[0, 0, -0.1]], [turn @ n], [1e-4], [[0, 0, 1.0]], ZETA)[0]
+    assert np.linalg.norm(before) > 0
+    assert np.allclose(after, turn @ before, atol=1e-12)

@@ -1,7 +1,7 @@
 """The compiled force kernel agrees with the numpy reference (the law is written twice: once
 with atan2/sin/cos as published, once algebraically for speed)."""
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -28,7 +28,6 @@ def _compare(positions, normals, areas, velocities, zeta, surface=0.0, norm='tre
 finite = st.floats(-1.0, 1.0, allow_nan=False)
 
 
-@settings(max_examples=60, deadline=None)
 @given(data=arrays(np.float64, (64, 9), elements=finite),
        zeta=st.floats(0.1, 50.0), norm=st.sampled_from(sorted(NORMALISATIONS)),
        dynamic=st.booleans())

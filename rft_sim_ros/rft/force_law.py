@@ -12,7 +12,8 @@ acting ON the body. zeta is in N/cm^3 (the paper's unit) and converted once via
 `rft_sim_ros.units`.
 
 Per plate j with depth z = surface_height - p_z > 0 and leading (n . v > 0):
-    e2 = horizontal projection of n, normalised (of v when the plate is nearly horizontal),
+    e2 = horizontal projection of n, normalised (of v when the plate is nearly horizontal;
+         the other one where that vanishes),
     e1 = e2 x E3, v1 = (v.e1) e1, v23 = v - v1  (v the unit velocity),
     beta = atan2(n_z, n.e2) + pi/2,  gamma = -atan2(v23_z, v23.e2),
     F = zeta z A ( -f1(|v1|) alpha_Y sign(v.e1) e1 - f23(|v23|) alpha_x e2
@@ -92,15 +93,22 @@ def plate_forces(positions, normals, areas, velocities, zeta, surface_height=0.0
 
 
 def _e2_directions(n, v):
-    """Unit horizontal direction e2 per plate: from the normal, or from the velocity when the
-    plate is nearly horizontal; +x when both horizontal projections vanish."""
+    """Unit horizontal direction e2 per plate: the horizontal part of the normal or, for a
+    nearly horizontal plate, of the velocity (Treers). Where that vanishes the other one is
+    used, and +x only when both vanish (a horizontal plate moving vertically, where the
+    force does not depend on e2); so the law turns with the scene about the vertical."""
     horizontal_n = n.copy()
     horizontal_n[:, 2] = 0.0
+    horizontal_v = v.copy()
+    horizontal_v[:, 2] = 0.0
     flat = np.abs(n[:, 2]) >= HORIZONTAL_NZ
-    horizontal_n[flat] = v[flat]
-    horizontal_n[flat, 2] = 0.0
-    length = np.linalg.norm(horizontal_n, axis=1)
+    first = np.where(flat[:, None], horizontal_v, horizontal_n)
+    second = np.where(flat[:, None], horizontal_n, horizontal_v)
+    length = np.linalg.norm(first, axis=1)
+    use_second = length < 1e-12
+    first[use_second] = second[use_second]
+    length[use_second] = np.linalg.norm(second[use_second], axis=1)
     undefined = length < 1e-12
-    horizontal_n[undefined] = (1.0, 0.0, 0.0)
+    first[undefined] = (1.0, 0.0, 0.0)
     length[undefined] = 1.0
-    return horizontal_n / length[:, None]
+    return first / length[:, None]

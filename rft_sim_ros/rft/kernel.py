@@ -28,12 +28,16 @@ def unit_stress(nx, ny, nz, ux, uy, uz, a4, b4):
     """RFT stress per unit depth and per unit zeta, for outward unit normal n and unit
     velocity u of a leading plate: returns (sx, sy, sz), dimensionless, world axes.
     The force on the plate is zeta_si * depth * area * s."""
-    # e2: horizontal direction of the normal, or of the velocity for near-horizontal plates.
+    # e2: horizontal direction of the normal, or of the velocity for near-horizontal plates;
+    # the other one where that vanishes, +x where both do (see force_law._e2_directions).
     if abs(nz) < HORIZONTAL_NZ:
-        hx, hy = nx, ny
+        hx, hy, gx, gy = nx, ny, ux, uy
     else:
-        hx, hy = ux, uy
+        hx, hy, gx, gy = ux, uy, nx, ny
     length = np.sqrt(hx * hx + hy * hy)
+    if length < 1e-12:
+        hx, hy = gx, gy
+        length = np.sqrt(hx * hx + hy * hy)
     if length < 1e-12:
         e2x, e2y = 1.0, 0.0
     else:
