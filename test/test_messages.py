@@ -1,5 +1,7 @@
 """Messages built from a SimState, checked field by field against the ROS 2 Jazzy definitions
 (rosbags typestore) and round-tripped through CDR."""
+import subprocess
+import sys
 from decimal import Decimal
 
 import numpy as np
@@ -311,6 +313,16 @@ def test_duplicate_leg_names_are_refused():
 def test_fixed_size_array_checks_its_size():
     with pytest.raises(ValueError, match='36'):
         FACTORY.float64_array(np.zeros(35), 36)
+
+
+def test_message_code_imports_no_ros():
+    code = ('import sys; import rft_sim_ros.ros.messages, rft_sim_ros.ros.bag, '
+            'rft_sim_ros.ros.inbound, rft_sim_ros.sim.commands; '
+            'bad = [m for m in sys.modules if m.split(".")[0] in '
+            '("rclpy", "std_msgs", "sensor_msgs", "rosgraph_msgs")]; print(bad); '
+            'sys.exit(1 if bad else 0)')
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
 def test_rclpy_backend_matches_rosbags_backend():
