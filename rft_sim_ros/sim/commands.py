@@ -3,15 +3,16 @@
 ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two inputs:
 
 * `TrajectoryCommand` (trajectory_msgs/JointTrajectory), handled like
-  joint_trajectory_controller with trajectory replacement: the trajectory starts at its start
-  time (0 = on receipt) from the target state at that moment (position and velocity) and
-  replaces the active one there; until then the active trajectory keeps running. Only the
-  newest deferred trajectory is kept. Waypoints reached before the start are dropped (a
-  trajectory entirely in the past is rejected). A first waypoint exactly at the start is
+  joint_trajectory_controller with trajectory replacement. A trajectory takes over at its
+  start time (0 = on receipt; a start in the past also means on receipt) from the target
+  state at that moment (position and velocity); until then the active trajectory keeps
+  running. Only the newest deferred trajectory is kept, and a command that takes effect at
+  once discards it. Waypoints whose time has already passed at takeover are dropped (a
+  trajectory that ends in the past is rejected); a first waypoint exactly at takeover is
   jumped to, as in joint_trajectory_controller. Segments are linear when either end has
-  positions only and cubic Hermite when both ends carry velocities; the state at the start
+  positions only and cubic Hermite when both ends carry velocities; the state at takeover
   always carries its velocity. Joints left out of a trajectory hold the target they have at
-  its start (velocity 0 at waypoints with velocities). After the last waypoint its
+  takeover (velocity 0 at waypoints with velocities). After the last waypoint its
   positions are held with velocity 0. Accelerations and efforts are not used.
 * `set_positions` (std_msgs/Float64MultiArray to forward_position_controller): new
   targets for all joints in `joint_names` order, held from now on; cancels any trajectory.
