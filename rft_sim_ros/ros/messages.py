@@ -1,0 +1,253 @@
+"""Fill the ROS 2 messages the simulation publishes from a `SimState`.
+
+ROS-free: every message is built through a message factory (`rft_sim_ros.ros.factory`), so
+the same functions fill rclpy messages in the node and rosbags messages in the bag writer.
+Every field of every message is set explicitly. Units are SI (REP 103); every stamp is the
+state's sim time.
+
+Frames (REP 105, names in `rft_sim_ros.ros.topics`):
+  odom       fixed world frame of the simulation, z up (the MuJoCo world frame).
+  base_link  the robot base; /odom and /tf carry odom -> base_link.
+  rft/<leg>  one per leg: child of odom, origin at the leg's reference point
+             (`LegWrench.point`), axes parallel to odom (identity rotation). The leg's
+             wrench is published in this frame, so force.z is the vertical ground force in
+             world axes and the torque is taken about the leg's reference point.
+
+Covariance convention: /odom is ground truth taken from the simulator, so every pose and
+twist covariance entry is 0 (exact). It is not "unknown" (that would be -1 in element 0).
+"""
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from rft_sim_ros.ros import topics
+from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
+from rft_sim_ros.units import zeta_to_si
+
+#: Pose and twist covariance of /odom (row-major 6x6, all zero: exact ground truth).
+ODOM_COVARIANCE = np.zeros(36)
+
+#: Plate stress shown full red: the stress of a plate pushed straight down this deep (m),
+#: i.e. zeta * depth. Lower stresses fade linearly to blue.
+PLATE_STRESS_FULL_SCALE_DEPTH_M = 0.05
+
+#: Marker namespace and id of the active-plates marker on /rft/plates.
+PLATES_MARKER_NS = 'rft_plates'
+PLATES_MARKER_ID = 0
+
+_IDENTITY_WXYZ = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class RunStatus:
+    """Run-level values reported on /diagnostics that a `SimState` does not carry.
+
+    scene: scene name (DiagnosticStatus.hardware_id).
+    real_time_factor: sim seconds per wall second, as measured by the caller
+        (nan until measured).
+    stable: False once the run has diverged; `problem` then says why.
+    commands_rejected: count of rejected commands per reason
+        (`CommandHandler.rejections`).
+    """
+    scene: str
+    real_time_factor: float
+    stable: bool = True
+    problem: str = ''
+    commands_rejected: Mapping[str, int] = field(default_factory=dict)
+
+
+def stamp(factory, t):
+    """builtin_interfaces/Time of sim time `t` (s), rounded to the nearest nanosecond."""
+    sec, nanosec = split_ns(seconds_to_ns(t))
+    return factory.make('builtin_interfaces/msg/Time', sec=sec, nanosec=nanosec)
+
+
+def header(factory, t, frame_id):
+    """std_msgs/Header stamped with sim time `t` (s) in frame `frame_id`."""
+    return factory.make('std_msgs/msg/Header', stamp=stamp(factory, t), frame_id=frame_id)
+
+
+def _vector3(factory, v):
+    return factory.make('geometry_msgs/msg/Vector3', x=float(v[0]), y=float(v[1]),
+                        z=float(v[2]))
+
+
+def _point(factory, p):
+    return factory.make('geometry_msgs/msg/Point', x=float(p[0]), y=float(p[1]),
+                        z=float(p[2]))
+
+
+def _quaternion(factory, wxyz):
+    """geometry_msgs/Quaternion (x, y, z, w) from a MuJoCo-order (w, x, y, z) quaternion."""
+    w, x, y, z = (float(c) for c in wxyz)
+    return factory.make('geometry_msgs/msg/Quaternion', x=x, y=y, z=z, w=w)
+
+
+def _transform_stamped(factory, t, parent, child, translation, wxyz):
+    transform = factory.make('geometry_msgs/msg/Transform',
+                             translation=_vector3(factory, translation),
+                             rotation=_quaternion(factory, wxyz))
+    return factory.make('geometry_msgs/msg/TransformStamped', header=header(factory, t, parent),
+                        child_frame_id=child, transform=transform)
+
+
+def clock_message(factory, state):
+    """rosgraph_msgs/Clock carrying the sim time."""
+    return factory.make('rosgraph_msgs/msg/Clock', clock=stamp(factory, state.time))
+
+
+def joint_state_message(factory, state):
+    """sensor_msgs/JointState: names, position (rad or m), velocity (rad/s or m/s), effort
+    (N m or N) in the scene's joint order; frame_id '' (joint states have no frame)."""
+    return factory.make(
+        'sensor_msgs/msg/JointState',
+        header=header(factory, state.time, ''),
+        name=[str(n) for n in state.joint_names],
+        position=factory.float64_sequence(state.joint_positions),
+        velocity=factory.float64_sequence(state.joint_velocities),
+        effort=factory.float64_sequence(state.joint_efforts))
+
+
+def odometry_message(factory, state):
+    """nav_msgs/Odometry of base_link in odom (REP 105).
+
+    pose: base_link position (m) and orientation in odom. twist: linear (m/s) and angular
+    (rad/s) velocity expressed in base_link (the child frame). Covariances: ODOM_COVARIANCE.
+    """
+    pose = factory.make('geometry_msgs/msg/Pose', position=_point(factory, state.base_position),
+                        orientation=_quaternion(factory, state.base_quaternion_wxyz))
+    twist = factory.make('geometry_msgs/msg/Twist',
+                         linear=_vector3(factory, state.base_linear_velocity),
+                         angular=_vector3(factory, state.base_angular_velocity))
+    return factory.make(
+        'nav_msgs/msg/Odometry',
+        header=header(factory, state.time, topics.ODOM_FRAME),
+        child_frame_id=topics.BASE_FRAME,
+        pose=factory.make('geometry_msgs/msg/PoseWithCovariance', pose=pose,
+                          covariance=factory.float64_array(ODOM_COVARIANCE, 36)),
+        twist=factory.make('geometry_msgs/msg/TwistWithCovariance', twist=twist,
+                           covariance=factory.float64_array(ODOM_COVARIANCE, 36)))
+
+
+def tf_message(factory, state):
+    """tf2_msgs/TFMessage: odom -> base_link, then odom -> rft/<leg> for every leg (at the
+    leg's reference point, identity rotation)."""
+    transforms = [_transform_stamped(factory, state.time, topics.ODOM_FRAME, topics.BASE_FRAME,
+                                     state.base_position, state.base_quaternion_wxyz)]
+    transforms += [_transform_stamped(factory, state.time, topics.ODOM_FRAME,
+                                      topics.leg_frame_id(leg.name), leg.point, _IDENTITY_WXYZ)
+                   for leg in state.legs]
+    return factory.make('tf2_msgs/msg/TFMessage', transforms=transforms)
+
+
+def leg_wrench_message(factory, state, leg):
+    """geometry_msgs/WrenchStamped of one leg's summed RFT wrench, in frame rft/<leg>.
+
+    force (N) in world (odom) axes, so force.z is the vertical ground force; torque (N m)
+    about the leg's reference point, world axes.
+    """
+    wrench = factory.make('geometry_msgs/msg/Wrench', force=_vector3(factory, leg.force),
+                          torque=_vector3(factory, leg.torque))
+    return factory.make('geometry_msgs/msg/WrenchStamped',
+                        header=header(factory, state.time, topics.leg_frame_id(leg.name)),
+                        wrench=wrench)
+
+
+def plate_colors(stress_pa, zeta_n_per_cm3):
+    """(K, 4) float32 RGBA in [0, 1] (the precision of std_msgs/ColorRGBA): blue at no
+    stress to red at stress >= zeta * PLATE_STRESS_FULL_SCALE_DEPTH_M (Pa)."""
+    full_scale = zeta_to_si(zeta_n_per_cm3) * PLATE_STRESS_FULL_SCALE_DEPTH_M
+    s = np.clip(np.asarray(stress_pa, dtype=float) / full_scale, 0.0, 1.0)
+    return np.column_stack([s, np.zeros_like(s), 1.0 - s, np.ones_like(s)]).astype(np.float32)
+
+
+def plates_message(factory, state):
+    """visualization_msgs/MarkerArray with one SPHERE_LIST marker in odom: a sphere at each
+    active plate (m), coloured by stress |F| / area (see `plate_colors`), sized by the
+    square root of the mean plate area. With no active plate the marker is deleted."""
+    plates = state.active_plates
+    count = len(plates.areas)
+    if count:
+        stress = np.linalg.norm(plates.forces, axis=1) / plates.areas
+        colors = [factory.make('std_msgs/msg/ColorRGBA', r=float(r), g=float(g), b=float(b),
+                               a=float(a))
+                  for r, g, b, a in plate_colors(stress, state.zeta)]
+        size = float(np.sqrt(np.mean(plates.areas)))
+    else:
+        colors, size = [], 0.0
+    no_data = factory.uint8_sequence([])
+    marker = factory.make(
+        'visualization_msgs/msg/Marker',
+        header=header(factory, state.time, topics.ODOM_FRAME),
+        ns=PLATES_MARKER_NS,
+        id=PLATES_MARKER_ID,
+        type=7,  # SPHERE_LIST
+        action=0 if count else 2,  # ADD, or DELETE when no plate is active
+        pose=factory.make('geometry_msgs/msg/Pose', position=_point(factory, (0.0, 0.0, 0.0)),
+                          orientation=_quaternion(factory, _IDENTITY_WXYZ)),
+        scale=_vector3(factory, (size, size, size)),
+        color=factory.make('std_msgs/msg/ColorRGBA', r=1.0, g=1.0, b=1.0, a=1.0),
+        lifetime=factory.make('builtin_interfaces/msg/Duration', sec=0, nanosec=0),
+        frame_locked=False,
+        points=[_point(factory, p) for p in plates.positions],
+        colors=colors,
+        texture_resource='',
+        texture=factory.make('sensor_msgs/msg/CompressedImage', header=header(factory, 0.0, ''),
+                             format='', data=no_data),
+        uv_coordinates=[],
+        text='',
+        mesh_resource='',
+        mesh_file=factory.make('visualization_msgs/msg/MeshFile', filename='', data=no_data),
+        mesh_use_embedded_materials=False)
+    return factory.make('visualization_msgs/msg/MarkerArray', markers=[marker])
+
+
+def _key_value(factory, key, value):
+    if isinstance(value, bool):
+        text = 'true' if value else 'false'
+    elif isinstance(value, float):
+        text = repr(value)
+    else:
+        text = str(value)
+    return factory.make('diagnostic_msgs/msg/KeyValue', key=key, value=text)
+
+
+def diagnostics_message(factory, state, status):
+    """diagnostic_msgs/DiagnosticArray with one status 'rft_sim: simulation'.
+
+    level OK, or ERROR once the run diverged (message = the problem). Values (floats
+    round-trip through float()): sim_time_s, zeta_n_per_cm3, real_time_factor,
+    plates_active, stable, commands_rejected (total) and commands_rejected.<reason>.
+    """
+    rejected = dict(sorted(status.commands_rejected.items()))
+    values = [('sim_time_s', float(state.time)),
+              ('zeta_n_per_cm3', float(state.zeta)),
+              ('real_time_factor', float(status.real_time_factor)),
+              ('plates_active', int(state.plates_active)),
+              ('stable', bool(status.stable)),
+              ('commands_rejected', int(sum(rejected.values())))]
+    values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
+    diagnostic = factory.make(
+        'diagnostic_msgs/msg/DiagnosticStatus',
+        level=factory.byte(0 if status.stable else 2),  # OK / ERROR
+        name='rft_sim: simulation',
+        message='running' if status.stable else status.problem,
+        hardware_id=status.scene,
+        values=[_key_value(factory, key, value) for key, value in values])
+    return factory.make('diagnostic_msgs/msg/DiagnosticArray',
+                        header=header(factory, state.time, ''), status=[diagnostic])
+
+
+def state_messages(factory, state, *, plates):
+    """[(topic, message)] of one publishing cycle: /clock, /joint_states, /odom, /tf, one
+    wrench per leg and, if `plates` and the state carries active plates, /rft/plates."""
+    out = [(topics.CLOCK, clock_message(factory, state)),
+           (topics.JOINT_STATES, joint_state_message(factory, state)),
+           (topics.ODOM, odometry_message(factory, state)),
+           (topics.TF, tf_message(factory, state))]
+    out += [(topics.leg_wrench_topic(leg.name), leg_wrench_message(factory, state, leg))
+            for leg in state.legs]
+    if plates and state.active_plates is not None:
+        out.append((topics.PLATES, plates_message(factory, state)))
+    return out

@@ -1,0 +1,75 @@
+"""Names of the ROS interface: topics, message types and TF frames (design.md section 5).
+
+One table that the rclpy node (publishers, subscriptions) and the rosbag2 writer
+(connections) both read, so a bag holds exactly the topics and types the node publishes.
+"""
+import re
+
+#: TF frames (REP 105): `odom` is the fixed world frame of the simulation, z up.
+ODOM_FRAME = 'odom'
+BASE_FRAME = 'base_link'
+
+CLOCK = '/clock'
+JOINT_STATES = '/joint_states'
+ODOM = '/odom'
+TF = '/tf'
+PLATES = '/rft/plates'
+DIAGNOSTICS = '/diagnostics'
+
+#: Command topics of a ros2_control stack, so existing gait controllers drive the sim unchanged.
+JOINT_TRAJECTORY = '/joint_trajectory_controller/joint_trajectory'
+POSITION_COMMANDS = '/forward_position_controller/commands'
+
+CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
+ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
+TF_TYPE = 'tf2_msgs/msg/TFMessage'
+WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
+MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
+DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
+POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
+
+_NAME_TOKEN = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
+
+
+def _checked_leg(leg):
+    if not _NAME_TOKEN.match(leg):
+        raise ValueError(
+            f'leg name {leg!r} cannot be used in a ROS topic or frame name: use letters, '
+            'digits and underscores, starting with a letter')
+    return leg
+
+
+def leg_frame_id(leg):
+    """TF frame of a leg's RFT wrench: 'rft/<leg>', child of odom, at the leg's reference
+    point, axes parallel to odom (identity rotation), so force.z is the vertical force."""
+    return f'rft/{_checked_leg(leg)}'
+
+
+def leg_wrench_topic(leg):
+    """Topic of a leg's geometry_msgs/WrenchStamped: '/rft/<leg>/wrench'."""
+    return f'/rft/{_checked_leg(leg)}/wrench'
+
+
+def published_topics(leg_names, *, plates):
+    """{topic: message type} of everything the simulation publishes.
+
+    leg_names: legs of the scene (one wrench topic each). plates: whether the active plates
+    are published as markers on /rft/plates.
+    """
+    topics = {
+        CLOCK: CLOCK_TYPE,
+        JOINT_STATES: JOINT_STATE_TYPE,
+        ODOM: ODOMETRY_TYPE,
+        TF: TF_TYPE,
+        DIAGNOSTICS: DIAGNOSTICS_TYPE,
+    }
+    for leg in leg_names:
+        topic = leg_wrench_topic(leg)
+        if topic in topics:
+            raise ValueError(f'leg name {leg!r} appears twice')
+        topics[topic] = WRENCH_TYPE
+    if plates:
+        topics[PLATES] = MARKER_ARRAY_TYPE
+    return topics

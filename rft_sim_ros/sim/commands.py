@@ -1,0 +1,339 @@
+"""Servo position targets from joint commands, as ros2_control's controllers treat them.
+
+ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two inputs:
+
+* `TrajectoryCommand` (trajectory_msgs/JointTrajectory), handled like
+  joint_trajectory_controller with trajectory replacement. A trajectory takes over at its
+  start time (0 = on receipt; a start in the past also means on receipt) from the target
+  state at that moment (position and velocity); until then the active trajectory keeps
+  running. Only the newest deferred trajectory is kept, and a command that takes effect at
+  once discards it. Waypoints whose time has already passed at takeover are dropped (a
+  trajectory that ends in the past is rejected); a first waypoint exactly at takeover is
+  jumped to, as in joint_trajectory_controller. Segments are linear when either end has
+  positions only and cubic Hermite when both ends carry velocities; the state at takeover
+  always carries its velocity. Joints left out of a trajectory hold the target they have at
+  takeover (velocity 0 at waypoints with velocities). After the last waypoint its
+  positions are held with velocity 0. Accelerations and efforts are not used.
+* `set_positions` (std_msgs/Float64MultiArray to forward_position_controller): new
+  targets for all joints in `joint_names` order, held from now on; cancels any trajectory.
+
+Every command is validated first; a bad one is rejected with a `CommandResult` naming the
+problem, counted per `Reason`, and changes nothing. Times are sim time in s; positions in
+rad (or m), velocities in rad/s (or m/s), in the joint's own unit.
+"""
+import bisect
+import enum
+import math
+import numbers
+import reprlib
+from collections import Counter
+from dataclasses import dataclass
+from typing import NamedTuple, Optional, Sequence
+
+import numpy as np
+
+
+class Reason(str, enum.Enum):
+    """Why a command was rejected (the key of `CommandHandler.rejections`)."""
+    MALFORMED = 'malformed'
+    EMPTY = 'empty'
+    ARRAY_LENGTH = 'array_length'
+    UNKNOWN_JOINT = 'unknown_joint'
+    DUPLICATE_JOINT = 'duplicate_joint'
+    NOT_FINITE = 'not_finite'
+    TIME_NEGATIVE = 'time_negative'
+    TIME_NOT_INCREASING = 'time_not_increasing'
+    POSITIONS_LENGTH = 'positions_length'
+    VELOCITIES_LENGTH = 'velocities_length'
+    ENDS_IN_PAST = 'ends_in_past'
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """Outcome of a command: accepted, or rejected for `reason` explained in `message`."""
+    reason: Optional[Reason] = None
+    message: str = ''
+
+    @property
+    def accepted(self):
+        return self.reason is None
+
+
+@dataclass(frozen=True)
+class TrajectoryPoint:
+    """One waypoint: positions (one per joint of the command), optional velocities (None or
+    empty = positions only) and time_from_start (s after the trajectory's start time)."""
+    positions: Sequence[float]
+    time_from_start: float
+    velocities: Optional[Sequence[float]] = None
+
+
+@dataclass(frozen=True)
+class TrajectoryCommand:
+    """A joint trajectory: joint names, waypoints and start time (s of sim time; 0 = now)."""
+    joint_names: Sequence[str]
+    points: Sequence[TrajectoryPoint]
+    start_time: float = 0.0
+
+
+class Targets(NamedTuple):
+    """Servo targets at one instant, in `CommandHandler.joint_names` order."""
+    positions: np.ndarray
+    velocities: np.ndarray
+
+
+class _Rejected(Exception):
+    def __init__(self, reason, message):
+        super().__init__(message)
+        self.reason = reason
+
+
+class _Spline:
+    """Piecewise linear / cubic Hermite target path through knots (times strictly increasing).
+
+    positions, velocities: (K, J); cubic: (K,) whether the knot's velocities are given.
+    Before the first knot and after the last, that knot's positions are held (velocity 0).
+    """
+
+    def __init__(self, times, positions, velocities, cubic):
+        self.times = list(times)
+        self.positions = positions
+        self.velocities = velocities
+        self.cubic = cubic
+
+    @classmethod
+    def hold(cls, time, positions):
+        p = np.array(positions, dtype=float)[None, :]
+        return cls([time], p, np.zeros_like(p), np.array([True]))
+
+    def sample(self, t):
+        times = self.times
+        if t < times[0] or t >= times[-1]:
+            k = 0 if t < times[0] else -1
+            return Targets(self.positions[k].copy(), np.zeros(self.positions.shape[1]))
+        k = bisect.bisect_right(times, t) - 1
+        duration = times[k + 1] - times[k]
+        s = (t - times[k]) / duration
+        p0, p1 = self.positions[k], self.positions[k + 1]
+        if not (self.cubic[k] and self.cubic[k + 1]):
+            return Targets(p0 + (p1 - p0) * s, (p1 - p0) / duration)
+        m0 = self.velocities[k] * duration
+        m1 = self.velocities[k + 1] * duration
+        position = ((2 * s**3 - 3 * s**2 + 1) * p0 + (s**3 - 2 * s**2 + s) * m0
+                    + (-2 * s**3 + 3 * s**2) * p1 + (s**3 - s**2) * m1)
+        velocity = ((6 * s**2 - 6 * s) * p0 + (3 * s**2 - 4 * s + 1) * m0
+                    + (-6 * s**2 + 6 * s) * p1 + (3 * s**2 - 2 * s) * m1) / duration
+        return Targets(position, velocity)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A validated trajectory: absolute waypoint times, indices of its joints, values."""
+    start: float
+    times: np.ndarray            # (K,) s of sim time
+    joints: np.ndarray           # (n,) indices into joint_names
+    positions: np.ndarray        # (K, n)
+    velocities: np.ndarray       # (K, n), zeros where not given
+    has_velocities: np.ndarray   # (K,) bool
+
+
+def _float_vector(values, what):
+    try:
+        raw = np.asarray(values)
+    except (TypeError, ValueError) as error:
+        raise _Rejected(Reason.MALFORMED, f'{what} must be numbers ({error})') from None
+    if raw.dtype.kind not in 'iuf':
+        raise _Rejected(Reason.MALFORMED, f'{what} must be numbers, got {reprlib.repr(values)}')
+    if raw.ndim != 1:
+        raise _Rejected(Reason.MALFORMED, f'{what} must be a flat list of numbers')
+    return raw.astype(float)
+
+
+def _float_scalar(value, what):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise _Rejected(Reason.MALFORMED, f'{what} must be a number, got {reprlib.repr(value)}')
+    out = float(value)
+    if not math.isfinite(out):
+        raise _Rejected(Reason.NOT_FINITE, f'{what} is {out}')
+    return out
+
+
+def _check_finite(values, what, names):
+    bad = [names[i] for i in np.flatnonzero(~np.isfinite(values))]
+    if bad:
+        raise _Rejected(Reason.NOT_FINITE, f'{what} not finite for joint(s) {", ".join(bad)}')
+
+
+class CommandHandler:
+    """Turns joint commands into servo targets sampled in sim time.
+
+    joint_names: the joints commands may address; array commands list positions in this
+    order and `sample` returns targets in it. initial_positions: targets until the first
+    command (rad or m).
+    """
+
+    def __init__(self, joint_names, initial_positions):
+        self.joint_names = tuple(str(n) for n in joint_names)
+        if not self.joint_names or len(set(self.joint_names)) != len(self.joint_names):
+            raise ValueError(f'joint names must be non-empty and unique: {self.joint_names}')
+        initial = np.array(initial_positions, dtype=float)
+        if initial.shape != (len(self.joint_names),) or not np.all(np.isfinite(initial)):
+            raise ValueError(f'need {len(self.joint_names)} finite initial positions, '
+                             f'got {initial_positions!r}')
+        self._index = {name: i for i, name in enumerate(self.joint_names)}
+        self._active = _Spline.hold(0.0, initial)
+        self._pending = None
+        self._rejections = Counter()
+
+    @property
+    def rejections(self):
+        """{reason value: count} of rejected commands since construction."""
+        return {reason.value: n for reason, n in self._rejections.items()}
+
+    def sample(self, t):
+        """`Targets` at sim time `t` (s); `t` should not go back past commands given."""
+        self._start_pending(t)
+        return self._active.sample(t)
+
+    def set_positions(self, positions, now):
+        """Hold `positions` (all joints, `joint_names` order) from sim time `now` (s) on."""
+        try:
+            values = _float_vector(positions, 'position command')
+            if values.size != len(self.joint_names):
+                raise _Rejected(Reason.ARRAY_LENGTH,
+                                f'position command has {values.size} values, expected '
+                                f'{len(self.joint_names)} ({", ".join(self.joint_names)})')
+            _check_finite(values, 'position command', self.joint_names)
+        except _Rejected as rejected:
+            return self._reject(rejected)
+        self._pending = None
+        self._active = _Spline.hold(now, values)
+        return CommandResult()
+
+    def set_trajectory(self, command, now):
+        """Accept `command` (a `TrajectoryCommand`) received at sim time `now` (s), or reject it.
+
+        Never raises for bad input: the returned `CommandResult` says what was wrong.
+        """
+        try:
+            plan = self._validate(command, now)
+        except _Rejected as rejected:
+            return self._reject(rejected)
+        self._start_pending(now)
+        if plan.start > now:
+            self._pending = plan
+        else:
+            self._pending = None
+            self._active = self._spline(plan, now)
+        return CommandResult()
+
+    def _reject(self, rejected):
+        self._rejections[rejected.reason] += 1
+        return CommandResult(rejected.reason, str(rejected))
+
+    def _start_pending(self, t):
+        if self._pending is not None and t >= self._pending.start:
+            plan, self._pending = self._pending, None
+            self._active = self._spline(plan, plan.start)
+
+    def _spline(self, plan, handoff):
+        """The active path once `plan` takes over at sim time `handoff` (s)."""
+        before = self._active.sample(handoff)
+        keep = plan.times >= handoff
+        count = int(keep.sum())
+        positions = np.tile(before.positions, (count, 1))
+        velocities = np.zeros_like(positions)
+        positions[:, plan.joints] = plan.positions[keep]
+        velocities[:, plan.joints] = plan.velocities[keep]
+        times, cubic = plan.times[keep], plan.has_velocities[keep]
+        if times[0] > handoff:
+            times = np.concatenate([[handoff], times])
+            positions = np.vstack([before.positions, positions])
+            velocities = np.vstack([before.velocities, velocities])
+            cubic = np.concatenate([[True], cubic])
+        return _Spline(times, positions, velocities, cubic)
+
+    def _validate(self, command, now):
+        try:
+            names = list(command.joint_names)
+            points = list(command.points)
+            start_value = command.start_time
+        except (AttributeError, TypeError) as error:
+            raise _Rejected(Reason.MALFORMED, f'not a joint trajectory ({error})') from None
+        if not all(isinstance(n, str) for n in names):
+            raise _Rejected(Reason.MALFORMED,
+                            f'joint names must be strings, got {reprlib.repr(names)}')
+        if not names:
+            raise _Rejected(Reason.EMPTY, 'trajectory has no joint names')
+        if not points:
+            raise _Rejected(Reason.EMPTY, 'trajectory has no points')
+        duplicates = sorted(n for n, c in Counter(names).items() if c > 1)
+        if duplicates:
+            raise _Rejected(Reason.DUPLICATE_JOINT,
+                            f'joint(s) named more than once: {", ".join(duplicates)}')
+        unknown = [n for n in names if n not in self._index]
+        if unknown:
+            raise _Rejected(Reason.UNKNOWN_JOINT,
+                            f'unknown joint(s) {", ".join(unknown)}; known: '
+                            f'{", ".join(self.joint_names)}')
+        start = _float_scalar(start_value, 'start time')
+        if start < 0.0:
+            raise _Rejected(Reason.TIME_NEGATIVE, f'start time {start} s is negative')
+        positions, velocities, has_velocities, offsets = [], [], [], []
+        for i, point in enumerate(points):
+            p, v, offset = self._validate_point(i, point, names, offsets)
+            positions.append(p)
+            has_velocities.append(v is not None)
+            velocities.append(v if v is not None else np.zeros(len(names)))
+            offsets.append(offset)
+        explicit_start = start != 0.0
+        if not explicit_start:
+            start = now
+        if not math.isfinite(start + offsets[-1]):
+            raise _Rejected(Reason.NOT_FINITE, f'trajectory end time {start + offsets[-1]} s')
+        times = start + np.array(offsets)
+        if np.any(np.diff(times) <= 0.0):
+            raise _Rejected(Reason.TIME_NOT_INCREASING,
+                            f'waypoint times too close to tell apart at start time {start} s')
+        if explicit_start and times[-1] < now:
+            raise _Rejected(Reason.ENDS_IN_PAST,
+                            f'trajectory starting at {start} s ends at {times[-1]} s, '
+                            f'before now ({now} s)')
+        return _Plan(start=start, times=times,
+                     joints=np.array([self._index[n] for n in names]),
+                     positions=np.array(positions), velocities=np.array(velocities),
+                     has_velocities=np.array(has_velocities))
+
+    @staticmethod
+    def _validate_point(i, point, names, earlier_offsets):
+        try:
+            raw_positions, raw_velocities = point.positions, point.velocities
+            raw_time = point.time_from_start
+        except AttributeError as error:
+            raise _Rejected(Reason.MALFORMED, f'point {i} is not a trajectory point '
+                                              f'({error})') from None
+        positions = _float_vector(raw_positions, f'point {i} positions')
+        if positions.size != len(names):
+            raise _Rejected(Reason.POSITIONS_LENGTH,
+                            f'point {i} has {positions.size} positions for {len(names)} joints')
+        _check_finite(positions, f'point {i} positions', names)
+        velocities = None
+        if raw_velocities is not None:
+            velocities = _float_vector(raw_velocities, f'point {i} velocities')
+            if velocities.size == 0:
+                velocities = None
+            elif velocities.size != len(names):
+                raise _Rejected(Reason.VELOCITIES_LENGTH,
+                                f'point {i} has {velocities.size} velocities for '
+                                f'{len(names)} joints')
+            else:
+                _check_finite(velocities, f'point {i} velocities', names)
+        offset = _float_scalar(raw_time, f'point {i} time_from_start')
+        if offset < 0.0:
+            raise _Rejected(Reason.TIME_NEGATIVE,
+                            f'point {i} time_from_start {offset} s is negative')
+        if earlier_offsets and offset <= earlier_offsets[-1]:
+            raise _Rejected(Reason.TIME_NOT_INCREASING,
+                            f'point {i} time_from_start {offset} s is not after point {i - 1} '
+                            f'({earlier_offsets[-1]} s)')
+        return positions, velocities, offset

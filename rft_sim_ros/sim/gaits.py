@@ -1,0 +1,164 @@
+"""Built-in gaits: functions of sim time that return joint position targets.
+
+A gait maps sim time t (s) to position targets (rad) for the joints of a set of
+knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee, ankle, leg by leg;
+for the hexapod that is `rft_sim_ros.sim.hexapod.JOINT_NAMES`) or as a name -> value dict.
+Pure numpy: the leg geometry is passed in (defaults: the bundled hexapod).
+
+Gaits (`make_gait(name, ...)`):
+- 'none'   `StandGait`: hold the neutral pose (all joints 0).
+- 'tripod' `TripodGait`: the alternating tripod of RFT-SiM; walks towards +x of base_link.
+"""
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from rft_sim_ros.sim import hexapod
+from rft_sim_ros.sim.leg_kinematics import LateralLegs
+
+
+def _joint_names(legs):
+    return tuple(f'{leg}_{joint}' for leg in legs.names for joint in ('knee', 'ankle'))
+
+
+def _smoothstep(u):
+    """0 for u <= 0, 1 for u >= 1, 3u^2 - 2u^3 between: continuous value and slope."""
+    u = min(max(u, 0.0), 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+@dataclass(frozen=True, eq=False)
+class StandGait:
+    """Hold the neutral pose: every joint target is 0 rad at all times."""
+    legs: LateralLegs = hexapod.LEGS
+
+    @property
+    def joint_names(self):
+        """Joint order of `targets`: '<leg>_knee', '<leg>_ankle' for each leg in legs.names."""
+        return _joint_names(self.legs)
+
+    def targets(self, t):
+        """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
+        return np.zeros(2 * len(self.legs.names))
+
+    def target_dict(self, t):
+        """Joint position targets (rad) at time t (s) as {joint name: value}."""
+        return dict(zip(self.joint_names, self.targets(t).tolist()))
+
+
+@dataclass(frozen=True, eq=False)
+class TripodGait(StandGait):
+    """Alternating tripod gait (RFT-SiM defaults), walking towards +x of base_link.
+
+    Each leg has a phase phi = frac(frequency_hz * (t - start_time_s) + phase_offsets[leg]).
+    Stance, phi in [0, stance_fraction): the foot moves at constant speed on the neutral
+    height from +step_length_m/2 to -step_length_m/2 fore-aft of its neutral position (so
+    the body moves forward; a negative step length walks backward).
+    Swing, the rest of the cycle: the foot returns along a cubic Hermite curve in x that
+    matches the stance velocity at both ends (overshooting the stroke by ~4 % of the step
+    at stance_fraction 0.5)
+    while it rises by step_height_m * sin^2(pi s), s the swing fraction; position and velocity
+    are continuous everywhere, so position servos are not kicked.
+    Before start_time_s the neutral pose is held; over the next ramp_time_s the stroke and
+    the lift grow from 0 to full size with a smoothstep, so the targets stay continuous and
+    smooth from the neutral pose. Foot targets become joint targets via `LateralLegs.inverse`.
+
+    frequency_hz: cycles per second. stance_fraction: in (0, 1). step_length_m, step_height_m:
+    stroke and lift of the foot tip (m). phase_offsets: leg name -> phase in cycles.
+    Raises ValueError if a parameter is out of range or the path leaves the legs' workspace.
+    """
+    frequency_hz: float = 1.0
+    stance_fraction: float = 0.5
+    step_length_m: float = 0.05
+    step_height_m: float = 0.06
+    phase_offsets: Mapping[str, float] = field(
+        default_factory=lambda: dict(hexapod.TRIPOD_PHASES))
+    start_time_s: float = 0.0
+    ramp_time_s: float = 0.5
+
+    def __post_init__(self):
+        numbers = {'frequency_hz': self.frequency_hz, 'stance_fraction': self.stance_fraction,
+                   'step_length_m': self.step_length_m, 'step_height_m': self.step_height_m,
+                   'start_time_s': self.start_time_s, 'ramp_time_s': self.ramp_time_s}
+        for key, value in numbers.items():
+            if not math.isfinite(value):
+                raise ValueError(f'{key} must be finite, got {value}')
+        if self.frequency_hz <= 0.0:
+            raise ValueError(f'frequency_hz must be > 0, got {self.frequency_hz}')
+        if not 0.0 < self.stance_fraction < 1.0:
+            raise ValueError(f'stance_fraction must be in (0, 1), got {self.stance_fraction}')
+        if self.step_height_m < 0.0 or self.ramp_time_s < 0.0:
+            raise ValueError('step_height_m and ramp_time_s must be >= 0')
+        if set(self.phase_offsets) != set(self.legs.names):
+            raise ValueError(f'phase_offsets must name exactly the legs {self.legs.names}, '
+                             f'got {sorted(self.phase_offsets)}')
+        object.__setattr__(self, '_offsets', np.array(
+            [float(self.phase_offsets[leg]) for leg in self.legs.names]))
+        object.__setattr__(self, '_neutral', self.legs.neutral_feet())
+        self._check_workspace()
+
+    def phases(self, t):
+        """(N,) phase of each leg in [0, 1) at time t (s); stance while < stance_fraction."""
+        return np.mod(self.frequency_hz * (t - self.start_time_s) + self._offsets, 1.0)
+
+    def amplitude(self, t):
+        """Stroke and lift scale at time t (s): 0 before start_time_s, 1 after the ramp."""
+        if self.ramp_time_s == 0.0:
+            return 1.0 if t >= self.start_time_s else 0.0
+        return _smoothstep((t - self.start_time_s) / self.ramp_time_s)
+
+    def foot_offsets(self, t):
+        """Foot targets relative to the neutral feet at time t (s): (dx, dz), each (N,) m,
+        dx fore-aft (+x forward), dz up, base_link axes."""
+        return self._path(self.phases(t), self.amplitude(t))
+
+    def foot_targets(self, t):
+        """(N, 2) m: intended fore-aft position x and height z of each foot tip in base_link."""
+        dx, dz = self.foot_offsets(t)
+        return np.stack([self._neutral[:, 0] + dx, self._neutral[:, 2] + dz], axis=-1)
+
+    def targets(self, t):
+        """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
+        dx, dz = self.foot_offsets(t)
+        knee, ankle = self.legs.inverse(self._neutral[:, 0] + dx, self._neutral[:, 2] + dz)
+        return np.stack([knee, ankle], axis=-1).ravel()
+
+    def _path(self, phi, scale):
+        """Foot offsets (dx, dz) in m at phases phi (any shape), stroke and lift times scale."""
+        beta = self.stance_fraction
+        length = scale * self.step_length_m
+        stance = phi < beta
+        s_stance = phi / beta
+        s = (phi - beta) / (1.0 - beta)
+        slope = -length * (1.0 - beta) / beta  # stance velocity, per unit swing fraction
+        # cubic Hermite from -length/2 to +length/2 with end slopes `slope`
+        swing_x = (length * (s * s * (3.0 - 2.0 * s) - 0.5)
+                   + slope * s * (1.0 - s) * (1.0 - 2.0 * s))
+        dx = np.where(stance, length * (0.5 - s_stance), swing_x)
+        dz = np.where(stance, 0.0, scale * self.step_height_m * np.sin(np.pi * s) ** 2)
+        return dx, dz
+
+    def _check_workspace(self):
+        """Raise ValueError unless every foot target over a full cycle is reachable."""
+        phi = np.broadcast_to(np.linspace(0.0, 1.0, 721)[:, None], (721, len(self.legs.names)))
+        dx, dz = self._path(phi, 1.0)
+        bad = ~self.legs.reachable(self._neutral[:, 0] + dx, self._neutral[:, 2] + dz).all(axis=0)
+        if bad.any():
+            legs = [name for name, b in zip(self.legs.names, bad) if b]
+            raise ValueError(
+                f'step_length_m={self.step_length_m}, step_height_m={self.step_height_m} '
+                f'move the feet of {legs} out of reach or past a joint limit')
+
+
+GAITS = {'none': StandGait, 'tripod': TripodGait}
+
+
+def make_gait(name, legs=hexapod.LEGS, **params):
+    """Gait `name` ('none' or 'tripod') for `legs`, with keyword parameters of its class."""
+    try:
+        cls = GAITS[name]
+    except KeyError:
+        raise ValueError(f'unknown gait {name!r}; choose one of {sorted(GAITS)}') from None
+    return cls(legs=legs, **params)

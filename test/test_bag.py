@@ -1,0 +1,146 @@
+"""rosbag2 (MCAP) recording of the published topics, read back with rosbags."""
+import dataclasses
+
+import numpy as np
+import pytest
+import yaml
+from rosbags.rosbag2 import WriterError
+
+from rft_sim_ros.ros import messages, topics
+from rft_sim_ros.ros.bag import BagWriter, TopicInfo, bag_topics, read_messages
+from rft_sim_ros.ros.factory import RosbagsFactory
+from rft_sim_ros.ros.stamps import seconds_to_ns
+from ros_test_support import make_state, messages_equal
+
+LEGS = ('L1', 'R1', 'L2')
+DT = 0.0125           # s of sim time between recorded states (publish rate 80 Hz)
+N_STATES = 40
+DIAGNOSTICS_EVERY = 8
+
+
+def states(n=N_STATES, start=3.0):
+    return [make_state(time=start + i * DT, legs=LEGS, seed=i) for i in range(n)]
+
+
+def stamp_ns(time_msg):
+    return time_msg.sec * 1_000_000_000 + time_msg.nanosec
+
+
+def message_stamp_ns(topic, msg):
+    if topic == topics.CLOCK:
+        return stamp_ns(msg.clock)
+    if topic == topics.TF:
+        assert len({stamp_ns(t.header.stamp) for t in msg.transforms}) == 1
+        return stamp_ns(msg.transforms[0].header.stamp)
+    if topic == topics.PLATES:
+        return stamp_ns(msg.markers[0].header.stamp)
+    return stamp_ns(msg.header.stamp)
+
+
+@pytest.fixture(scope='module')
+def recorded(tmp_path_factory):
+    path = tmp_path_factory.mktemp('bags') / 'run'
+    run = messages.RunStatus(scene='hexapod', real_time_factor=11.0)
+    recorded_states = states()
+    with BagWriter(path, LEGS, plates=True) as writer:
+        for i, state in enumerate(recorded_states):
+            writer.write_state(state)
+            if i % DIAGNOSTICS_EVERY == 0:
+                writer.write_diagnostics(state, run)
+    return path, recorded_states
+
+
+def test_bag_lists_the_published_topics_types_and_counts(recorded):
+    path, recorded_states = recorded
+    n_diag = len(range(0, N_STATES, DIAGNOSTICS_EVERY))
+    expected = {topic: TopicInfo(msgtype, n_diag if topic == topics.DIAGNOSTICS else N_STATES)
+                for topic, msgtype in topics.published_topics(LEGS, plates=True).items()}
+    assert bag_topics(path) == expected
+
+
+def test_bag_is_mcap_rosbag2_version_9(recorded):
+    path, _ = recorded
+    info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['version'] == 9
+    assert info['storage_identifier'] == 'mcap'
+    assert all(f.endswith('.mcap') for f in info['relative_file_paths'])
+    assert info['message_count'] == sum(t.count for t in bag_topics(path).values())
+
+
+def test_timestamps_are_sim_time_and_increase(recorded):
+    path, recorded_states = recorded
+    expected_ns = [seconds_to_ns(s.time) for s in recorded_states]
+    by_topic = {}
+    for topic, time_ns, msg in read_messages(path):
+        assert message_stamp_ns(topic, msg) == time_ns
+        by_topic.setdefault(topic, []).append(time_ns)
+    for topic, times in by_topic.items():
+        assert all(b > a for a, b in zip(times, times[1:])), topic
+    assert by_topic[topics.JOINT_STATES] == expected_ns
+    assert by_topic[topics.DIAGNOSTICS] == expected_ns[::DIAGNOSTICS_EVERY]
+
+
+def test_clock_equals_sim_time(recorded):
+    path, recorded_states = recorded
+    clocks = [(time_ns, msg) for _, time_ns, msg in read_messages(path, [topics.CLOCK])]
+    assert len(clocks) == N_STATES
+    for state, (time_ns, msg) in zip(recorded_states, clocks):
+        assert time_ns == stamp_ns(msg.clock) == seconds_to_ns(state.time)
+        assert msg.clock.sec + msg.clock.nanosec * 1e-9 == pytest.approx(state.time, abs=1e-9)
+
+
+def test_bag_holds_exactly_the_messages_the_node_publishes(recorded):
+    path, recorded_states = recorded
+    factory = RosbagsFactory()
+    expected = [pair for state in recorded_states
+                for pair in messages.state_messages(factory, state, plates=True)]
+    read = [(topic, msg) for topic, _, msg in read_messages(path)
+            if topic != topics.DIAGNOSTICS]
+    assert sorted(t for t, _ in read) == sorted(t for t, _ in expected)
+    for topic in {t for t, _ in expected}:
+        mine = [m for t, m in expected if t == topic]
+        theirs = [m for t, m in read if t == topic]
+        assert all(messages_equal(a, b) for a, b in zip(mine, theirs)), topic
+
+
+def test_read_messages_filters_topics(recorded):
+    path, _ = recorded
+    wrench = topics.leg_wrench_topic('R1')
+    assert {t for t, _, _ in read_messages(path, [wrench, topics.ODOM])} == {wrench,
+                                                                             topics.ODOM}
+    assert list(read_messages(path, ['/not/recorded'])) == []
+
+
+def test_plates_are_only_recorded_when_asked(tmp_path):
+    with BagWriter(tmp_path / 'bag', ['L1'], plates=False) as writer:
+        for state in states(3):
+            writer.write_state(dataclasses.replace(state, legs=state.legs[:1]))
+    recorded_topics = bag_topics(tmp_path / 'bag')
+    assert topics.PLATES not in recorded_topics
+    assert recorded_topics[topics.CLOCK].count == 3
+    assert recorded_topics[topics.DIAGNOSTICS].count == 0
+
+
+def test_writer_refuses_foreign_topics_and_types(tmp_path):
+    factory = RosbagsFactory()
+    state = make_state(legs=('L1',))
+    with BagWriter(tmp_path / 'bag', ['L1']) as writer:
+        with pytest.raises(KeyError, match='/chatter'):
+            writer.write('/chatter', messages.clock_message(factory, state), 0)
+        with pytest.raises(TypeError, match='Odometry'):
+            writer.write(topics.ODOM, messages.clock_message(factory, state), 0)
+    assert all(info.count == 0 for info in bag_topics(tmp_path / 'bag').values())
+
+
+def test_writer_refuses_an_existing_folder(tmp_path):
+    (tmp_path / 'bag').mkdir()
+    with pytest.raises(WriterError, match='exists'):
+        BagWriter(tmp_path / 'bag', ['L1'])
+    assert not list((tmp_path / 'bag').iterdir())
+
+
+def test_leg_wrench_read_back_gives_vertical_force(recorded):
+    path, recorded_states = recorded
+    forces = [msg.wrench.force.z
+              for _, _, msg in read_messages(path, [topics.leg_wrench_topic('L2')])]
+    np.testing.assert_array_equal(forces, [s.legs[2].force[2] for s in recorded_states])
