@@ -48,6 +48,7 @@ class SceneConfig:
     legs: dict
     base_body: str
     publish_rate: float
+    control_rate: float
     params: dict
     raw: dict
 
@@ -181,6 +182,7 @@ def _validate(raw, path):
         legs={str(k): tuple(v) for k, v in legs.items()},
         base_body=str(raw.get('base_body', bodies[0])),
         publish_rate=_number(raw, 'publish_rate', where, default=100.0),
+        control_rate=_number(raw, 'control_rate', where, default=500.0),
         params=dict(raw.get('params') or {}),
         raw=raw,
     )

@@ -3,13 +3,20 @@
 This is the ROS-free core that the CLI, the benchmarks and the rclpy node all drive:
 build from a SceneConfig, `step()`, read `state()`, change `zeta`, `reset()`.
 Sim time is continuous across resets (`time` keeps counting), as ROS tools expect.
-A diverging run (non-finite or runaway state, or MuJoCo's own instability warnings) is
-detected after the step that caused it and reported through `diverged` (the reason) instead
-of stepping on with garbage.
+
+Servo commands take one path: every position servo of the model (a MuJoCo `position`
+actuator on a joint) is driven by `commands`, a CommandHandler over those joints. External
+controllers (the ROS node) and built-in gaits (scenarios) both feed it; it is sampled at the
+scene's control rate and held in between (zero-order hold, as a servo bus would).
+
+A diverging run is detected and reported through `diverged` (the reason) instead of stepping
+on with garbage: MuJoCo's own instability warnings (it resets a non-finite state) are
+checked every step, a runaway speed at every control tick.
 """
 import mujoco
 import numpy as np
 
+from .commands import CommandHandler
 from .engine import LowVelocity, SandEngine
 from .geoms import body_plates
 from .scenarios import load_scenario
@@ -22,6 +29,20 @@ RUNAWAY_SPEED = 1.0e3
 
 _INSTABILITY_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
                          mujoco.mjtWarning.mjWARN_BADQPOS)
+
+
+def position_servos(model):
+    """[(actuator id, joint id)] of MuJoCo `position` actuators acting on a joint: a fixed
+    gain kp and an affine bias -kp q (what <position> compiles to), in actuator order."""
+    servos = []
+    for a in range(model.nu):
+        kp = model.actuator_gainprm[a, 0]
+        if (model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
+                and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+                and kp != 0 and model.actuator_biasprm[a, 1] == -kp):
+            servos.append((a, int(model.actuator_trnid[a, 0])))
+    return servos
 
 
 class SimulationDiverged(RuntimeError):
@@ -79,12 +100,25 @@ class Simulation:
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._legs = [(name, [self.engine.body_names.index(b) for b in bodies],
                        self.model.body(bodies[-1]).id) for name, bodies in scene.legs.items()]
+        self._servos = position_servos(self.model)
+        self.servo_joint_names = tuple(self.model.joint(j).name for _, j in self._servos)
+        self._servo_ctrl = np.array([a for a, _ in self._servos], dtype=int)
+        self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
+        self._ctrl = self.data.ctrl
         self._time_offset = 0.0
-        self.diverged = None
         self.steps = 0
+        self._start()
+
+    def _start(self):
+        """Initial state, fresh command handler, cleared divergence flags."""
+        self.diverged = None
         self._warnings = self._warning_count()
         self.scenario.initialize(self)
         mujoco.mj_forward(self.model, self.data)
+        self.commands = None
+        if self._servos:
+            initial = [self.data.qpos[self.model.jnt_qposadr[j]] for _, j in self._servos]
+            self.commands = CommandHandler(self.servo_joint_names, initial)
 
     @property
     def timestep(self):
@@ -109,23 +143,38 @@ class Simulation:
         return sum(self.data.warning[w].number for w in _INSTABILITY_WARNINGS)
 
     def step(self, count=1):
-        """Advance `count` steps (scenario control, sand, MuJoCo, scenario observation).
-        Raises SimulationDiverged, and keeps `diverged` set, once the state blows up."""
+        """Advance `count` steps: at control ticks the scenario's control and the servo
+        targets, then sand + MuJoCo. Raises SimulationDiverged, and keeps `diverged` set,
+        once the state blows up."""
         if self.diverged:
             raise SimulationDiverged(self.diverged)
-        scenario = self.scenario
+        scenario, engine, data = self.scenario, self.engine, self.data
+        observe_every = scenario.observe_interval
         for _ in range(count):
-            scenario.control(self)
-            self.engine.step()
+            if self.steps % self._control_every == 0:
+                self._control_tick()
+            before = data.time
+            engine.step()
             self.steps += 1
-            problem = self._check()
-            if problem:
-                self.diverged = f'at t = {self.time:.4f} s: {problem}'
-                raise SimulationDiverged(self.diverged)
-            if self.steps % scenario.observe_interval == 0:
+            if data.time <= before:  # MuJoCo reset a non-finite state
+                self._diverge(self._check() or 'MuJoCo reset an unstable state')
+            if self.steps % observe_every == 0:
                 scenario.observe(self)
 
+    def _control_tick(self):
+        problem = self._check()
+        if problem:
+            self._diverge(problem)
+        self.scenario.control(self)
+        if self.commands is not None:
+            self._ctrl[self._servo_ctrl] = self.commands.sample(self.time).positions
+
+    def _diverge(self, problem):
+        self.diverged = f'at t = {self.time:.4f} s: {problem}'
+        raise SimulationDiverged(self.diverged)
+
     def _check(self):
+        """Why the current state is unusable, or None."""
         warnings = self._warning_count()
         if warnings != self._warnings:
             self._warnings = warnings
@@ -142,10 +191,7 @@ class Simulation:
         """Back to the scene's initial state; sim time keeps counting forward."""
         self._time_offset += self.data.time
         mujoco.mj_resetData(self.model, self.data)
-        self.diverged = None
-        self._warnings = self._warning_count()
-        self.scenario.initialize(self)
-        mujoco.mj_forward(self.model, self.data)
+        self._start()
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py)."""
