@@ -46,15 +46,18 @@ def _random_state(model, data, seed):
 
 
 @pytest.mark.parametrize('seed', range(5))
-def test_slot_jacobians_match_mujoco(seed):
+def test_slot_jacobians_and_free_force_match_mujoco(seed):
     model, data, engine = _arm()
     _random_state(model, data, seed)
     mujoco.mj_forward(model, data)
     bodies = np.arange(len(engine.body_ids))
-    jac = np.zeros((6 * len(bodies), model.nv))
-    coupling.slot_jacobians(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
-                            data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
-                            model.body_parentid, model.dof_parentid, jac)
+    jac = np.zeros((6 * len(bodies) + 1, model.nv))
+    coupling.prepare_solve(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
+                           data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
+                           model.body_parentid, model.dof_parentid, data.qfrc_passive,
+                           data.qfrc_actuator, data.qfrc_applied, data.qfrc_bias, jac)
+    free_force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
+    assert np.allclose(jac[-1], free_force)
     for slot, body in enumerate(engine.body_ids):
         jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         mujoco.mj_jac(model, data, jacp, jacr, data.xipos[body], body)
