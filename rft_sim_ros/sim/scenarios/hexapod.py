@@ -97,12 +97,22 @@ class Scenario(BaseScenario):
             [t], d.xpos[self._base], d.site_xpos[self._feet, 2],
             [force_z[rows].sum() for rows in self._leg_rows]]))
 
+    def series(self):
+        """The walk's time course: {'time_s', 'x_m', 'y_m', 'z_m'} (base_link origin, world)
+        and 'sinkage_m' (mean stance foot-tip depth), (n,) arrays."""
+        s = np.array(self._samples) if self._samples else np.zeros((0, 16))
+        depth = np.maximum(self.scene.surface_height - s[:, 4:10], 0.0)
+        stance = self._stance(s[:, 0])
+        counts = stance.sum(axis=1)
+        sinkage = np.where(counts > 0, (depth * stance).sum(axis=1) / np.maximum(counts, 1), 0.0)
+        return {'time_s': s[:, 0], 'x_m': s[:, 1], 'y_m': s[:, 2], 'z_m': s[:, 3],
+                'sinkage_m': sinkage}
+
     def _stance(self, times):
         """(n, 6) bool: which legs are in stance at the given gait times (s)."""
         if self.gait is None:
             return np.ones((len(times), len(LEG_NAMES)), dtype=bool)
-        phases = np.array([self.gait.phases(t) for t in times])
-        return phases < self.stance_fraction
+        return self.gait.phases(np.asarray(times)[:, None]) < self.stance_fraction
 
     def metrics(self, sim):
         total_mass = float(np.sum(sim.model.body_mass))
