@@ -3,6 +3,7 @@
   rft-sim scenes
   rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
                     [--set key=value ...] [--out DIR]
+  rft-sim validate [--quick] [--out DIR]
 
 Errors in what the user asked for (unknown scene, bad value) print one line and exit 2.
 """
@@ -47,6 +48,16 @@ def cmd_run(args):
     return 0 if summary['stable'] else 1
 
 
+def cmd_validate(args):
+    from .validation import run_validation
+    results = run_validation(args.out, quick=args.quick,
+                             log=lambda line: print(f'validate: {line}', file=sys.stderr))
+    for trend in results.trends:
+        print(f'{"held    " if trend.held else "NOT HELD"}  {trend.name}')
+    print(f'wrote {Path(args.out) / "report.md"} ({results.wall_s:.0f} s)', file=sys.stderr)
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog='rft-sim', description=__doc__.split('\n')[0])
     commands = parser.add_subparsers(dest='command', required=True)
@@ -62,6 +73,14 @@ def build_parser():
     run.add_argument('--out', help='output folder (default: runs/<scene>-<time>)')
     run.add_argument('--quiet', action='store_true', help='no progress bar')
     run.set_defaults(func=cmd_run)
+    validate = commands.add_parser(
+        'validate', help="reproduce the RFT-SiM paper's trends as a report with plots")
+    validate.add_argument('--quick', action='store_true',
+                          help='coarse plates and fewer cases (a few minutes)')
+    validate.add_argument('--out', default='validation',
+                          help='output folder for report.md, results.json and plots '
+                               '(default: validation/)')
+    validate.set_defaults(func=cmd_validate)
     return parser
 
 
