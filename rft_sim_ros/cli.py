@@ -4,6 +4,7 @@
   rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
                     [--set key=value ...] [--out DIR]
   rft-sim validate [--quick] [--out DIR]
+  rft-sim bench [--quick] [--out DIR]
 
 Errors in what the user asked for (unknown scene, bad value) print one line and exit 2.
 """
@@ -58,6 +59,18 @@ def cmd_validate(args):
     return 0
 
 
+def cmd_bench(args):
+    from .bench import run_bench
+    results = run_bench(args.out, quick=args.quick,
+                        log=lambda line: print(f'bench: {line}', file=sys.stderr))
+    cost = results['step_cost']
+    print(f'hexapod step: {cost["sand_step_s"] * 1e6:.1f} us on sand, '
+          f'{cost["rigid_step_s"] * 1e6:.1f} us rigid (x{cost["ratio_full_to_rigid"]:.2f}); '
+          f'trial real-time factor {results["trial"]["real_time_factor"]:.1f}')
+    print(f'wrote {Path(args.out) / "bench.md"}', file=sys.stderr)
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog='rft-sim', description=__doc__.split('\n')[0])
     commands = parser.add_subparsers(dest='command', required=True)
@@ -73,6 +86,10 @@ def build_parser():
     run.add_argument('--out', help='output folder (default: runs/<scene>-<time>)')
     run.add_argument('--quiet', action='store_true', help='no progress bar')
     run.set_defaults(func=cmd_run)
+    bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')
+    bench.add_argument('--quick', action='store_true', help='few, short measurements')
+    bench.add_argument('--out', default='bench/results', help='output folder')
+    bench.set_defaults(func=cmd_bench)
     validate = commands.add_parser(
         'validate', help="reproduce the RFT-SiM paper's trends as a report with plots")
     validate.add_argument('--quick', action='store_true',

@@ -23,6 +23,15 @@ from ..units import zeta_problem
 _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
                  'rft.plate_density_per_mm2': 'rft.plates_per_body'}
 
+#: Every setting the scene format knows (dotted paths); any may be overridden, set or not.
+SCHEMA_KEYS = frozenset({
+    'name', 'description', 'scenario', 'model', 'timestep', 'duration', 'zeta',
+    'sand', 'sand.surface_height', 'rft', 'rft.bodies', 'rft.plates_per_body',
+    'rft.plate_density_per_mm2', 'rft.plates', 'rft.normalisation', 'rft.low_velocity',
+    'rft.low_velocity.method', 'rft.low_velocity.rest_speed', 'rft.low_velocity.ema_alpha',
+    'rft.dynamic', 'rft.dynamic.lambda', 'rft.dynamic.density', 'legs', 'base_body',
+    'publish_rate', 'control_rate'})
+
 
 class SceneError(ValueError):
     """A scene cannot be loaded or is invalid; the message says what to fix."""
@@ -42,6 +51,7 @@ class SceneConfig:
     sand_bodies: tuple
     plates_per_body: int
     plate_density_per_mm2: float
+    plates_by_body: dict
     normalisation: str
     low_velocity: dict
     dynamic: dict
@@ -107,14 +117,17 @@ def apply_overrides(raw, overrides):
         if key in params:
             params[key] = value
             continue
+        known = key in SCHEMA_KEYS
         node = raw
         parts = key.split('.')
         for part in parts[:-1]:
+            if known and not isinstance(node.get(part), dict):
+                node[part] = {}
             if not isinstance(node.get(part), dict):
                 raise SceneError(f'unknown setting {key!r}: scene values are '
                                  f'{sorted(params)} or dotted keys of the scene file')
             node = node[part]
-        if parts[-1] not in node and key not in _ALTERNATIVES:
+        if parts[-1] not in node and not known:
             raise SceneError(f'unknown setting {key!r}: scene values are {sorted(params)} '
                              'or dotted keys of the scene file')
         node[parts[-1]] = value
@@ -160,6 +173,12 @@ def _validate(raw, path):
         raise SceneError(f'{where}: rft.plates_per_body must be a positive integer, got {count!r}')
     if density is not None:
         density = _number(rft, 'plate_density_per_mm2', where)
+    by_body = rft.get('plates') or {}
+    if not isinstance(by_body, dict) or not all(
+            b in bodies and isinstance(n, int) and not isinstance(n, bool) and n >= 1
+            for b, n in by_body.items()):
+        raise SceneError(f'{where}: rft.plates must map sand bodies to positive plate counts, '
+                         f'got {by_body!r}')
     legs = raw.get('legs') or {}
     if not isinstance(legs, dict) or not all(
             isinstance(v, list) and v and all(b in bodies for b in v) for v in legs.values()):
@@ -176,6 +195,7 @@ def _validate(raw, path):
         sand_bodies=tuple(bodies),
         plates_per_body=count,
         plate_density_per_mm2=density,
+        plates_by_body=dict(by_body),
         normalisation=str(rft.get('normalisation', 'treers')),
         low_velocity=dict(rft.get('low_velocity') or {}),
         dynamic=rft.get('dynamic'),
