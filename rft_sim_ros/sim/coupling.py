@@ -30,8 +30,10 @@ from ..rft.kernel import leading_plate_force
 
 MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0
 
-#: Active-set iterations per step before falling back to per-plate clamped forces.
+#: Solves per step at most (the active set settles in one or two almost always).
 MAX_ITERATIONS = 16
+#: Set changes a plate may make within one step; after that it keeps its set (anti-cycling).
+MAX_FLIPS = 2
 
 
 def cluster_plates(centroids, size=32):
@@ -310,8 +312,11 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     (`plate_state`/`plate_step`, indexed by plate, updated here), otherwise as moving when
     faster than v_reg; so a step usually needs one solve. Writes states[:k],
     xi_new[:6S] (end-of-step twists) and wrench[:S] ([force; torque about COM], N, N m).
-    Returns the number of solves, negative if the sets had not settled after
-    MAX_ITERATIONS (the wrench then sums per-plate forces clamped to each plate's law).
+    A plate that has changed set MAX_FLIPS times keeps its set for the rest of the step
+    (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
+    active-set iterations can cycle); the wrench always sums per-plate forces clamped to
+    each plate's law, so a held plate's force stays within its law too. Returns the number
+    of solves, negative if some plate was held against its end velocity.
 
     Each plate adds to its slot's accumulators, by set: moving -> wrench h = [G; r x G];
     resting -> along response h u^T / v_reg (u = [d; r x d]); both -> across damper
@@ -350,6 +355,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     change_along = np.empty(k)
     change_across = np.empty(k)
     change_moving = np.empty(k)
+    flips = np.zeros(k, dtype=np.int8)
     changes = 0
     for j in range(k):
         if states[j] != OFF:
@@ -363,6 +369,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     system = np.zeros((nv, nv))
     rhs = np.zeros(nv)
     iterations = 0
+    held = 0
     converged = False
     while iterations < MAX_ITERATIONS and not converged:
         iterations += 1
@@ -413,6 +420,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
                 acc += jac[r, i] * solution[i]
             xi_new[r] = acc
         changes = 0
+        held = 0
         for j in range(k):
             base = 6 * out_slot[j]
             # plate velocity along d at the end of the step: u . xi+
@@ -423,7 +431,9 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
             old = states[j]
             # moving and off are reached from resting only
             new = wanted if (wanted == old or old == RESTING or wanted == RESTING) else RESTING
-            if new != old:
+            if new != old and flips[j] >= MAX_FLIPS:  # anti-cycling: it keeps its set
+                held += 1
+            elif new != old:
                 change_plate[changes] = j
                 change_along[changes] = ((inv_reg if new == RESTING else 0.0)
                                          - (inv_reg if old == RESTING else 0.0))
@@ -433,34 +443,28 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
                                           - (1.0 if old == MOVING else 0.0))
                 changes += 1
                 states[j] = new
+                flips[j] += 1
         converged = changes == 0
-    if converged:  # every plate's set matches its end velocity: the linear response holds
-        for s in range(slots):
-            _resting_block(k_rank[s], k_iso[s], block)
-            for a in range(6):
-                acc = w_moving[s, a]
-                for b in range(6):
-                    acc += block[a, b] * xi_new[6 * s + b]
-                wrench[s, a] = acc
-    else:  # sets still changing: sum per-plate forces, each clamped to the plate's law
-        applied = np.empty((k, 3))
-        implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new,
-                              v_reg, applied)
-        wrench[:slots, :] = 0.0
-        for j in range(k):
-            s = out_slot[j]
-            fx, fy, fz = applied[j, 0], applied[j, 1], applied[j, 2]
-            rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
-            wrench[s, 0] += fx
-            wrench[s, 1] += fy
-            wrench[s, 2] += fz
-            wrench[s, 3] += ry * fz - rz * fy
-            wrench[s, 4] += rz * fx - rx * fz
-            wrench[s, 5] += rx * fy - ry * fx
+    # Each plate's force within its law (exact where its set matches its end velocity,
+    # clamped where an oscillating plate was held in its set), summed per slot.
+    applied = np.empty((k, 3))
+    implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new, v_reg,
+                          applied)
+    wrench[:slots, :] = 0.0
+    for j in range(k):
+        s = out_slot[j]
+        fx, fy, fz = applied[j, 0], applied[j, 1], applied[j, 2]
+        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
+        wrench[s, 0] += fx
+        wrench[s, 1] += fy
+        wrench[s, 2] += fz
+        wrench[s, 3] += ry * fz - rz * fy
+        wrench[s, 4] += rz * fx - rx * fz
+        wrench[s, 5] += rx * fy - ry * fx
     for j in range(k):
         plate_state[out_plate[j]] = states[j]
         plate_step[out_plate[j]] = step
-    return iterations if converged else -iterations
+    return iterations if converged and held == 0 else -iterations
 
 
 @njit(cache=True, error_model='numpy')

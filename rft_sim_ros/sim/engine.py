@@ -28,13 +28,15 @@ class LowVelocity:
     """How RFT is treated where the direction of motion is ill-defined (|v| -> 0).
 
     method: 'implicit' (default): the sand may stop a plate within a step but not reverse
-            it; below `rest_speed` (m/s) the law is a stiff damper solved implicitly.
+            it, and holds a plate at rest; `rest_speed` (m/s) is the regularisation speed
+            below which the law is a stiff damper solved implicitly (a loaded body at rest
+            creeps at most at about rest_speed x load / capacity).
             'ema': the RFT-SiM paper's exponential moving average of each plate force with
             factor `ema_alpha` (0.1 in the paper's text, 0.5 in its code), explicit.
             'none': raw explicit RFT.
     """
     method: str = 'implicit'
-    rest_speed: float = 1e-4
+    rest_speed: float = 1e-5
     ema_alpha: float = 0.1
 
     def __post_init__(self):

@@ -100,7 +100,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         bar.close()
         for recorder in recorders:
             recorder.close()
-    sim_time = done * sim.timestep
+    sim_time = sim.steps * sim.timestep
     metrics = sim.scenario.metrics(sim) if done else {}
     summary = {
         'scene': scene.name,
@@ -111,7 +111,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         'wall_time_s': wall,
         'startup_time_s': startup,
         'real_time_factor': sim_time / wall if wall > 0 else float('inf'),
-        'steps': done,
+        'steps': sim.steps,
         'plates_total': sim.engine.plates_total,
         'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
                             for i, name in enumerate(sim.engine.body_names)},

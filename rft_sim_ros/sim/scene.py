@@ -30,7 +30,7 @@ SCHEMA_KEYS = frozenset({
     'rft.plate_density_per_mm2', 'rft.plates', 'rft.normalisation', 'rft.low_velocity',
     'rft.low_velocity.method', 'rft.low_velocity.rest_speed', 'rft.low_velocity.ema_alpha',
     'rft.dynamic', 'rft.dynamic.lambda', 'rft.dynamic.density', 'legs', 'base_body',
-    'publish_rate', 'control_rate'})
+    'publish_rate', 'control_rate', 'servo_kp'})
 
 
 class SceneError(ValueError):
@@ -59,6 +59,7 @@ class SceneConfig:
     base_body: str
     publish_rate: float
     control_rate: float
+    servo_kp: float
     params: dict
     raw: dict
 
@@ -98,14 +99,21 @@ def load_scene(name_or_path, overrides=None):
 
 
 def parse_assignment(text):
-    """'key=value' -> (key, value), the value read as YAML (numbers, lists, booleans)."""
+    """'key=value' -> (key, value), the value read as YAML (numbers, lists, booleans; 1e6
+    counts as a number)."""
     key, sep, value = text.partition('=')
     if not sep or not key.strip():
         raise SceneError(f'--set expects key=value, got {text!r}')
     try:
-        return key.strip(), yaml.safe_load(value)
+        parsed = yaml.safe_load(value)
     except yaml.YAMLError:
-        return key.strip(), value
+        parsed = value
+    if isinstance(parsed, str):  # YAML 1.1 reads 1e6 as text; users mean a number
+        try:
+            parsed = float(parsed)
+        except ValueError:
+            pass
+    return key.strip(), parsed
 
 
 def apply_overrides(raw, overrides):
@@ -203,6 +211,8 @@ def _validate(raw, path):
         base_body=str(raw.get('base_body', bodies[0])),
         publish_rate=_number(raw, 'publish_rate', where, default=100.0),
         control_rate=_number(raw, 'control_rate', where, default=500.0),
+        servo_kp=(None if raw.get('servo_kp') is None
+                  else _number(raw, 'servo_kp', where)),
         params=dict(raw.get('params') or {}),
         raw=raw,
     )

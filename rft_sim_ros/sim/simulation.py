@@ -104,6 +104,10 @@ class Simulation:
         self._legs = [(name, [self.engine.body_names.index(b) for b in bodies],
                        self.model.body(bodies[-1]).id) for name, bodies in scene.legs.items()]
         self._servos = position_servos(self.model)
+        if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
+            for actuator, _ in self._servos:
+                self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
+                self.model.actuator_biasprm[actuator, 1] = -scene.servo_kp
         self.servo_joint_names = tuple(self.model.joint(j).name for _, j in self._servos)
         self._servo_ctrl = np.array([a for a, _ in self._servos], dtype=int)
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
@@ -160,7 +164,8 @@ class Simulation:
             engine.step()
             self.steps += 1
             if data.time <= before:  # MuJoCo reset a non-finite state
-                self._diverge(self._check() or 'MuJoCo reset an unstable state')
+                self._diverge(self._check() or 'MuJoCo reset an unstable state',
+                              self._time_offset + before)
             if self.steps % observe_every == 0:
                 scenario.observe(self)
 
@@ -172,8 +177,9 @@ class Simulation:
         if self.commands is not None:
             self._ctrl[self._servo_ctrl] = self.commands.sample(self.time).positions
 
-    def _diverge(self, problem):
-        self.diverged = f'at t = {self.time:.4f} s: {problem}'
+    def _diverge(self, problem, at_time=None):
+        at_time = self.time if at_time is None else at_time
+        self.diverged = f'at t = {at_time:.4f} s: {problem}'
         raise SimulationDiverged(self.diverged)
 
     def _check(self):
