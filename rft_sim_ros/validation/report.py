@@ -269,9 +269,10 @@ def _differences(r, inc, immersion, open_vs_flat, closed_vs_flat, leg, hexa, sin
         f'in its example). Our robot does not rock back: backward fraction '
         f'{hexa.metrics["backward_fraction"]:.3f} with our default low-velocity treatment and '
         f'{ema["backward_fraction"]:.3f} with the paper\'s force smoothing (EMA, alpha 0.1), so '
-        'the rocking is not produced by the smoothing alone here; we think it came from their '
-        'robot model and per-site force application, which we do not share. Our robot is a '
-        'rebuild from the paper\'s numbers (docs/hexapod.md), not their MJCF.',
+        'the smoothing alone does not produce the rocking here; we think it came from their '
+        'robot model (mass layout, servo tuning, foot shape) or their force normalisation '
+        '(1.35 zeta), which we do not share: our robot is a rebuild from the paper\'s numbers '
+        '(docs/hexapod.md), not their MJCF.',
         f'- **Sinkage sensitivity**: our sinkage at zeta 3.75 is {sink_ratio:.2f} x that at '
         f'zeta {stiff:g}; the paper needed ~1.2 x between 3.75 and ~5.8 (its sinkage at 3.75 '
         'was 20 % above experiment, matched at 5.67-5.88). A pointed foot\'s resisting area '
