@@ -9,8 +9,8 @@ from .trends import (SPEED_INDEPENDENCE_TOLERANCE, WALKING_DISTANCE_M, rail_prog
                      torque_increase)
 
 
-def _pct(value):
-    return f'{100 * value:+.0f} %'
+def _pct(value, digits=0):
+    return f'{100 * value:+.{digits}f} %'
 
 
 def _table(header, rows):
@@ -60,7 +60,7 @@ def write(path, r):
          f'{paper.TORQUE_INCREASE_SIM_NM} at every speed',
          'within 1 SD of sim at 2 rad/s; 18 % below it at slower speeds'],
         ['Change of that peak from 0.5 to 2 rad/s',
-         _pct(inc[max(inc)] / inc[min(inc)] - 1), '0 %', 'within 1 SD'],
+         _pct(inc[max(inc)] / inc[min(inc)] - 1, 1), '0 %', 'within 1 SD'],
         ['Open C progress vs flat, ' + speeds_txt + ' rad/s',
          ' / '.join(_pct(x) for x in open_vs_flat), _pct(paper.OPEN_C_VS_FLAT_SIM),
          _pct(paper.OPEN_C_VS_FLAT_EXPERIMENT)],
@@ -238,10 +238,10 @@ def _differences(r, inc, immersion, open_vs_flat, closed_vs_flat, leg, hexa, sin
         f'{", ".join(_pct(x) for x in closed_vs_flat)} against flat at '
         f'{", ".join(f"{v:g}" for v in s.speeds)} rad/s'
         + ('.' if ordering.held else
-           ', where the paper has closed C ahead of flat. In RFT a curved face turns part of '
-           'its resistance into vertical force, which the rail carries; the flat plate pushes '
-           'with a vertical face at the bottom of the sweep, so per unit of slip it gets more '
-           'horizontal thrust. Our closed C engages the sand longest (its bulge is 2.4 cm deep '
+           ', where the paper has closed C ahead of flat. We think this is because in RFT a '
+           'curved face turns part of its resistance into vertical force, which the rail '
+           'carries, while the flat plate pushes with a vertical face at the bottom of the '
+           'sweep and so gets more horizontal thrust per unit of slip. Our closed C engages the sand longest (its bulge is 2.4 cm deep '
            'at the start), as the paper says of its closed C, but that does not make up for it. '
            'The paper does not give its C\'s radius, thickness or mounting; ours is a half ring '
            'of the flat intruder\'s 6.3 cm length. The paper\'s experiments show much larger '
@@ -260,6 +260,7 @@ def _differences(r, inc, immersion, open_vs_flat, closed_vs_flat, leg, hexa, sin
             '(docs/scenes.md), hence the scene\'s 0.25 ms.')
     ema = r.hexapod_ema.metrics
     stiff = max(s.hexapod_zetas)
+    cone = (stiff / 3.75) ** (1 / 3)
     out += [
         f'- **Hexapod speed**: {hexa.metrics["mean_speed_mps"]:.3f} m/s at zeta 3.75 without '
         f'payload, {_pct(hexa.metrics["mean_speed_mps"] / paper.HEXAPOD_SPEED_EXPERIMENT_MPS - 1)} '
@@ -268,17 +269,19 @@ def _differences(r, inc, immersion, open_vs_flat, closed_vs_flat, leg, hexa, sin
         f'in its example). Our robot does not rock back: backward fraction '
         f'{hexa.metrics["backward_fraction"]:.3f} with our default low-velocity treatment and '
         f'{ema["backward_fraction"]:.3f} with the paper\'s force smoothing (EMA, alpha 0.1), so '
-        'the rocking is not produced by the smoothing alone here; we think it came from their '
-        'robot model and per-site force application, which we do not share. Our robot is a '
-        'rebuild from the paper\'s numbers (docs/hexapod.md), not their MJCF.',
+        'the smoothing alone does not produce the rocking here; we think it came from their '
+        'robot model (mass layout, servo tuning, foot shape) or their force normalisation '
+        '(1.35 zeta), which we do not share: our robot is a rebuild from the paper\'s numbers '
+        '(docs/hexapod.md), not their MJCF.',
         f'- **Sinkage sensitivity**: our sinkage at zeta 3.75 is {sink_ratio:.2f} x that at '
         f'zeta {stiff:g}; the paper needed ~1.2 x between 3.75 and ~5.8 (its sinkage at 3.75 '
         'was 20 % above experiment, matched at 5.67-5.88). A pointed foot\'s resisting area '
         'grows with depth squared, so a cone carrying a fixed load sinks as zeta^(-1/3): '
-        f'{(stiff / 3.75) ** (1 / 3):.2f} x over the same range. Ours varies less; we think '
-        'because stance sinkage also depends on how the tripod shares the load and on the mid '
-        'segments, which reach the sand at the deeper sinkages. The paper prints no absolute '
-        'sinkage to compare with.',
+        f'{cone:.2f} x over the same range. '
+        + (f'Ours varies less; we think because stance sinkage also depends on how the tripod '
+           'shares the load and on the mid segments, which reach the sand at the deeper '
+           'sinkages. ' if sink_ratio < cone else 'Ours varies at least as much. ')
+        + 'The paper prints no absolute sinkage to compare with.',
         f'- **Payload**: {_payload_sentence(r)}',
         f'- **Very loose sand**: at zeta {min(s.hexapod_zetas):g} the robot sinks until its '
         'body is at or below the surface (base height in the hexapod table); only the dactyls '
