@@ -138,7 +138,7 @@ def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, clus
 def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
                   qfrc_actuator, qfrc_applied, qfrc_bias, rows):
-    """Right-hand sides for mj_solveM: rows 6s..6s+5 of `rows` ((6S+1) x nv) become
+    """Right-hand sides of the implicit solve: rows 6s..6s+5 of `rows` ((6S+1) x nv) become
     d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
     tau_free = passive + actuator + applied - bias (N or N m per dof)."""
@@ -166,6 +166,68 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
             i = dof_parentid[i]
     for i in range(qfrc_bias.shape[0]):
         rows[6 * slots, i] = qfrc_passive[i] + qfrc_actuator[i] + qfrc_applied[i] - qfrc_bias[i]
+
+
+_TRN_JOINT = 0     # mjtTrn.mjTRN_JOINT
+_AFFINE = 1        # mjtGain.mjGAIN_AFFINE == mjtBias.mjBIAS_AFFINE
+_HINGE_OR_SLIDE = (2, 3)  # mjtJoint.mjJNT_SLIDE, mjJNT_HINGE
+
+
+@njit(cache=True, error_model='numpy')
+def implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_type,
+                     jnt_dofadr, dyntype, gaintype, gainprm, biastype, biasprm, forcelimited,
+                     forcerange, ctrl, act, actadr, actuator_force, out):
+    """The velocity damping D (diagonal, per dof; N s/m or N m s/rad) that MuJoCo's step
+    integrates implicitly, solving (M + dt D) qacc = force: joint damping when `damper`, and
+    when `actuators` (implicit/implicitfast integrators) the velocity gains of actuators
+    driving a hinge or slide directly (zero while the actuator force is clamped)."""
+    for i in range(out.shape[0]):
+        out[i] = dof_damping[i] if damper else 0.0
+    if not actuators:
+        return
+    for a in range(trntype.shape[0]):
+        joint = trnid[a, 0]
+        if trntype[a] != _TRN_JOINT or not (jnt_type[joint] == 2 or jnt_type[joint] == 3):
+            continue
+        if forcelimited[a] and (actuator_force[a] <= forcerange[a, 0]
+                                or actuator_force[a] >= forcerange[a, 1]):
+            continue
+        slope = biasprm[a, 2] if biastype[a] == _AFFINE else 0.0  # d force / d velocity
+        if gaintype[a] == _AFFINE:
+            slope += gainprm[a, 2] * (act[actadr[a]] if dyntype[a] != 0 else ctrl[a])
+        out[jnt_dofadr[joint]] -= gear[a, 0] * gear[a, 0] * slope
+
+
+@njit(cache=True, error_model='numpy')
+def solve_implicit_mass(mass, damping, timestep, rows, out):
+    """out = rows (M + dt D)^-1 (each row solved), M the dense joint-space inertia (nv x nv),
+    D the diagonal damping of `implicit_damping`: MuJoCo's own step matrix, so predicted
+    end-of-step velocities match what mj_step2 integrates. Cholesky; M + dt D is SPD."""
+    n = mass.shape[0]
+    factor = mass.copy()
+    for i in range(n):
+        factor[i, i] += timestep * damping[i]
+    for j in range(n):  # lower Cholesky factor in place
+        acc = factor[j, j]
+        for k in range(j):
+            acc -= factor[j, k] * factor[j, k]
+        factor[j, j] = np.sqrt(acc)
+        for i in range(j + 1, n):
+            acc = factor[i, j]
+            for k in range(j):
+                acc -= factor[i, k] * factor[j, k]
+            factor[i, j] = acc / factor[j, j]
+    for r in range(rows.shape[0]):
+        for i in range(n):  # forward substitution
+            acc = rows[r, i]
+            for k in range(i):
+                acc -= factor[i, k] * out[r, k]
+            out[r, i] = acc / factor[i, i]
+        for i in range(n - 1, -1, -1):  # back substitution
+            acc = out[r, i]
+            for k in range(i + 1, n):
+                acc -= factor[k, i] * out[r, k]
+            out[r, i] = acc / factor[i, i]
 
 
 @njit(cache=True, error_model='numpy')
@@ -300,11 +362,12 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
                       states, xi_new, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
-    jac: (>= 6S, nv) slot Jacobians. minv_rows: (>= 6S+1, nv) rows M^-1 jac_r^T for the 6S
-    Jacobian rows, then M^-1 tau_free, where tau_free is every generalised force except
-    the sand's (passive + actuator + applied - bias). With each plate moving (force G),
-    resting (linear in v+) or off, the end-of-step joint velocities solve
-        (I - dt M^-1 J^T K J) qvel+ = qvel_free + dt M^-1 J^T W_moving,   xi+ = J qvel+,
+    jac: (>= 6S, nv) slot Jacobians. minv_rows: (>= 6S+1, nv) rows Mh^-1 jac_r^T for the 6S
+    Jacobian rows, then Mh^-1 tau_free, where tau_free is every generalised force except
+    the sand's (passive + actuator + applied - bias) and Mh = M + dt D is the matrix MuJoCo's
+    step solves with (`solve_implicit_mass`). With each plate moving (force G), resting
+    (linear in v+) or off, the end-of-step joint velocities solve
+        (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving,   xi+ = J qvel+,
     K the plates' linear response, W_moving the moving plates' G; plates then change set
     until the solution is consistent (an active-set iteration; moving and off are
     neighbours of resting only, so a plate passes through resting between them).
@@ -393,7 +456,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
             k_iso[s, 7] += dg * rx * ry
             k_iso[s, 8] += dg * ry * rz
             k_iso[s, 9] += dg * rz * rx
-        # (I - dt M^-1 J^T K J) qvel+ = qvel_free + dt M^-1 J^T W_moving; xi+ = J qvel+
+        # (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving; xi+ = J qvel+
         for r in range(nv):
             for c in range(nv):
                 system[r, c] = 1.0 if r == c else 0.0

@@ -23,6 +23,14 @@ from . import coupling
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
 
+def _full_inertia(model, data, out):
+    """Dense joint-space inertia M (nv x nv) into `out` (MuJoCo 3 and 4 signatures)."""
+    try:
+        mujoco.mj_fullM(model, data, out)  # MuJoCo >= 4
+    except TypeError:
+        mujoco.mj_fullM(model, out, data.qM)  # MuJoCo 3
+
+
 @dataclass(frozen=True)
 class LowVelocity:
     """How RFT is treated where the direction of motion is ill-defined (|v| -> 0).
@@ -136,6 +144,18 @@ class SandEngine:
     def _views(self):
         """Cache the numpy views of mjModel/mjData arrays used every step."""
         m, d = self.model, self.data
+        integrator = m.opt.integrator
+        damper = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
+        if integrator == mujoco.mjtIntegrator.mjINT_EULER:
+            damper = damper and not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+        actuators = integrator != mujoco.mjtIntegrator.mjINT_EULER
+        self._damping_arrays = (
+            bool(damper), bool(actuators), m.dof_damping, m.actuator_trntype, m.actuator_trnid,
+            m.actuator_gear, m.jnt_type, m.jnt_dofadr, m.actuator_dyntype,
+            m.actuator_gaintype, m.actuator_gainprm, m.actuator_biastype, m.actuator_biasprm,
+            m.actuator_forcelimited, m.actuator_forcerange)
+        self._damping = np.zeros(m.nv)
+        self._mass = np.zeros((m.nv, m.nv))
         self._xpos, self._xmat, self._xipos = d.xpos, d.xmat, d.xipos
         self._cvel, self._subtree_com, self._cdof = d.cvel, d.subtree_com, d.cdof
         self._qvel, self._xfrc = d.qvel, d.xfrc_applied
@@ -198,8 +218,12 @@ class SandEngine:
         coupling.prepare_solve(slots, self._slot_body, self.body_ids, self._xipos,
                                self._subtree_com, self._cdof, *self._model_arrays,
                                *self._qfrc, rows)
+        coupling.implicit_damping(*self._damping_arrays, d.ctrl, d.act, m.actuator_actadr,
+                                  d.actuator_force,
+                                  self._damping)
+        _full_inertia(m, d, self._mass)
         minv = self._minv[:6 * slots + 1]
-        mujoco.mj_solveM(m, d, minv, rows)
+        coupling.solve_implicit_mass(self._mass, self._damping, m.opt.timestep, rows, minv)
         iterations = coupling.implicit_wrenches(
             k, slots, self._plate, self._slot, self._lever, self._force, self._dir, self._speed,
             self.low_velocity.rest_speed, rows, minv, self._qvel, m.opt.timestep, self._step,

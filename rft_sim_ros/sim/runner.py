@@ -69,7 +69,9 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     started = time.perf_counter()
     sim = Simulation(scene)
     startup = time.perf_counter() - started
-    duration = scene.duration if duration is None else float(duration)
+    if duration is None:
+        duration = scene.duration if scene.duration is not None else sim.scenario.duration()
+    duration = float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f'duration must be a positive number of seconds, got {duration}')
     steps = int(round(duration / sim.timestep))

@@ -1,7 +1,8 @@
 """Scene configuration: one YAML file per scene, validated into a `SceneConfig`.
 
 A scene names the MJCF model, the bodies that touch sand and how they are discretised, the
-sand (surface height, zeta), the timestep and duration, the legs to report, and values of
+sand (surface height, zeta), the timestep and duration (s, or `auto`: as long as the
+scenario's own values say, e.g. one rotation at the set speed), the legs to report, and values of
 the scene's own (`params`: masses, drop heights, gait...) that its scenario module uses.
 Every value can be overridden from the command line or the ROS node (`--set key=value`):
 a key is either a name in `params` or a dotted path into the file (e.g. `rft.plates_per_body`).
@@ -197,7 +198,7 @@ def _validate(raw, path):
         scenario=raw['scenario'],
         model_path=model_path,
         timestep=_number(raw, 'timestep', where),
-        duration=_number(raw, 'duration', where),
+        duration=(None if raw.get('duration') == 'auto' else _number(raw, 'duration', where)),
         zeta=float(raw['zeta']),
         surface_height=_number(sand, 'surface_height', where, positive=False, default=0.0),
         sand_bodies=tuple(bodies),

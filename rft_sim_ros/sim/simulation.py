@@ -34,12 +34,14 @@ _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
 
 
 def position_servos(model):
-    """[(actuator id, joint id)] of MuJoCo `position` actuators acting on a joint: a fixed
-    gain kp and an affine bias -kp q (what <position> compiles to), in actuator order."""
+    """[(actuator id, joint id)] of MuJoCo `position` actuators acting on a joint: no
+    activation dynamics, a fixed gain kp and an affine bias -kp q (what <position> compiles
+    to; <intvelocity> differs only by its integrator dynamics), in actuator order."""
     servos = []
     for a in range(model.nu):
         kp = model.actuator_gainprm[a, 0]
         if (model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
                 and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
                 and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
                 and kp != 0 and model.actuator_biasprm[a, 1] == -kp):

@@ -58,7 +58,8 @@ def run_case(scene, overrides, duration=None):
     config = load_scene(scene, overrides)
     sim = Simulation(config)
     case = Case(scene, dict(overrides), plates_total=sim.engine.plates_total)
-    duration = config.duration if duration is None else duration
+    if duration is None:
+        duration = config.duration if config.duration is not None else sim.scenario.duration()
     try:
         sim.step(int(math.ceil(duration / sim.timestep - 1e-9)))
     except SimulationDiverged as error:

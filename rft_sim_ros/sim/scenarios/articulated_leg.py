@@ -41,6 +41,10 @@ _SCOOP_AXES = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 class Scenario(BaseScenario):
     observe_interval = 10
 
+    def duration(self):
+        """`steps` stepping periods plus 0.5 s for the carriage to stop."""
+        return self.steps * self.period + 0.5
+
     def __init__(self, scene):
         super().__init__(scene)
         n = self.number

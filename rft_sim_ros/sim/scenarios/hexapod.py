@@ -41,6 +41,10 @@ GAIT_NAMES = ('none', 'tripod')
 class Scenario(BaseScenario):
     observe_interval = 10  # samples every 8 ms at the 0.8 ms timestep
 
+    def duration(self):
+        """Settling plus the gait cycles the metrics cover."""
+        return self.settle_time + self.walk_time
+
     def __init__(self, scene):
         super().__init__(scene)
         self.payload = self.number('payload', minimum=0.0)

@@ -49,6 +49,13 @@ class Scenario(BaseScenario):
     columns = ('time_s', 'angle_rad', 'carriage_x_m', 'servo_torque_Nm', 'sand_torque_Nm',
                'thrust_N', 'tip_depth_m')
 
+    #: s after the rotation for the carriage to come to rest (duration: auto)
+    coast_time = 0.5
+
+    def duration(self):
+        """One rotation at `speed` plus `coast_time`."""
+        return ROTATION_RAD / self.speed + self.coast_time
+
     def __init__(self, scene):
         super().__init__(scene)
         self.shape = self.params.get('shape')

@@ -22,6 +22,8 @@ from . import rail_intruder
 
 
 class Scenario(rail_intruder.Scenario):
+    coast_time = 0.15  # s after the rotation (duration: auto)
+
     observe_interval = 1  # the air twin steps with every step of the sand run
     columns = rail_intruder.Scenario.columns + ('air_torque_Nm',)
 
