@@ -3,7 +3,7 @@
   rft-sim scenes
   rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
                     [--set key=value ...] [--out DIR]
-  rft-sim validate [--quick] [--out DIR]
+  rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
 
 Errors in what the user asked for (unknown scene, bad value) print one line and exit 2.
@@ -50,9 +50,18 @@ def cmd_run(args):
 
 
 def cmd_validate(args):
+    log = lambda line: print(f'validate: {line}', file=sys.stderr)  # noqa: E731
+    if args.stability:
+        from .validation.stability import run_stability
+        suite = run_stability(args.out, quick=args.quick, log=log)
+        failed = [row for row in suite.rows if not row.held]
+        print(f'{len(suite.rows) - len(failed)} of {len(suite.rows)} stability checks held')
+        for row in failed:
+            print(f'NOT HELD  {row.case}: {row.metric} = {row.value} ({row.bound})')
+        print(f'wrote {Path(args.out) / "stability.md"}', file=sys.stderr)
+        return 0
     from .validation import run_validation
-    results = run_validation(args.out, quick=args.quick,
-                             log=lambda line: print(f'validate: {line}', file=sys.stderr))
+    results = run_validation(args.out, quick=args.quick, log=log)
     for trend in results.trends:
         print(f'{"held    " if trend.held else "NOT HELD"}  {trend.name}')
     print(f'wrote {Path(args.out) / "report.md"} ({results.wall_s:.0f} s)', file=sys.stderr)
@@ -97,6 +106,10 @@ def build_parser():
     validate.add_argument('--out', default='validation',
                           help='output folder for report.md, results.json and plots '
                                '(default: validation/)')
+    validate.add_argument('--stability', action='store_true',
+                          help='run the stability suite instead (drops, standing still, '
+                               'start/stop, extreme sand, timesteps, divergence): '
+                               'stability.md and plots')
     validate.set_defaults(func=cmd_validate)
     return parser
 

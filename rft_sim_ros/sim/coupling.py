@@ -28,12 +28,10 @@ from numba import njit
 
 from ..rft.kernel import leading_plate_force
 
-MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0
+MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 
 #: Solves per step at most (the active set settles in one or two almost always).
 MAX_ITERATIONS = 16
-#: Set changes a plate may make within one step; after that it keeps its set (anti-cycling).
-MAX_FLIPS = 2
 
 
 def cluster_plates(centroids, size=32):
@@ -291,6 +289,17 @@ def _point_velocity(lever, twist, base):
             twist[base + 2] + wx * lever[1] - wy * lever[0])
 
 
+@njit(cache=True, inline='always')
+def _along_factor(state, speed, inv_reg, v_reg):
+    """Coefficient of a plate's linear along response G (d.w) x factor, 1/(m/s), by set:
+    1/v_reg resting, 1/max(|v|, v_reg) frozen (a secant through its current speed), else 0."""
+    if state == RESTING:
+        return inv_reg
+    if state == FROZEN:
+        return 1.0 / max(speed, v_reg)
+    return 0.0
+
+
 @njit(cache=True, inline='always', fastmath=True)
 def _resting_block(k_rank, iso, out):
     """Slot twist response of its plates' linear parts: rank part minus sum c P^T P,
@@ -331,10 +340,10 @@ def _resting_block(k_rank, iso, out):
 @njit(cache=True, error_model='numpy')
 def implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new, v_reg,
                           out):
-    """Per-plate forces (N, world, on the body) of an implicit step from the plates' sets and
-    the end-of-step twists (law of the module docstring), with the along factor clamped to
-    [0, 1] and the across part capped at |G|, so each force stays within its plate's law
-    even where the sets have not settled."""
+    """Per-plate forces (N, world, on the body) that an implicit step applied, from the
+    plates' final sets and the end-of-step twists xi_new: G - c w_perp if moving,
+    a G - c w_perp if resting (frozen: with |v| in place of v_reg in a), 0 if off (module
+    docstring); the terms of the step's wrench."""
     inv_reg = 1.0 / v_reg
     for j in range(k):
         if states[j] == OFF:
@@ -344,13 +353,11 @@ def implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, x
         vx, vy, vz = _point_velocity(lever[j], xi_new, 6 * out_slot[j])
         d = direction[j]
         along = vx * d[0] + vy * d[1] + vz * d[2]
-        factor = 1.0 if states[j] == MOVING else min(max(along * inv_reg, 0.0), 1.0)
+        factor = 1.0 if states[j] == MOVING else along * _along_factor(
+            states[j], speed[j], inv_reg, v_reg)
         px, py, pz = vx - along * d[0], vy - along * d[1], vz - along * d[2]
         magnitude = np.sqrt(force[j, 0] ** 2 + force[j, 1] ** 2 + force[j, 2] ** 2)
         damp = magnitude / max(speed[j], v_reg)
-        size = damp * np.sqrt(px * px + py * py + pz * pz)
-        if size > magnitude:
-            damp *= magnitude / size
         out[j, 0] = factor * force[j, 0] - damp * px
         out[j, 1] = factor * force[j, 1] - damp * py
         out[j, 2] = factor * force[j, 2] - damp * pz
@@ -372,14 +379,17 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     until the solution is consistent (an active-set iteration; moving and off are
     neighbours of resting only, so a plate passes through resting between them).
     Each plate starts from its set of the previous step if it was in the sand then
-    (`plate_state`/`plate_step`, indexed by plate, updated here), otherwise as moving when
-    faster than v_reg; so a step usually needs one solve. Writes states[:k],
+    (`plate_state`/`plate_step`, indexed by plate, updated here) and not frozen, otherwise
+    as moving when faster than v_reg; so a step usually needs one solve. Writes states[:k],
     xi_new[:6S] (end-of-step twists) and wrench[:S] ([force; torque about COM], N, N m).
-    A plate that has changed set MAX_FLIPS times keeps its set for the rest of the step
-    (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
-    active-set iterations can cycle); the wrench always sums per-plate forces clamped to
-    each plate's law, so a held plate's force stays within its law too. Returns the number
-    of solves, negative if some plate was held against its end velocity.
+    A plate that would return to a set it already had this step is frozen for the rest of
+    the step (the law
+    is not monotone where RFT's lift makes G d^T non-symmetric, and plain active-set
+    iterations can cycle): its along response becomes the secant (d.w / max(|v|, v_reg)) G
+    through its current speed - the resting response for a plate at rest, about G for a
+    plate that keeps its speed, less as it slows - linear and opposing the plate's motion
+    (RFT's G always opposes d). The wrench is exactly what the last solve assumed. Returns
+    the number of solves, negative if some plate was frozen.
 
     Each plate adds to its slot's accumulators, by set: moving -> wrench h = [G; r x G];
     resting -> along response h u^T / v_reg (u = [d; r x d]); both -> across damper
@@ -406,7 +416,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
         u[j, 3], u[j, 4], u[j, 5] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
         across[j] = np.sqrt(gx * gx + gy * gy + gz * gz) / max(speed[j], v_reg)
         p = out_plate[j]
-        if plate_step[p] == step - 1:
+        if plate_step[p] == step - 1 and plate_state[p] != FROZEN:
             states[j] = plate_state[p]
         else:
             states[j] = MOVING if speed[j] > v_reg else RESTING
@@ -418,12 +428,14 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     change_along = np.empty(k)
     change_across = np.empty(k)
     change_moving = np.empty(k)
-    flips = np.zeros(k, dtype=np.int8)
+    visited = np.zeros(k, dtype=np.int8)  # bit per set a plate has been in this step
+    solved = np.empty(k, dtype=np.int8)  # sets the last solve used
     changes = 0
     for j in range(k):
+        visited[j] = 1 << states[j]
         if states[j] != OFF:
             change_plate[changes] = j
-            change_along[changes] = inv_reg if states[j] == RESTING else 0.0
+            change_along[changes] = _along_factor(states[j], speed[j], inv_reg, v_reg)
             change_across[changes] = across[j]
             change_moving[changes] = 1.0 if states[j] == MOVING else 0.0
             changes += 1
@@ -477,6 +489,8 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
                             system[r, c] -= weight * block_jac[a, c]
                         rhs[r] += weight * w_moving[s, a]
         solution = _solve(system, rhs)
+        for j in range(k):
+            solved[j] = states[j]
         for r in range(n6):
             acc = 0.0
             for i in range(nv):
@@ -494,36 +508,33 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
             old = states[j]
             # moving and off are reached from resting only
             new = wanted if (wanted == old or old == RESTING or wanted == RESTING) else RESTING
-            if new != old and flips[j] >= MAX_FLIPS:  # anti-cycling: it keeps its set
+            if states[j] == FROZEN:
+                continue
+            if new != old and visited[j] & (1 << new):  # back to a set it had: a cycle
                 held += 1
-            elif new != old:
+                new = FROZEN
+            if new != old:
                 change_plate[changes] = j
-                change_along[changes] = ((inv_reg if new == RESTING else 0.0)
-                                         - (inv_reg if old == RESTING else 0.0))
+                change_along[changes] = (_along_factor(new, speed[j], inv_reg, v_reg)
+                                         - _along_factor(old, speed[j], inv_reg, v_reg))
                 change_across[changes] = ((across[j] if new != OFF else 0.0)
                                           - (across[j] if old != OFF else 0.0))
                 change_moving[changes] = ((1.0 if new == MOVING else 0.0)
                                           - (1.0 if old == MOVING else 0.0))
                 changes += 1
                 states[j] = new
-                flips[j] += 1
+                visited[j] |= 1 << new
         converged = changes == 0
-    # Each plate's force within its law (exact where its set matches its end velocity,
-    # clamped where an oscillating plate was held in its set), summed per slot.
-    applied = np.empty((k, 3))
-    implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new, v_reg,
-                          applied)
-    wrench[:slots, :] = 0.0
+    # The wrench the last solve assumed: moving plates' G plus every plate's linear response.
     for j in range(k):
-        s = out_slot[j]
-        fx, fy, fz = applied[j, 0], applied[j, 1], applied[j, 2]
-        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
-        wrench[s, 0] += fx
-        wrench[s, 1] += fy
-        wrench[s, 2] += fz
-        wrench[s, 3] += ry * fz - rz * fy
-        wrench[s, 4] += rz * fx - rx * fz
-        wrench[s, 5] += rx * fy - ry * fx
+        states[j] = solved[j]
+    for s in range(slots):
+        _resting_block(k_rank[s], k_iso[s], block)
+        for a in range(6):
+            acc = w_moving[s, a]
+            for b in range(6):
+                acc += block[a, b] * xi_new[6 * s + b]
+            wrench[s, a] = acc
     for j in range(k):
         plate_state[out_plate[j]] = states[j]
         plate_step[out_plate[j]] = step
