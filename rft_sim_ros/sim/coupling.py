@@ -26,7 +26,7 @@ settles in one or two passes. A loaded body at rest creeps at most ~v_reg * load
 import numpy as np
 from numba import njit
 
-from ..rft.kernel import leading_plate_force
+from ..rft.kernel import leading_forces
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 
@@ -59,7 +59,8 @@ def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, clus
                   cluster_radius, local_pos, local_normal, areas,
                   xpos, xmat, xipos, cvel, subtree_com, body_rootid,
                   surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
-                  out_plate, out_slot, out_lever, out_force, out_dir, out_speed, slot_body):
+                  out_plate, out_slot, out_lever, out_force, out_dir, out_speed, slot_body,
+                  soa, lead_at, lead_force, law_scratch):
     """Find the plates in the sand and their RFT force for the current direction of motion.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
@@ -110,25 +111,34 @@ def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, clus
                     continue
                 speed = np.sqrt(vx * vx + vy * vy + vz * vz)
                 inv = 1.0 / speed if speed > 0.0 else 0.0
-                if leading:
+                if leading:  # inputs of the law, evaluated for all plates at once below
+                    m = leading_count
+                    soa[0, m], soa[1, m], soa[2, m] = nx, ny, nz
+                    soa[3, m], soa[4, m], soa[5, m] = vx * inv, vy * inv, vz * inv
+                    soa[6, m] = n_v
+                    soa[7, m] = zeta_si * depth * areas[j]
+                    soa[8, m] = areas[j]
+                    lead_at[m] = k
                     leading_count += 1
-                    fx, fy, fz = leading_plate_force(nx, ny, nz, vx, vy, vz, n_v, inv, depth,
-                                                     areas[j], zeta_si, inv_a4, inv_b4,
-                                                     dyn_lam_rho)
-                else:
-                    fx, fy, fz = 0.0, 0.0, 0.0
+                out_force[k, 0], out_force[k, 1], out_force[k, 2] = 0.0, 0.0, 0.0
                 out_plate[k] = j
                 out_slot[k] = slots
                 out_lever[k, 0] = px - xipos[b, 0]
                 out_lever[k, 1] = py - xipos[b, 1]
                 out_lever[k, 2] = pz - xipos[b, 2]
-                out_force[k, 0], out_force[k, 1], out_force[k, 2] = fx, fy, fz
                 out_dir[k, 0], out_dir[k, 1], out_dir[k, 2] = vx * inv, vy * inv, vz * inv
                 out_speed[k] = speed
                 k += 1
         if k > first:
             slot_body[slots] = i
             slots += 1
+    leading_forces(leading_count, soa[0], soa[1], soa[2], soa[3], soa[4], soa[5], soa[6],
+                   soa[7], soa[8], inv_a4, inv_b4, dyn_lam_rho, lead_force[0], lead_force[1],
+                   lead_force[2], law_scratch)
+    for m in range(leading_count):
+        at = lead_at[m]
+        out_force[at, 0], out_force[at, 1], out_force[at, 2] = (
+            lead_force[0, m], lead_force[1, m], lead_force[2, m])
     return k, leading_count, slots
 
 
@@ -196,7 +206,7 @@ def implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_t
         out[jnt_dofadr[joint]] -= gear[a, 0] * gear[a, 0] * slope
 
 
-@njit(cache=True, error_model='numpy')
+@njit(cache=True, error_model='numpy', fastmath=True)
 def solve_implicit_mass(mass, damping, timestep, rows, out):
     """out = rows (M + dt D)^-1 (each row solved), M the dense joint-space inertia (nv x nv),
     D the diagonal damping of `implicit_damping`: MuJoCo's own step matrix, so predicted
@@ -215,17 +225,31 @@ def solve_implicit_mass(mass, damping, timestep, rows, out):
             for k in range(j):
                 acc -= factor[i, k] * factor[j, k]
             factor[i, j] = acc / factor[j, j]
-    for r in range(rows.shape[0]):
-        for i in range(n):  # forward substitution
-            acc = rows[r, i]
-            for k in range(i):
-                acc -= factor[i, k] * out[r, k]
-            out[r, i] = acc / factor[i, i]
-        for i in range(n - 1, -1, -1):  # back substitution
-            acc = out[r, i]
-            for k in range(i + 1, n):
-                acc -= factor[k, i] * out[r, k]
-            out[r, i] = acc / factor[i, i]
+    # all right-hand sides at once, their index innermost (contiguous, vectorised)
+    count = rows.shape[0]
+    work = np.empty((n, count))
+    for r in range(count):
+        for i in range(n):
+            work[i, r] = rows[r, i]
+    for i in range(n):  # forward substitution: L y = b
+        for k in range(i):
+            f = factor[i, k]
+            for r in range(count):
+                work[i, r] -= f * work[k, r]
+        inv = 1.0 / factor[i, i]
+        for r in range(count):
+            work[i, r] *= inv
+    for i in range(n - 1, -1, -1):  # back substitution: L^T x = y
+        for k in range(i + 1, n):
+            f = factor[k, i]
+            for r in range(count):
+                work[i, r] -= f * work[k, r]
+        inv = 1.0 / factor[i, i]
+        for r in range(count):
+            work[i, r] *= inv
+    for r in range(count):
+        for i in range(n):
+            out[r, i] = work[i, r]
 
 
 @njit(cache=True, error_model='numpy')
@@ -403,6 +427,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     qvel_free = np.empty(nv)
     for i in range(nv):
         qvel_free[i] = qvel[i] + timestep * minv_rows[n6, i]
+    # per plate: h = [G; r x G], u = [d; r x d], across damper c
     h = np.empty((k, 6))
     u = np.empty((k, 6))
     across = np.empty(k)
@@ -415,30 +440,50 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
         u[j, 0], u[j, 1], u[j, 2] = dx, dy, dz
         u[j, 3], u[j, 4], u[j, 5] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
         across[j] = np.sqrt(gx * gx + gy * gy + gz * gz) / max(speed[j], v_reg)
+    visited = np.zeros(k, dtype=np.int8)  # bit per set a plate has been in this step
+    solved = np.empty(k, dtype=np.int8)  # sets the last solve used
+    for j in range(k):
         p = out_plate[j]
         if plate_step[p] == step - 1 and plate_state[p] != FROZEN:
             states[j] = plate_state[p]
         else:
             states[j] = MOVING if speed[j] > v_reg else RESTING
+        visited[j] = 1 << states[j]
+    # accumulators per slot, in one pass over the plates (which come slot by slot)
     w_moving = np.zeros((slots, 6))
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
+    for j in range(k):
+        s = out_slot[j]
+        state = states[j]
+        if state == OFF:
+            continue
+        along_w = _along_factor(state, speed[j], inv_reg, v_reg)
+        g = across[j]
+        if state == MOVING:
+            for a in range(6):
+                w_moving[s, a] += h[j, a]
+        for a in range(6):
+            weighted = along_w * h[j, a] + g * u[j, a]
+            for b in range(6):
+                k_rank[s, a, b] += weighted * u[j, b]
+        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
+        k_iso[s, 0] += g
+        k_iso[s, 1] += g * rx
+        k_iso[s, 2] += g * ry
+        k_iso[s, 3] += g * rz
+        k_iso[s, 4] += g * rx * rx
+        k_iso[s, 5] += g * ry * ry
+        k_iso[s, 6] += g * rz * rz
+        k_iso[s, 7] += g * rx * ry
+        k_iso[s, 8] += g * ry * rz
+        k_iso[s, 9] += g * rz * rx
     # pending coefficient changes: plate, d(along factor), d(across damper), d(moving)
     change_plate = np.empty(k, dtype=np.int64)
     change_along = np.empty(k)
     change_across = np.empty(k)
     change_moving = np.empty(k)
-    visited = np.zeros(k, dtype=np.int8)  # bit per set a plate has been in this step
-    solved = np.empty(k, dtype=np.int8)  # sets the last solve used
     changes = 0
-    for j in range(k):
-        visited[j] = 1 << states[j]
-        if states[j] != OFF:
-            change_plate[changes] = j
-            change_along[changes] = _along_factor(states[j], speed[j], inv_reg, v_reg)
-            change_across[changes] = across[j]
-            change_moving[changes] = 1.0 if states[j] == MOVING else 0.0
-            changes += 1
     block = np.zeros((6, 6))
     block_jac = np.zeros((6, nv))
     system = np.zeros((nv, nv))

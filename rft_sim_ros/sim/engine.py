@@ -93,6 +93,8 @@ class SandEngine:
         self._dir = np.zeros((n, 3))
         self._speed = np.zeros(n)
         self._applied = np.zeros((n, 3))
+        self._law_work = (np.empty((9, n)), np.empty(n, dtype=np.int64), np.empty((3, n)),
+                          np.empty((6, n)))
         self._states = np.zeros(n, dtype=np.int8)
         self._plate_state = np.zeros(n, dtype=np.int8)
         self._plate_step = np.full(n, -2, dtype=np.int64)
@@ -195,7 +197,7 @@ class SandEngine:
             self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
             self._model_arrays[0], self.surface_height, self._zeta_si, 1.0 / self._a4,
             1.0 / self._b4, self._dyn, method == 'ema', self._plate, self._slot, self._lever,
-            self._force, self._dir, self._speed, self._slot_body)
+            self._force, self._dir, self._speed, self._slot_body, *self._law_work)
         if slots:
             if method == 'implicit':
                 self._implicit(k, slots)
