@@ -47,6 +47,8 @@ def test_bag_holds_the_node_topics_with_one_message_per_publish_period(press_run
         if topic != topics.DIAGNOSTICS:
             assert info.count == expected_count, topic
     assert recorded[topics.DIAGNOSTICS].count == 2   # the first state, then the zeta change
+    summary = json.loads((press_run / 'summary.json').read_text())
+    assert 0 < summary['recording_time_s'] < summary['wall_time_s']
 
 
 def test_stamps_increase_and_clock_is_sim_time(press_run):
@@ -90,6 +92,7 @@ def test_no_bag_writes_none(tmp_path):
     assert main(['run', 'plate_press', '--duration', '0.02', '--out', str(out), '--quiet',
                  '--no-bag']) == 0
     assert (out / 'summary.json').is_file() and not (out / 'bag').exists()
+    assert json.loads((out / 'summary.json').read_text())['recording_time_s'] == 0.0
 
 
 def test_an_existing_bag_is_not_overwritten(tmp_path, capsys):
