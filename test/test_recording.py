@@ -92,7 +92,7 @@ def test_no_bag_writes_none(tmp_path):
     assert main(['run', 'plate_press', '--duration', '0.02', '--out', str(out), '--quiet',
                  '--no-bag']) == 0
     assert (out / 'summary.json').is_file() and not (out / 'bag').exists()
-    assert json.loads((out / 'summary.json').read_text())['recording_time_s'] == 0.0
+    assert json.loads((out / 'summary.json').read_text())['recording_time_s'] < 1e-3
 
 
 def test_an_existing_bag_is_not_overwritten(tmp_path, capsys):
