@@ -127,7 +127,6 @@ class SimRuntime:
                and self._pacer.due(now, self.sim.time + self.publish_period)):
             self._cycle()
             now = self._clock()
-            self._diagnostics(now)
         self._diagnostics(now)
 
     def _cycle(self):
