@@ -57,7 +57,7 @@ class SimNode(Node):
                                     list(sim.servo_joint_names) or Parameter.Type.STRING_ARRAY)
         self._plates = self._declare(parameters.PLATES, False)
         self._factory = RclpyFactory()
-        self._publishers = {
+        self._topic_publishers = {
             topic: self.create_publisher(self._factory.message_class(msgtype), topic,
                                          TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH)
             for topic, msgtype in topics.published_topics(list(sim.scene.legs),
@@ -104,11 +104,11 @@ class SimNode(Node):
     def write_state(self, state):
         """Publish one cycle of `state` (SimState)."""
         for topic, message in messages.state_messages(self._factory, state, plates=self._plates):
-            self._publishers[topic].publish(message)
+            self._topic_publishers[topic].publish(message)
 
     def write_diagnostics(self, state, status):
         """Publish /diagnostics for `state` and `status` (messages.RunStatus)."""
-        self._publishers[topics.DIAGNOSTICS].publish(
+        self._topic_publishers[topics.DIAGNOSTICS].publish(
             messages.diagnostics_message(self._factory, state, status))
 
     # --- callbacks --------------------------------------------------------------------------
