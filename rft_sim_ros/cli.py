@@ -4,6 +4,8 @@
   rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
                     [--set key=value ...] [--set-at T:zeta=Z ...] [--out DIR]
                     [--no-bag] [--plates]
+  rft-sim validate [--quick] [--out DIR]
+  rft-sim bench [--quick] [--out DIR]
 
 `run` writes DIR/summary.json, the time series and plots, and a rosbag2 (MCAP) under
 DIR/bag/ with the topics the ROS node publishes.
@@ -89,6 +91,28 @@ def cmd_run(args):
     return 0 if summary['stable'] else 1
 
 
+def cmd_validate(args):
+    from .validation import run_validation
+    results = run_validation(args.out, quick=args.quick,
+                             log=lambda line: print(f'validate: {line}', file=sys.stderr))
+    for trend in results.trends:
+        print(f'{"held    " if trend.held else "NOT HELD"}  {trend.name}')
+    print(f'wrote {Path(args.out) / "report.md"} ({results.wall_s:.0f} s)', file=sys.stderr)
+    return 0
+
+
+def cmd_bench(args):
+    from .bench import run_bench
+    results = run_bench(args.out, quick=args.quick,
+                        log=lambda line: print(f'bench: {line}', file=sys.stderr))
+    cost = results['step_cost']
+    print(f'hexapod step: {cost["sand_step_s"] * 1e6:.1f} us on sand, '
+          f'{cost["rigid_step_s"] * 1e6:.1f} us rigid (x{cost["ratio_full_to_rigid"]:.2f}); '
+          f'trial real-time factor {results["trial"]["real_time_factor"]:.1f}')
+    print(f'wrote {Path(args.out) / "bench.md"}', file=sys.stderr)
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog='rft-sim', description=__doc__.split('\n')[0])
     commands = parser.add_subparsers(dest='command', required=True)
@@ -110,6 +134,18 @@ def build_parser():
                      help='record the active plates (/rft/plates markers) in the bag')
     run.add_argument('--quiet', action='store_true', help='no progress bar')
     run.set_defaults(func=cmd_run)
+    bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')
+    bench.add_argument('--quick', action='store_true', help='few, short measurements')
+    bench.add_argument('--out', default='bench/results', help='output folder')
+    bench.set_defaults(func=cmd_bench)
+    validate = commands.add_parser(
+        'validate', help="reproduce the RFT-SiM paper's trends as a report with plots")
+    validate.add_argument('--quick', action='store_true',
+                          help='coarse plates and fewer cases (a few minutes)')
+    validate.add_argument('--out', default='validation',
+                          help='output folder for report.md, results.json and plots '
+                               '(default: validation/)')
+    validate.set_defaults(func=cmd_validate)
     return parser
 
 

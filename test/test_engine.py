@@ -5,6 +5,7 @@ import pytest
 
 from rft_sim_ros.rft import body_wrench
 from rft_sim_ros.sim import coupling
+from rft_sim_ros.sim import engine as engine_module
 from rft_sim_ros.sim.engine import LowVelocity, SandEngine
 from rft_sim_ros.sim.geoms import body_plates
 
@@ -46,15 +47,18 @@ def _random_state(model, data, seed):
 
 
 @pytest.mark.parametrize('seed', range(5))
-def test_slot_jacobians_match_mujoco(seed):
+def test_slot_jacobians_and_free_force_match_mujoco(seed):
     model, data, engine = _arm()
     _random_state(model, data, seed)
     mujoco.mj_forward(model, data)
     bodies = np.arange(len(engine.body_ids))
-    jac = np.zeros((6 * len(bodies), model.nv))
-    coupling.slot_jacobians(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
-                            data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
-                            model.body_parentid, model.dof_parentid, jac)
+    jac = np.zeros((6 * len(bodies) + 1, model.nv))
+    coupling.prepare_solve(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
+                           data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
+                           model.body_parentid, model.dof_parentid, data.qfrc_passive,
+                           data.qfrc_actuator, data.qfrc_applied, data.qfrc_bias, jac)
+    free_force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
+    assert np.allclose(jac[-1], free_force)
     for slot, body in enumerate(engine.body_ids):
         jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         mujoco.mj_jac(model, data, jacp, jacr, data.xipos[body], body)
@@ -152,3 +156,42 @@ def test_rk4_and_bad_low_velocity_settings_are_refused():
         LowVelocity(method='magic')
     with pytest.raises(ValueError, match='ema_alpha'):
         LowVelocity(method='ema', ema_alpha=0.0)
+
+
+DAMPED = """
+<mujoco><option timestep="0.002" integrator="{integrator}"/>
+<worldbody><body name="base" pos="0 0 0.3"><freejoint/><geom type="box" size="0.05 0.05 0.02" mass="1"/>
+  <body name="arm"><joint name="hinge" type="hinge" axis="0 1 0" damping="0.8"/>
+    <geom type="capsule" fromto="0 0 0 0.1 0 0" size="0.005" mass="0.01"/>
+    <body name="tip" pos="0.1 0 0"><joint name="slide" type="slide" axis="1 0 0" damping="3"/>
+      <geom type="sphere" size="0.01" mass="0.01"/></body></body></body></worldbody>
+<actuator><velocity joint="hinge" kv="2"/><position joint="slide" kp="50" kv="4"/>
+  <position joint="slide" kp="50" forcerange="-0.001 0.001"/></actuator></mujoco>"""
+
+
+@pytest.mark.parametrize('integrator', ['implicitfast', 'implicit', 'Euler'])
+def test_predicted_end_velocity_matches_mujocos_step(integrator):
+    """Without sand, qvel + dt (M + dt D)^-1 tau_free is exactly what mj_step2 integrates
+    (joint damping and actuator velocity gains implicit, clamped actuators excluded); the
+    sand solve builds on this prediction."""
+    model = mujoco.MjModel.from_xml_string(DAMPED.format(integrator=integrator))
+    data = mujoco.MjData(model)
+    plates = {'tip': body_plates(model, model.body('tip').id, count=50)}
+    engine = SandEngine(model, data, plates, zeta=1.0)
+    data.qvel[:] = np.linspace(-0.5, 0.7, model.nv)
+    data.ctrl[:] = [1.5, 0.02, 0.5]
+    mujoco.mj_step1(model, data)
+    mujoco.mj_fwdActuation(model, data)
+    rows = np.zeros((1, model.nv))
+    rows[0] = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
+    coupling.implicit_damping(*engine._damping_arrays, data.ctrl, data.act,
+                              model.actuator_actadr, data.actuator_force, engine._damping)
+    assert engine._damping.any()
+    mass = np.zeros((model.nv, model.nv))
+    engine_module._full_inertia(model, data, mass)
+    solved = np.zeros_like(rows)
+    coupling.solve_implicit_mass(mass, engine._damping, model.opt.timestep, rows, solved)
+    predicted = data.qvel + model.opt.timestep * solved[0]
+    mujoco.mj_step2(model, data)
+    tolerance = 1e-3 if integrator == 'implicit' else 1e-10  # 'implicit' adds Coriolis terms
+    assert np.allclose(data.qvel, predicted, rtol=tolerance, atol=tolerance)

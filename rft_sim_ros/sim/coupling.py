@@ -2,45 +2,74 @@
 
 Conventions: MuJoCo arrays are passed as the views mjData/mjModel expose (world frame,
 z up, SI). A "sand body" is a body a scene names as touching sand; its plates are stored in
-its body frame (`xpos`/`xmat`). A "slot" is a sand body that has at least one plate in the
-sand this step; slots are numbered 0..S-1 in the order bodies are visited. Body twists and
-wrenches are 6-vectors [linear (3); angular (3)] at the body's centre of mass (`xipos`),
-world axes: the convention of mjData.xfrc_applied.
+its body frame (`xpos`/`xmat`), grouped into spatial clusters of a few dozen plates with a
+bounding sphere each, so plates above the sand are skipped a cluster at a time. A "slot" is a
+sand body with at least one plate in the sand this step; slots are numbered 0..S-1 in the
+order bodies are visited. Body twists and wrenches are 6-vectors [linear (3); angular (3)] at
+the body's centre of mass (`xipos`), world axes: the convention of mjData.xfrc_applied.
 
-Low-velocity treatment (see `implicit_wrenches`): RFT is rate independent, so its force on a
+Low-velocity treatment (`implicit_wrenches`): RFT is rate independent, so its force on a
 plate jumps when the direction of motion does, and explicit integration makes a loaded body
 chatter or bounce out of the sand. The default scheme treats the law implicitly, like
 implicit Coulomb friction. For each plate, let G be the RFT force for its current direction of
-motion d, v+ its velocity at the end of the step, v_reg a small regularisation speed and
-a = d.v+ / v_reg, b = |v+ - (d.v+) d| / v_reg. Over the step the plate feels
-    G                                    if it keeps moving (a >= 1, or b > 1 and a >= 0),
-    (a G - b |G| e_perp)                 if it comes to rest (0 <= a <= 1, b <= 1),
-    0                                    if it would move back (a < 0: it no longer leads),
-with e_perp the unit direction of v+ across d. So while a plate moves the force is exactly
-RFT's; the sand can stop a plate within a step, and holds a plate at rest against motion in
-any direction with a stiff damper of the plate's RFT magnitude, but never pushes it back past
-rest. A loaded body at rest creeps at most at ~v_reg * load / capacity.
+motion d and speed |v|, w its velocity at the end of the step, w_perp the part of w across d,
+a = d.w / v_reg with v_reg a small regularisation speed, and c = |G| / max(|v|, v_reg).
+Over the step the plate feels
+    F = min(a, 1) G - c w_perp    while it leads (a >= 0),     F = 0    once it trails (a < 0).
+While it keeps moving along d (a >= 1) the along part is exactly RFT's G, and the across part
+is the first-order turn of a drag-like force as the direction of motion turns (c = |G|/|v|);
+a plate coming to rest (0 <= a < 1) feels a G, so the sand can stop it within a step but never
+push it back past rest; a plate already at rest (|v| < v_reg) is held across d as well by a
+stiff damper of its RFT magnitude. The law is continuous at a = 1, so the implicit solve
+settles in one or two passes. A loaded body at rest creeps at most ~v_reg * load / capacity.
 """
 import numpy as np
 from numba import njit
 
-from ..rft.kernel import plate_force
+from ..rft.kernel import leading_plate_force
 
-MOVING, RESTING, OFF = 1, 0, 2
+MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0
+
+#: Solves per step at most (the active set settles in one or two almost always).
+MAX_ITERATIONS = 16
+#: Set changes a plate may make within one step; after that it keeps its set (anti-cycling).
+MAX_FLIPS = 2
+
+
+def cluster_plates(centroids, size=32):
+    """Order plates into spatial clusters of at most `size` by recursive halving along the
+    widest axis. Returns (order, cluster_start): plates order[cluster_start[c]:
+    cluster_start[c+1]] form cluster c."""
+    order, starts = [], [0]
+    pending = [np.arange(len(centroids))]
+    while pending:
+        group = pending.pop()
+        if len(group) <= size:
+            order.extend(group)
+            starts.append(len(order))
+            continue
+        points = centroids[group]
+        axis = np.argmax(np.ptp(points, axis=0))
+        ranked = group[np.argsort(points[:, axis], kind='stable')]
+        half = len(ranked) // 2
+        pending.extend([ranked[half:], ranked[:half]])
+    return np.array(order, dtype=np.int64), np.array(starts, dtype=np.int64)
 
 
 @njit(cache=True, error_model='numpy')
-def gather_plates(body_ids, radii, plate_start, local_pos, local_normal, areas,
+def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, cluster_center,
+                  cluster_radius, local_pos, local_normal, areas,
                   xpos, xmat, xipos, cvel, subtree_com, body_rootid,
-                  surface_height, zeta_si, a4, b4, dyn_lam_rho, include_trailing,
+                  surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
                   out_plate, out_slot, out_lever, out_force, out_dir, out_speed, slot_body):
     """Find the plates in the sand and their RFT force for the current direction of motion.
 
-    Bodies whose bounding sphere (radius `radii`, about the body origin) is above the
-    surface are skipped without touching their plates. For every plate below the surface
-    that leads (n . v > 0), or for every plate below the surface when `include_trailing`,
-    writes at index k: global plate index, slot, lever arm from the body's COM (m, world),
-    RFT force (N, world), unit direction of motion and speed (m/s).
+    Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
+    whose bounding sphere, lies above the surface are skipped without touching their plates.
+    For every plate below the surface that leads (n . v > 0), or for every plate below the
+    surface when `include_trailing`, writes at index k: plate index, slot, lever arm from the
+    body's COM (m, world), RFT force (N, world; inv_a4, inv_b4 are the reciprocal
+    normalisers), unit direction of motion and speed (m/s).
     Returns (plates written, of those leading, slots S); slot_body[s] = sand-body index.
     """
     k = 0
@@ -53,42 +82,52 @@ def gather_plates(body_ids, radii, plate_start, local_pos, local_normal, areas,
         first = k
         root = body_rootid[b]
         wx, wy, wz = cvel[b, 0], cvel[b, 1], cvel[b, 2]
-        for j in range(plate_start[i], plate_start[i + 1]):
-            lx, ly, lz = local_pos[j, 0], local_pos[j, 1], local_pos[j, 2]
-            pz = xpos[b, 2] + xmat[b, 6] * lx + xmat[b, 7] * ly + xmat[b, 8] * lz
-            depth = surface_height - pz
-            if depth <= 0.0:
+        for c in range(body_cluster_start[i], body_cluster_start[i + 1]):
+            cz = (xpos[b, 2] + xmat[b, 6] * cluster_center[c, 0]
+                  + xmat[b, 7] * cluster_center[c, 1] + xmat[b, 8] * cluster_center[c, 2])
+            if cz - cluster_radius[c] >= surface_height:
                 continue
-            px = xpos[b, 0] + xmat[b, 0] * lx + xmat[b, 1] * ly + xmat[b, 2] * lz
-            py = xpos[b, 1] + xmat[b, 3] * lx + xmat[b, 4] * ly + xmat[b, 5] * lz
-            mx, my, mz = local_normal[j, 0], local_normal[j, 1], local_normal[j, 2]
-            nx = xmat[b, 0] * mx + xmat[b, 1] * my + xmat[b, 2] * mz
-            ny = xmat[b, 3] * mx + xmat[b, 4] * my + xmat[b, 5] * mz
-            nz = xmat[b, 6] * mx + xmat[b, 7] * my + xmat[b, 8] * mz
-            # velocity of the plate point from the com-based twist cvel = [omega; v(root com)]
-            rx = px - subtree_com[root, 0]
-            ry = py - subtree_com[root, 1]
-            rz = pz - subtree_com[root, 2]
-            vx = cvel[b, 3] + wy * rz - wz * ry
-            vy = cvel[b, 4] + wz * rx - wx * rz
-            vz = cvel[b, 5] + wx * ry - wy * rx
-            speed = np.sqrt(vx * vx + vy * vy + vz * vz)
-            leading = speed > 0.0 and nx * vx + ny * vy + nz * vz > 0.0
-            if not (leading or include_trailing):
-                continue
-            leading_count += leading
-            fx, fy, fz = plate_force(nx, ny, nz, vx, vy, vz, depth, areas[j], zeta_si,
-                                     a4, b4, dyn_lam_rho)
-            out_plate[k] = j
-            out_slot[k] = slots
-            out_lever[k, 0] = px - xipos[b, 0]
-            out_lever[k, 1] = py - xipos[b, 1]
-            out_lever[k, 2] = pz - xipos[b, 2]
-            out_force[k, 0], out_force[k, 1], out_force[k, 2] = fx, fy, fz
-            inv = 1.0 / speed if speed > 0.0 else 0.0
-            out_dir[k, 0], out_dir[k, 1], out_dir[k, 2] = vx * inv, vy * inv, vz * inv
-            out_speed[k] = speed
-            k += 1
+            for j in range(cluster_plate_start[c], cluster_plate_start[c + 1]):
+                lx, ly, lz = local_pos[j, 0], local_pos[j, 1], local_pos[j, 2]
+                pz = xpos[b, 2] + xmat[b, 6] * lx + xmat[b, 7] * ly + xmat[b, 8] * lz
+                depth = surface_height - pz
+                if depth <= 0.0:
+                    continue
+                px = xpos[b, 0] + xmat[b, 0] * lx + xmat[b, 1] * ly + xmat[b, 2] * lz
+                py = xpos[b, 1] + xmat[b, 3] * lx + xmat[b, 4] * ly + xmat[b, 5] * lz
+                mx, my, mz = local_normal[j, 0], local_normal[j, 1], local_normal[j, 2]
+                nx = xmat[b, 0] * mx + xmat[b, 1] * my + xmat[b, 2] * mz
+                ny = xmat[b, 3] * mx + xmat[b, 4] * my + xmat[b, 5] * mz
+                nz = xmat[b, 6] * mx + xmat[b, 7] * my + xmat[b, 8] * mz
+                # plate velocity from the com-based twist cvel = [omega; v at the root's com]
+                rx = px - subtree_com[root, 0]
+                ry = py - subtree_com[root, 1]
+                rz = pz - subtree_com[root, 2]
+                vx = cvel[b, 3] + wy * rz - wz * ry
+                vy = cvel[b, 4] + wz * rx - wx * rz
+                vz = cvel[b, 5] + wx * ry - wy * rx
+                n_v = nx * vx + ny * vy + nz * vz
+                leading = n_v > 0.0
+                if not (leading or include_trailing):
+                    continue
+                speed = np.sqrt(vx * vx + vy * vy + vz * vz)
+                inv = 1.0 / speed if speed > 0.0 else 0.0
+                if leading:
+                    leading_count += 1
+                    fx, fy, fz = leading_plate_force(nx, ny, nz, vx, vy, vz, n_v, inv, depth,
+                                                     areas[j], zeta_si, inv_a4, inv_b4,
+                                                     dyn_lam_rho)
+                else:
+                    fx, fy, fz = 0.0, 0.0, 0.0
+                out_plate[k] = j
+                out_slot[k] = slots
+                out_lever[k, 0] = px - xipos[b, 0]
+                out_lever[k, 1] = py - xipos[b, 1]
+                out_lever[k, 2] = pz - xipos[b, 2]
+                out_force[k, 0], out_force[k, 1], out_force[k, 2] = fx, fy, fz
+                out_dir[k, 0], out_dir[k, 1], out_dir[k, 2] = vx * inv, vy * inv, vz * inv
+                out_speed[k] = speed
+                k += 1
         if k > first:
             slot_body[slots] = i
             slots += 1
@@ -96,11 +135,14 @@ def gather_plates(body_ids, radii, plate_start, local_pos, local_normal, areas,
 
 
 @njit(cache=True, error_model='numpy')
-def slot_jacobians(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
-                   body_dofnum, body_dofadr, body_parentid, dof_parentid, jac):
-    """Rows 6s..6s+5 of `jac` (S*6 x nv): d[v_com; omega]/d qvel of each slot's body, the
-    linear part at the body's centre of mass, world axes (as mujoco.mj_jac at xipos)."""
-    jac[:6 * slots, :] = 0.0
+def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
+                  body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
+                  qfrc_actuator, qfrc_applied, qfrc_bias, rows):
+    """Right-hand sides of the implicit solve: rows 6s..6s+5 of `rows` ((6S+1) x nv) become
+    d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
+    world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
+    tau_free = passive + actuator + applied - bias (N or N m per dof)."""
+    rows[:6 * slots + 1, :] = 0.0
     for s in range(slots):
         b = body_ids[slot_body[s]]
         root = body_rootid[b]
@@ -115,16 +157,93 @@ def slot_jacobians(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_ro
         i = body_dofadr[owner] + body_dofnum[owner] - 1
         while i >= 0:
             ax, ay, az = cdof[i, 0], cdof[i, 1], cdof[i, 2]
-            jac[6 * s + 0, i] = cdof[i, 3] + ay * oz - az * oy
-            jac[6 * s + 1, i] = cdof[i, 4] + az * ox - ax * oz
-            jac[6 * s + 2, i] = cdof[i, 5] + ax * oy - ay * ox
-            jac[6 * s + 3, i] = ax
-            jac[6 * s + 4, i] = ay
-            jac[6 * s + 5, i] = az
+            rows[6 * s + 0, i] = cdof[i, 3] + ay * oz - az * oy
+            rows[6 * s + 1, i] = cdof[i, 4] + az * ox - ax * oz
+            rows[6 * s + 2, i] = cdof[i, 5] + ax * oy - ay * ox
+            rows[6 * s + 3, i] = ax
+            rows[6 * s + 4, i] = ay
+            rows[6 * s + 5, i] = az
             i = dof_parentid[i]
+    for i in range(qfrc_bias.shape[0]):
+        rows[6 * slots, i] = qfrc_passive[i] + qfrc_actuator[i] + qfrc_applied[i] - qfrc_bias[i]
+
+
+_TRN_JOINT = 0     # mjtTrn.mjTRN_JOINT
+_AFFINE = 1        # mjtGain.mjGAIN_AFFINE == mjtBias.mjBIAS_AFFINE
+_HINGE_OR_SLIDE = (2, 3)  # mjtJoint.mjJNT_SLIDE, mjJNT_HINGE
 
 
 @njit(cache=True, error_model='numpy')
+def implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_type,
+                     jnt_dofadr, dyntype, gaintype, gainprm, biastype, biasprm, forcelimited,
+                     forcerange, ctrl, act, actadr, actuator_force, out):
+    """The velocity damping D (diagonal, per dof; N s/m or N m s/rad) that MuJoCo's step
+    integrates implicitly, solving (M + dt D) qacc = force: joint damping when `damper`, and
+    when `actuators` (implicit/implicitfast integrators) the velocity gains of actuators
+    driving a hinge or slide directly (zero while the actuator force is clamped)."""
+    for i in range(out.shape[0]):
+        out[i] = dof_damping[i] if damper else 0.0
+    if not actuators:
+        return
+    for a in range(trntype.shape[0]):
+        joint = trnid[a, 0]
+        if trntype[a] != _TRN_JOINT or not (jnt_type[joint] == 2 or jnt_type[joint] == 3):
+            continue
+        if forcelimited[a] and (actuator_force[a] <= forcerange[a, 0]
+                                or actuator_force[a] >= forcerange[a, 1]):
+            continue
+        slope = biasprm[a, 2] if biastype[a] == _AFFINE else 0.0  # d force / d velocity
+        if gaintype[a] == _AFFINE:
+            slope += gainprm[a, 2] * (act[actadr[a]] if dyntype[a] != 0 else ctrl[a])
+        out[jnt_dofadr[joint]] -= gear[a, 0] * gear[a, 0] * slope
+
+
+@njit(cache=True, error_model='numpy')
+def solve_implicit_mass(mass, damping, timestep, rows, out):
+    """out = rows (M + dt D)^-1 (each row solved), M the dense joint-space inertia (nv x nv),
+    D the diagonal damping of `implicit_damping`: MuJoCo's own step matrix, so predicted
+    end-of-step velocities match what mj_step2 integrates. Cholesky; M + dt D is SPD."""
+    n = mass.shape[0]
+    factor = mass.copy()
+    for i in range(n):
+        factor[i, i] += timestep * damping[i]
+    for j in range(n):  # lower Cholesky factor in place
+        acc = factor[j, j]
+        for k in range(j):
+            acc -= factor[j, k] * factor[j, k]
+        factor[j, j] = np.sqrt(acc)
+        for i in range(j + 1, n):
+            acc = factor[i, j]
+            for k in range(j):
+                acc -= factor[i, k] * factor[j, k]
+            factor[i, j] = acc / factor[j, j]
+    for r in range(rows.shape[0]):
+        for i in range(n):  # forward substitution
+            acc = rows[r, i]
+            for k in range(i):
+                acc -= factor[i, k] * out[r, k]
+            out[r, i] = acc / factor[i, i]
+        for i in range(n - 1, -1, -1):  # back substitution
+            acc = out[r, i]
+            for k in range(i + 1, n):
+                acc -= factor[k, i] * out[r, k]
+            out[r, i] = acc / factor[i, i]
+
+
+@njit(cache=True, error_model='numpy')
+def scatter_wrenches(slots, slot_body, slot_wrench, body_ids, body_wrenches, xfrc_applied):
+    """Slot wrenches -> per-sand-body wrenches (zero for bodies out of the sand) and
+    mjData.xfrc_applied rows of the sand bodies."""
+    body_wrenches[:, :] = 0.0
+    for s in range(slots):
+        for a in range(6):
+            body_wrenches[slot_body[s], a] = slot_wrench[s, a]
+    for i in range(body_ids.shape[0]):
+        for a in range(6):
+            xfrc_applied[body_ids[i], a] = body_wrenches[i, a]
+
+
+@njit(cache=True, error_model='numpy', fastmath=True)
 def _solve(matrix, rhs):
     """Solve the dense square system matrix x = rhs (Gaussian elimination, partial pivoting).
     Overwrites both arguments; returns x."""
@@ -172,137 +291,243 @@ def _point_velocity(lever, twist, base):
             twist[base + 2] + wx * lever[1] - wy * lever[0])
 
 
-@njit(cache=True, error_model='numpy')
-def implicit_wrenches(k, slots, out_slot, lever, force, direction, speed, v_reg,
-                      jac, minv_rows, qvel, timestep, applied, wrench):
-    """Plate forces over the coming step by the implicit law of the module docstring, summed
-    into slot wrenches.
+@njit(cache=True, inline='always', fastmath=True)
+def _resting_block(k_rank, iso, out):
+    """Slot twist response of its plates' linear parts: rank part minus sum c P^T P,
+    P = [I, -[r]x] (plate velocity from the twist)."""
+    g, sx, sy, sz = iso[0], iso[1], iso[2], iso[3]
+    xx, yy, zz, xy, yz, zx = iso[4], iso[5], iso[6], iso[7], iso[8], iso[9]
+    for a in range(6):
+        for b in range(6):
+            out[a, b] = k_rank[a, b]
+    for a in range(3):
+        out[a, a] -= g
+    # -[S1]x in the (force, omega) block, +[S1]x in the (torque, velocity) block
+    out[0, 4] -= sz
+    out[0, 5] += sy
+    out[1, 3] += sz
+    out[1, 5] -= sx
+    out[2, 3] -= sy
+    out[2, 4] += sx
+    out[4, 0] -= sz
+    out[5, 0] += sy
+    out[3, 1] += sz
+    out[5, 1] -= sx
+    out[3, 2] -= sy
+    out[4, 2] += sx
+    # -(tr(S2) I - S2) in the (torque, omega) block
+    trace = xx + yy + zz
+    out[3, 3] -= trace - xx
+    out[4, 4] -= trace - yy
+    out[5, 5] -= trace - zz
+    out[3, 4] += xy
+    out[4, 3] += xy
+    out[4, 5] += yz
+    out[5, 4] += yz
+    out[3, 5] += zx
+    out[5, 3] += zx
 
-    jac: (>= 6S, nv) slot Jacobians. minv_rows: (>= 6S+1, nv) rows M^-1 jac_r^T for the 6S
-    Jacobian rows, then M^-1 tau_free, where tau_free is every generalised force except
-    the sand's (passive + actuator + applied - bias). With each plate moving (force G),
-    resting (linear in v+) or off, the end-of-step twists solve
-        (I - dt A K) xi+ = xi_free + dt A W_moving,   A = jac M^-1 jac^T,
-    K the resting plates' linear response, W_moving the moving plates' wrench; plates then
-    change set until the solution is consistent (an active-set iteration; a set is left for
-    a neighbouring one). Plates faster than v_reg start as moving. Writes applied[:k]
-    (N, world, on the body) and wrench[:S] (6 per slot, [force; torque about COM]).
+
+@njit(cache=True, error_model='numpy')
+def implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new, v_reg,
+                          out):
+    """Per-plate forces (N, world, on the body) of an implicit step from the plates' sets and
+    the end-of-step twists (law of the module docstring), with the along factor clamped to
+    [0, 1] and the across part capped at |G|, so each force stays within its plate's law
+    even where the sets have not settled."""
+    inv_reg = 1.0 / v_reg
+    for j in range(k):
+        if states[j] == OFF:
+            for a in range(3):
+                out[j, a] = 0.0
+            continue
+        vx, vy, vz = _point_velocity(lever[j], xi_new, 6 * out_slot[j])
+        d = direction[j]
+        along = vx * d[0] + vy * d[1] + vz * d[2]
+        factor = 1.0 if states[j] == MOVING else min(max(along * inv_reg, 0.0), 1.0)
+        px, py, pz = vx - along * d[0], vy - along * d[1], vz - along * d[2]
+        magnitude = np.sqrt(force[j, 0] ** 2 + force[j, 1] ** 2 + force[j, 2] ** 2)
+        damp = magnitude / max(speed[j], v_reg)
+        size = damp * np.sqrt(px * px + py * py + pz * pz)
+        if size > magnitude:
+            damp *= magnitude / size
+        out[j, 0] = factor * force[j, 0] - damp * px
+        out[j, 1] = factor * force[j, 1] - damp * py
+        out[j, 2] = factor * force[j, 2] - damp * pz
+
+
+@njit(cache=True, error_model='numpy', fastmath=True)
+def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, speed, v_reg,
+                      jac, minv_rows, qvel, timestep, step, plate_state, plate_step,
+                      states, xi_new, wrench):
+    """Sand wrenches over the coming step by the implicit law of the module docstring.
+
+    jac: (>= 6S, nv) slot Jacobians. minv_rows: (>= 6S+1, nv) rows Mh^-1 jac_r^T for the 6S
+    Jacobian rows, then Mh^-1 tau_free, where tau_free is every generalised force except
+    the sand's (passive + actuator + applied - bias) and Mh = M + dt D is the matrix MuJoCo's
+    step solves with (`solve_implicit_mass`). With each plate moving (force G), resting
+    (linear in v+) or off, the end-of-step joint velocities solve
+        (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving,   xi+ = J qvel+,
+    K the plates' linear response, W_moving the moving plates' G; plates then change set
+    until the solution is consistent (an active-set iteration; moving and off are
+    neighbours of resting only, so a plate passes through resting between them).
+    Each plate starts from its set of the previous step if it was in the sand then
+    (`plate_state`/`plate_step`, indexed by plate, updated here), otherwise as moving when
+    faster than v_reg; so a step usually needs one solve. Writes states[:k],
+    xi_new[:6S] (end-of-step twists) and wrench[:S] ([force; torque about COM], N, N m).
+    A plate that has changed set MAX_FLIPS times keeps its set for the rest of the step
+    (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
+    active-set iterations can cycle); the wrench always sums per-plate forces clamped to
+    each plate's law, so a held plate's force stays within its law too. Returns the number
+    of solves, negative if some plate was held against its end velocity.
+
+    Each plate adds to its slot's accumulators, by set: moving -> wrench h = [G; r x G];
+    resting -> along response h u^T / v_reg (u = [d; r x d]); both -> across damper
+    -c (I - d d^T), i.e. c u u^T minus c P^T P (kept as 10 moments c, c r, c r r^T).
+    A set change adds the difference of those coefficients, so the accumulators are built
+    once per step and updated only for plates that change set.
     """
     n6 = 6 * slots
     nv = qvel.shape[0]
-    xi_free = np.zeros(n6)
-    a_matrix = np.zeros((n6, n6))
-    for r in range(n6):
-        acc_now = 0.0
-        acc_acc = 0.0
-        for i in range(nv):
-            acc_now += jac[r, i] * qvel[i]
-            acc_acc += jac[r, i] * minv_rows[n6, i]
-        xi_free[r] = acc_now + timestep * acc_acc
-        for c in range(n6):
+    inv_reg = 1.0 / v_reg
+    qvel_free = np.empty(nv)
+    for i in range(nv):
+        qvel_free[i] = qvel[i] + timestep * minv_rows[n6, i]
+    h = np.empty((k, 6))
+    u = np.empty((k, 6))
+    across = np.empty(k)
+    for j in range(k):
+        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
+        gx, gy, gz = force[j, 0], force[j, 1], force[j, 2]
+        dx, dy, dz = direction[j, 0], direction[j, 1], direction[j, 2]
+        h[j, 0], h[j, 1], h[j, 2] = gx, gy, gz
+        h[j, 3], h[j, 4], h[j, 5] = ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx
+        u[j, 0], u[j, 1], u[j, 2] = dx, dy, dz
+        u[j, 3], u[j, 4], u[j, 5] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
+        across[j] = np.sqrt(gx * gx + gy * gy + gz * gz) / max(speed[j], v_reg)
+        p = out_plate[j]
+        if plate_step[p] == step - 1:
+            states[j] = plate_state[p]
+        else:
+            states[j] = MOVING if speed[j] > v_reg else RESTING
+    w_moving = np.zeros((slots, 6))
+    k_rank = np.zeros((slots, 6, 6))
+    k_iso = np.zeros((slots, 10))
+    # pending coefficient changes: plate, d(along factor), d(across damper), d(moving)
+    change_plate = np.empty(k, dtype=np.int64)
+    change_along = np.empty(k)
+    change_across = np.empty(k)
+    change_moving = np.empty(k)
+    flips = np.zeros(k, dtype=np.int8)
+    changes = 0
+    for j in range(k):
+        if states[j] != OFF:
+            change_plate[changes] = j
+            change_along[changes] = inv_reg if states[j] == RESTING else 0.0
+            change_across[changes] = across[j]
+            change_moving[changes] = 1.0 if states[j] == MOVING else 0.0
+            changes += 1
+    block = np.zeros((6, 6))
+    block_jac = np.zeros((6, nv))
+    system = np.zeros((nv, nv))
+    rhs = np.zeros(nv)
+    iterations = 0
+    held = 0
+    converged = False
+    while iterations < MAX_ITERATIONS and not converged:
+        iterations += 1
+        for q in range(changes):
+            j = change_plate[q]
+            s = out_slot[j]
+            da, dg, dm = change_along[q], change_across[q], change_moving[q]
+            for a in range(6):
+                w_moving[s, a] += dm * h[j, a]
+                ha = da * h[j, a] + dg * u[j, a]
+                for b in range(6):
+                    k_rank[s, a, b] += ha * u[j, b]
+            rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
+            k_iso[s, 0] += dg
+            k_iso[s, 1] += dg * rx
+            k_iso[s, 2] += dg * ry
+            k_iso[s, 3] += dg * rz
+            k_iso[s, 4] += dg * rx * rx
+            k_iso[s, 5] += dg * ry * ry
+            k_iso[s, 6] += dg * rz * rz
+            k_iso[s, 7] += dg * rx * ry
+            k_iso[s, 8] += dg * ry * rz
+            k_iso[s, 9] += dg * rz * rx
+        # (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving; xi+ = J qvel+
+        for r in range(nv):
+            for c in range(nv):
+                system[r, c] = 1.0 if r == c else 0.0
+            rhs[r] = qvel_free[r]
+        for s in range(slots):
+            _resting_block(k_rank[s], k_iso[s], block)
+            for a in range(6):
+                for c in range(nv):
+                    acc = 0.0
+                    for b in range(6):
+                        acc += block[a, b] * jac[6 * s + b, c]
+                    block_jac[a, c] = acc
+            for a in range(6):
+                for r in range(nv):
+                    weight = timestep * minv_rows[6 * s + a, r]
+                    if weight != 0.0:
+                        for c in range(nv):
+                            system[r, c] -= weight * block_jac[a, c]
+                        rhs[r] += weight * w_moving[s, a]
+        solution = _solve(system, rhs)
+        for r in range(n6):
             acc = 0.0
             for i in range(nv):
-                acc += jac[r, i] * minv_rows[c, i]
-            a_matrix[r, c] = acc
-    state = np.empty(k, dtype=np.int8)
-    for j in range(k):
-        state[j] = MOVING if speed[j] > v_reg else RESTING
-    magnitude = np.empty(k)
-    for j in range(k):
-        magnitude[j] = np.sqrt(force[j, 0] ** 2 + force[j, 1] ** 2 + force[j, 2] ** 2)
-    h = np.zeros(6)
-    column = np.zeros(3)
-    k3 = np.zeros((3, 3))
-    xi_new = np.zeros(n6)
-    inv_reg = 1.0 / v_reg
-    for _ in range(12):
-        k_blocks = np.zeros((slots, 6, 6))
-        w_moving = np.zeros(n6)
+                acc += jac[r, i] * solution[i]
+            xi_new[r] = acc
+        changes = 0
+        held = 0
         for j in range(k):
-            s = out_slot[j]
-            if state[j] == MOVING:
-                _wrench_row(lever[j], force[j], h)
-                for a in range(6):
-                    w_moving[6 * s + a] += h[a]
-            elif state[j] == RESTING:
-                # plate force = K3 v+, K3 = (G d^T - |G| (I - d d^T)) / v_reg
-                d = direction[j]
-                for a in range(3):
-                    for b in range(3):
-                        k3[a, b] = (force[j, a] * d[b] + magnitude[j] * d[a] * d[b]) * inv_reg
-                    k3[a, a] -= magnitude[j] * inv_reg
-                # body block += [I; [r]x] K3 [I, -[r]x]; column b of K3 [I, -[r]x] is
-                # K3 e_b (b < 3) or K3 (e_{b-3} x r) (b >= 3)
-                rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
-                for b in range(6):
-                    if b < 3:
-                        for a in range(3):
-                            column[a] = k3[a, b]
-                    else:
-                        ex = 1.0 if b == 3 else 0.0
-                        ey = 1.0 if b == 4 else 0.0
-                        ez = 1.0 if b == 5 else 0.0
-                        cx, cy, cz = ey * rz - ez * ry, ez * rx - ex * rz, ex * ry - ey * rx
-                        for a in range(3):
-                            column[a] = k3[a, 0] * cx + k3[a, 1] * cy + k3[a, 2] * cz
-                    _wrench_row(lever[j], column, h)
-                    for a in range(6):
-                        k_blocks[s, a, b] += h[a]
-        system = np.eye(n6)
-        rhs = xi_free.copy()
-        for r in range(n6):
-            for s in range(slots):
-                for b in range(6):
-                    acc = 0.0
-                    for a in range(6):
-                        acc += a_matrix[r, 6 * s + a] * k_blocks[s, a, b]
-                    system[r, 6 * s + b] -= timestep * acc
-            acc = 0.0
-            for c in range(n6):
-                acc += a_matrix[r, c] * w_moving[c]
-            rhs[r] += timestep * acc
-        xi_new = _solve(system, rhs)
-        changed = False
-        for j in range(k):
-            vx, vy, vz = _point_velocity(lever[j], xi_new, 6 * out_slot[j])
-            d = direction[j]
-            along = vx * d[0] + vy * d[1] + vz * d[2]
-            a_ratio = along * inv_reg
-            b_ratio = np.sqrt(max((vx * vx + vy * vy + vz * vz) - along * along, 0.0)) * inv_reg
-            moving = a_ratio >= 1.0 or (b_ratio > 1.0 and a_ratio >= 0.0)
-            if state[j] == RESTING:
-                wanted = MOVING if moving else (OFF if a_ratio < 0.0 else RESTING)
-            elif state[j] == MOVING:  # a set is left only for a neighbouring one
-                wanted = MOVING if moving else RESTING
-            else:
-                wanted = OFF if a_ratio <= 0.0 else RESTING
-            if wanted != state[j]:
-                state[j] = wanted
-                changed = True
-        if not changed:
-            break
+            base = 6 * out_slot[j]
+            # plate velocity along d at the end of the step: u . xi+
+            along = 0.0
+            for a in range(6):
+                along += u[j, a] * xi_new[base + a]
+            wanted = OFF if along < 0.0 else (MOVING if along >= v_reg else RESTING)
+            old = states[j]
+            # moving and off are reached from resting only
+            new = wanted if (wanted == old or old == RESTING or wanted == RESTING) else RESTING
+            if new != old and flips[j] >= MAX_FLIPS:  # anti-cycling: it keeps its set
+                held += 1
+            elif new != old:
+                change_plate[changes] = j
+                change_along[changes] = ((inv_reg if new == RESTING else 0.0)
+                                         - (inv_reg if old == RESTING else 0.0))
+                change_across[changes] = ((across[j] if new != OFF else 0.0)
+                                          - (across[j] if old != OFF else 0.0))
+                change_moving[changes] = ((1.0 if new == MOVING else 0.0)
+                                          - (1.0 if old == MOVING else 0.0))
+                changes += 1
+                states[j] = new
+                flips[j] += 1
+        converged = changes == 0
+    # Each plate's force within its law (exact where its set matches its end velocity,
+    # clamped where an oscillating plate was held in its set), summed per slot.
+    applied = np.empty((k, 3))
+    implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new, v_reg,
+                          applied)
     wrench[:slots, :] = 0.0
     for j in range(k):
-        if state[j] == MOVING:
-            for a in range(3):
-                applied[j, a] = force[j, a]
-        elif state[j] == OFF:
-            for a in range(3):
-                applied[j, a] = 0.0
-        else:
-            vx, vy, vz = _point_velocity(lever[j], xi_new, 6 * out_slot[j])
-            d = direction[j]
-            along = vx * d[0] + vy * d[1] + vz * d[2]
-            a_ratio = min(max(along * inv_reg, 0.0), 1.0)
-            px, py, pz = vx - along * d[0], vy - along * d[1], vz - along * d[2]
-            perp = np.sqrt(px * px + py * py + pz * pz)
-            damp = magnitude[j] * inv_reg if perp * inv_reg <= 1.0 else magnitude[j] / perp
-            applied[j, 0] = a_ratio * force[j, 0] - damp * px
-            applied[j, 1] = a_ratio * force[j, 1] - damp * py
-            applied[j, 2] = a_ratio * force[j, 2] - damp * pz
-        _wrench_row(lever[j], applied[j], h)
-        for a in range(6):
-            wrench[out_slot[j], a] += h[a]
+        s = out_slot[j]
+        fx, fy, fz = applied[j, 0], applied[j, 1], applied[j, 2]
+        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
+        wrench[s, 0] += fx
+        wrench[s, 1] += fy
+        wrench[s, 2] += fz
+        wrench[s, 3] += ry * fz - rz * fy
+        wrench[s, 4] += rz * fx - rx * fz
+        wrench[s, 5] += rx * fy - ry * fx
+    for j in range(k):
+        plate_state[out_plate[j]] = states[j]
+        plate_step[out_plate[j]] = step
+    return iterations if converged and held == 0 else -iterations
 
 
 @njit(cache=True, error_model='numpy')

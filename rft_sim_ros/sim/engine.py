@@ -23,18 +23,28 @@ from . import coupling
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
 
+def _full_inertia(model, data, out):
+    """Dense joint-space inertia M (nv x nv) into `out` (MuJoCo 3 and 4 signatures)."""
+    try:
+        mujoco.mj_fullM(model, data, out)  # MuJoCo >= 4
+    except TypeError:
+        mujoco.mj_fullM(model, out, data.qM)  # MuJoCo 3
+
+
 @dataclass(frozen=True)
 class LowVelocity:
     """How RFT is treated where the direction of motion is ill-defined (|v| -> 0).
 
     method: 'implicit' (default): the sand may stop a plate within a step but not reverse
-            it; below `rest_speed` (m/s) the law is a stiff damper solved implicitly.
+            it, and holds a plate at rest; `rest_speed` (m/s) is the regularisation speed
+            below which the law is a stiff damper solved implicitly (a loaded body at rest
+            creeps at most at about rest_speed x load / capacity).
             'ema': the RFT-SiM paper's exponential moving average of each plate force with
             factor `ema_alpha` (0.1 in the paper's text, 0.5 in its code), explicit.
             'none': raw explicit RFT.
     """
     method: str = 'implicit'
-    rest_speed: float = 1e-4
+    rest_speed: float = 1e-5
     ema_alpha: float = 0.1
 
     def __post_init__(self):
@@ -66,14 +76,7 @@ class SandEngine:
         self.body_ids = np.array([model.body(name).id for name in self.body_names],
                                  dtype=np.int64)
         plates = [body_plates[name] for name in self.body_names]
-        counts = np.array([len(p) for p in plates], dtype=np.int64)
-        self.plate_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        joined = Plates.concatenate(plates)
-        self.local_pos = np.ascontiguousarray(joined.centroids)
-        self.local_normal = np.ascontiguousarray(joined.normals)
-        self.areas = np.ascontiguousarray(joined.areas)
-        self.radii = np.array([np.linalg.norm(p.centroids, axis=1).max() if len(p) else 0.0
-                               for p in plates])
+        self._cluster(plates)
         self.surface_height = float(surface_height)
         norm = find_normalisation(normalisation)
         self._a4, self._b4 = norm.a4, norm.b4
@@ -90,21 +93,69 @@ class SandEngine:
         self._dir = np.zeros((n, 3))
         self._speed = np.zeros(n)
         self._applied = np.zeros((n, 3))
+        self._states = np.zeros(n, dtype=np.int8)
+        self._plate_state = np.zeros(n, dtype=np.int8)
+        self._plate_step = np.full(n, -2, dtype=np.int64)
+        self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_wrench = np.zeros((nb, 6))
-        self._jac = np.zeros((6 * nb, model.nv))
         self._rhs = np.zeros((6 * nb + 1, model.nv))
         self._minv = np.zeros((6 * nb + 1, model.nv))
         self._ema_force = np.zeros((n, 3))
         self._ema_step = np.full(n, -2, dtype=np.int64)
         self._step = 0
         self._k = self._slots = self.plates_active = 0
+        self.solves = 0  # implicit solves so far (about one per step with sand contact)
+        self.unsettled_steps = 0  # steps whose active set had not settled (clamped fallback)
         self.body_wrenches = np.zeros((nb, 6))
         self._views()
+
+    def _cluster(self, plates):
+        """Store all plates, body by body and within a body cluster by cluster, with the
+        bounding spheres (body frame) used to skip plates above the sand."""
+        parts, body_clusters, plate_starts, centers, radii = [], [0], [], [], []
+        offset = 0
+        for body in plates:
+            order, starts = coupling.cluster_plates(body.centroids)
+            ordered = body.subset(order)
+            parts.append(ordered)
+            for c in range(len(starts) - 1):
+                points = ordered.centroids[starts[c]:starts[c + 1]]
+                center = 0.5 * (points.min(axis=0) + points.max(axis=0))
+                centers.append(center)
+                radii.append(np.linalg.norm(points - center, axis=1).max())
+                plate_starts.append(offset + starts[c])
+            offset += len(ordered)
+            body_clusters.append(len(centers))
+        plate_starts.append(offset)
+        joined = Plates.concatenate(parts)
+        self.local_pos = np.ascontiguousarray(joined.centroids)
+        self.local_normal = np.ascontiguousarray(joined.normals)
+        self.areas = np.ascontiguousarray(joined.areas)
+        counts = np.array([len(p) for p in plates], dtype=np.int64)
+        self.plate_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.radii = np.array([np.linalg.norm(p.centroids, axis=1).max() if len(p) else 0.0
+                               for p in plates])
+        self._body_cluster_start = np.array(body_clusters, dtype=np.int64)
+        self._cluster_plate_start = np.array(plate_starts, dtype=np.int64)
+        self._cluster_center = np.array(centers, dtype=float).reshape(-1, 3)
+        self._cluster_radius = np.array(radii, dtype=float)
 
     def _views(self):
         """Cache the numpy views of mjModel/mjData arrays used every step."""
         m, d = self.model, self.data
+        integrator = m.opt.integrator
+        damper = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
+        if integrator == mujoco.mjtIntegrator.mjINT_EULER:
+            damper = damper and not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+        actuators = integrator != mujoco.mjtIntegrator.mjINT_EULER
+        self._damping_arrays = (
+            bool(damper), bool(actuators), m.dof_damping, m.actuator_trntype, m.actuator_trnid,
+            m.actuator_gear, m.jnt_type, m.jnt_dofadr, m.actuator_dyntype,
+            m.actuator_gaintype, m.actuator_gainprm, m.actuator_biastype, m.actuator_biasprm,
+            m.actuator_forcelimited, m.actuator_forcerange)
+        self._damping = np.zeros(m.nv)
+        self._mass = np.zeros((m.nv, m.nv))
         self._xpos, self._xmat, self._xipos = d.xpos, d.xmat, d.xipos
         self._cvel, self._subtree_com, self._cdof = d.cvel, d.subtree_com, d.cdof
         self._qvel, self._xfrc = d.qvel, d.xfrc_applied
@@ -139,45 +190,54 @@ class SandEngine:
         method = self.low_velocity.method
         self._step += 1
         k, self.plates_active, slots = coupling.gather_plates(
-            self.body_ids, self.radii, self.plate_start, self.local_pos, self.local_normal,
+            self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
+            self._cluster_center, self._cluster_radius, self.local_pos, self.local_normal,
             self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
-            self._model_arrays[0], self.surface_height, self._zeta_si, self._a4, self._b4,
-            self._dyn, method == 'ema', self._plate, self._slot, self._lever, self._force,
-            self._dir, self._speed, self._slot_body)
-        if slots and method == 'implicit':
-            self._implicit(k, slots)
-        elif slots:
-            alpha = self.low_velocity.ema_alpha if method == 'ema' else 1.0
-            coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._lever,
-                                       self._force, alpha, self._step, self._ema_force,
-                                       self._ema_step, self._applied, self._slot_wrench)
+            self._model_arrays[0], self.surface_height, self._zeta_si, 1.0 / self._a4,
+            1.0 / self._b4, self._dyn, method == 'ema', self._plate, self._slot, self._lever,
+            self._force, self._dir, self._speed, self._slot_body)
+        if slots:
+            if method == 'implicit':
+                self._implicit(k, slots)
+            else:
+                alpha = self.low_velocity.ema_alpha if method == 'ema' else 1.0
+                coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._lever,
+                                           self._force, alpha, self._step, self._ema_force,
+                                           self._ema_step, self._applied, self._slot_wrench)
+            coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench,
+                                      self.body_ids, self.body_wrenches, self._xfrc)
+        elif self._slots:  # the last bodies left the sand
+            coupling.scatter_wrenches(0, self._slot_body, self._slot_wrench, self.body_ids,
+                                      self.body_wrenches, self._xfrc)
         self._k, self._slots = k, slots
-        self.body_wrenches[:] = 0.0
-        self.body_wrenches[self._slot_body[:slots]] = self._slot_wrench[:slots]
-        self._xfrc[self.body_ids] = self.body_wrenches
 
     def _implicit(self, k, slots):
         m, d = self.model, self.data
         mujoco.mj_fwdActuation(m, d)
-        coupling.slot_jacobians(slots, self._slot_body, self.body_ids, self._xipos,
-                                self._subtree_com, self._cdof, *self._model_arrays, self._jac)
-        n6 = 6 * slots
-        rhs = self._rhs[:n6 + 1]
-        rhs[:n6] = self._jac[:n6]
-        passive, actuator, applied, bias = self._qfrc
-        np.subtract(passive + actuator + applied, bias, out=rhs[n6])
-        minv = self._minv[:n6 + 1]
-        mujoco.mj_solveM(m, d, minv, rhs)
-        coupling.implicit_wrenches(k, slots, self._slot, self._lever, self._force, self._dir,
-                                   self._speed, self.low_velocity.rest_speed, self._jac, minv,
-                                   self._qvel, m.opt.timestep, self._applied, self._slot_wrench)
+        rows = self._rhs[:6 * slots + 1]
+        coupling.prepare_solve(slots, self._slot_body, self.body_ids, self._xipos,
+                               self._subtree_com, self._cdof, *self._model_arrays,
+                               *self._qfrc, rows)
+        coupling.implicit_damping(*self._damping_arrays, d.ctrl, d.act, m.actuator_actadr,
+                                  d.actuator_force,
+                                  self._damping)
+        _full_inertia(m, d, self._mass)
+        minv = self._minv[:6 * slots + 1]
+        coupling.solve_implicit_mass(self._mass, self._damping, m.opt.timestep, rows, minv)
+        iterations = coupling.implicit_wrenches(
+            k, slots, self._plate, self._slot, self._lever, self._force, self._dir, self._speed,
+            self.low_velocity.rest_speed, rows, minv, self._qvel, m.opt.timestep, self._step,
+            self._plate_state, self._plate_step, self._states, self._xi, self._slot_wrench)
+        self.solves += abs(iterations)
+        self.unsettled_steps += iterations < 0
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
         (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
         k = self._k
-        plates = self._plate[:k]
-        forces = self._applied[:k].copy()
-        lever = self._lever[:k]
+        if self.low_velocity.method == 'implicit':
+            coupling.implicit_plate_forces(k, self._slot, self._lever, self._force, self._dir,
+                                           self._speed, self._states, self._xi,
+                                           self.low_velocity.rest_speed, self._applied)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
-        return lever + com, forces, self.areas[plates]
+        return self._lever[:k] + com, self._applied[:k].copy(), self.areas[self._plate[:k]]

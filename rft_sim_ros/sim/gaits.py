@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
+from numba import njit
 
 from rft_sim_ros.sim import hexapod
 from rft_sim_ros.sim.leg_kinematics import LateralLegs
@@ -21,6 +22,28 @@ from rft_sim_ros.sim.leg_kinematics import LateralLegs
 
 def _joint_names(legs):
     return tuple(f'{leg}_{joint}' for leg in legs.names for joint in ('knee', 'ankle'))
+
+
+@njit(cache=True)
+def foot_path(phi, beta, length, height):
+    """Foot offsets (dx, dz), m, at phases phi (1-D, in [0, 1)) of a gait cycle with stance
+    fraction beta, stroke `length` and lift `height`: in stance the foot moves back at
+    constant speed from +length/2 to -length/2; in swing it returns on a cubic Hermite
+    curve whose end slopes match the stance speed, lifted by height sin^2(pi s)."""
+    dx = np.empty(phi.shape[0])
+    dz = np.empty(phi.shape[0])
+    slope = -length * (1.0 - beta) / beta  # stance velocity, per unit swing fraction
+    for i in range(phi.shape[0]):
+        if phi[i] < beta:
+            dx[i] = length * (0.5 - phi[i] / beta)
+            dz[i] = 0.0
+        else:
+            s = (phi[i] - beta) / (1.0 - beta)
+            # cubic Hermite from -length/2 to +length/2 with end slopes `slope`
+            dx[i] = (length * (s * s * (3.0 - 2.0 * s) - 0.5)
+                     + slope * s * (1.0 - s) * (1.0 - 2.0 * s))
+            dz[i] = height * np.sin(np.pi * s) ** 2
+    return dx, dz
 
 
 def _smoothstep(u):
@@ -121,24 +144,21 @@ class TripodGait(StandGait):
 
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
-        dx, dz = self.foot_offsets(t)
-        knee, ankle = self.legs.inverse(self._neutral[:, 0] + dx, self._neutral[:, 2] + dz)
-        return np.stack([knee, ankle], axis=-1).ravel()
+        scale = self.amplitude(t)
+        dx, dz = foot_path(self.phases(t), self.stance_fraction, scale * self.step_length_m,
+                           scale * self.step_height_m)
+        knee, ankle = self.legs.inverse((self._neutral[:, 0] + dx)[None],
+                                        (self._neutral[:, 2] + dz)[None])
+        out = np.empty(2 * len(dx))
+        out[0::2], out[1::2] = knee[0], ankle[0]
+        return out
 
     def _path(self, phi, scale):
         """Foot offsets (dx, dz) in m at phases phi (any shape), stroke and lift times scale."""
-        beta = self.stance_fraction
-        length = scale * self.step_length_m
-        stance = phi < beta
-        s_stance = phi / beta
-        s = (phi - beta) / (1.0 - beta)
-        slope = -length * (1.0 - beta) / beta  # stance velocity, per unit swing fraction
-        # cubic Hermite from -length/2 to +length/2 with end slopes `slope`
-        swing_x = (length * (s * s * (3.0 - 2.0 * s) - 0.5)
-                   + slope * s * (1.0 - s) * (1.0 - 2.0 * s))
-        dx = np.where(stance, length * (0.5 - s_stance), swing_x)
-        dz = np.where(stance, 0.0, scale * self.step_height_m * np.sin(np.pi * s) ** 2)
-        return dx, dz
+        phi = np.asarray(phi, dtype=float)
+        dx, dz = foot_path(phi.ravel(), self.stance_fraction, scale * self.step_length_m,
+                           scale * self.step_height_m)
+        return dx.reshape(phi.shape), dz.reshape(phi.shape)
 
     def _check_workspace(self):
         """Raise ValueError unless every foot target over a full cycle is reachable."""

@@ -22,6 +22,22 @@ from dataclasses import dataclass
 from typing import Tuple
 
 import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _inverse(foot_x, foot_z, knee_xyz, mid_length, dactyl_length, dactyl_neutral_angle):
+    """`LateralLegs.inverse` for (M, N) foot targets (m; N legs): knee, ankle angles (rad)."""
+    knee = np.empty(foot_x.shape)
+    ankle = np.empty(foot_x.shape)
+    for m in range(foot_x.shape[0]):
+        for i in range(foot_x.shape[1]):
+            ratio = min(max((knee_xyz[i, 2] - foot_z[m, i]) / dactyl_length, -1.0), 1.0)
+            theta = np.arccos(ratio)
+            reach = mid_length + dactyl_length * np.sin(theta)
+            knee[m, i] = np.arcsin(min(max((foot_x[m, i] - knee_xyz[i, 0]) / reach, -1.0), 1.0))
+            ankle[m, i] = theta - dactyl_neutral_angle
+    return knee, ankle
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,10 +95,14 @@ class LateralLegs:
         knee angle then puts the foot at x: q_knee = arcsin((x - x_knee) / rho).
         Targets out of reach are clipped to the edge of the workspace; see `reachable`.
         """
-        theta = np.arccos(np.clip(self._drop_ratio(foot_z), -1.0, 1.0))
-        reach = self.mid_length + self.dactyl_length * np.sin(theta)
-        knee = np.arcsin(np.clip((np.asarray(foot_x) - self.knee_xyz[:, 0]) / reach, -1.0, 1.0))
-        return knee, theta - self.dactyl_neutral_angle
+        foot_x, foot_z = np.asarray(foot_x, dtype=float), np.asarray(foot_z, dtype=float)
+        if foot_x.shape != foot_z.shape:
+            foot_x, foot_z = np.broadcast_arrays(foot_x, foot_z)
+        shape = foot_x.shape
+        knee, ankle = _inverse(foot_x.reshape(-1, len(self.names)),
+                               foot_z.reshape(-1, len(self.names)), self.knee_xyz,
+                               self.mid_length, self.dactyl_length, self.dactyl_neutral_angle)
+        return knee.reshape(shape), ankle.reshape(shape)
 
     def reachable(self, foot_x, foot_z):
         """(N,) bool: can `inverse` place each foot exactly at (foot_x, foot_z), and are the

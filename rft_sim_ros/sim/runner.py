@@ -76,13 +76,15 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     bar = None
     loop_started = None
     try:  # recorders are closed however the run ends (a bag is only complete once closed)
-        duration = scene.duration if duration is None else float(duration)
-        if not (math.isfinite(duration) and duration > 0):
-            raise ValueError(f'duration must be a positive number of seconds, got {duration}')
         actions = _scheduled_steps(schedule, scene.timestep)
         started = time.perf_counter()
         sim = Simulation(scene)
         startup = time.perf_counter() - started
+        if duration is None:
+            duration = scene.duration if scene.duration is not None else sim.scenario.duration()
+        duration = float(duration)
+        if not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f'duration must be a positive number of seconds, got {duration}')
         steps = int(round(duration / sim.timestep))
         publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
         with_plates = any(getattr(r, 'wants_plates', False) for r in recorders)
@@ -122,7 +124,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
             bar.close()
         for recorder in recorders:
             recorder.close()
-    sim_time = done * sim.timestep
+    sim_time = sim.steps * sim.timestep
     metrics = sim.scenario.metrics(sim) if done else {}
     summary = {
         'scene': scene.name,
@@ -134,7 +136,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         'recording_time_s': recording,
         'startup_time_s': startup,
         'real_time_factor': sim_time / wall if wall > 0 else float('inf'),
-        'steps': done,
+        'steps': sim.steps,
         'plates_total': sim.engine.plates_total,
         'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
                             for i, name in enumerate(sim.engine.body_names)},

@@ -1,7 +1,8 @@
 """Scene configuration: one YAML file per scene, validated into a `SceneConfig`.
 
 A scene names the MJCF model, the bodies that touch sand and how they are discretised, the
-sand (surface height, zeta), the timestep and duration, the legs to report, and values of
+sand (surface height, zeta), the timestep and duration (s, or `auto`: as long as the
+scenario's own values say, e.g. one rotation at the set speed), the legs to report, and values of
 the scene's own (`params`: masses, drop heights, gait...) that its scenario module uses.
 Every value can be overridden from the command line or the ROS node (`--set key=value`):
 a key is either a name in `params` or a dotted path into the file (e.g. `rft.plates_per_body`).
@@ -23,6 +24,15 @@ from ..units import zeta_problem
 _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
                  'rft.plate_density_per_mm2': 'rft.plates_per_body'}
 
+#: Every setting the scene format knows (dotted paths); any may be overridden, set or not.
+SCHEMA_KEYS = frozenset({
+    'name', 'description', 'scenario', 'model', 'timestep', 'duration', 'zeta',
+    'sand', 'sand.surface_height', 'rft', 'rft.bodies', 'rft.plates_per_body',
+    'rft.plate_density_per_mm2', 'rft.plates', 'rft.normalisation', 'rft.low_velocity',
+    'rft.low_velocity.method', 'rft.low_velocity.rest_speed', 'rft.low_velocity.ema_alpha',
+    'rft.dynamic', 'rft.dynamic.lambda', 'rft.dynamic.density', 'legs', 'base_body',
+    'publish_rate', 'control_rate', 'servo_kp'})
+
 
 class SceneError(ValueError):
     """A scene cannot be loaded or is invalid; the message says what to fix."""
@@ -42,6 +52,7 @@ class SceneConfig:
     sand_bodies: tuple
     plates_per_body: int
     plate_density_per_mm2: float
+    plates_by_body: dict
     normalisation: str
     low_velocity: dict
     dynamic: dict
@@ -49,6 +60,7 @@ class SceneConfig:
     base_body: str
     publish_rate: float
     control_rate: float
+    servo_kp: float
     params: dict
     raw: dict
 
@@ -88,14 +100,21 @@ def load_scene(name_or_path, overrides=None):
 
 
 def parse_assignment(text):
-    """'key=value' -> (key, value), the value read as YAML (numbers, lists, booleans)."""
+    """'key=value' -> (key, value), the value read as YAML (numbers, lists, booleans; 1e6
+    counts as a number)."""
     key, sep, value = text.partition('=')
     if not sep or not key.strip():
         raise SceneError(f'--set expects key=value, got {text!r}')
     try:
-        return key.strip(), yaml.safe_load(value)
+        parsed = yaml.safe_load(value)
     except yaml.YAMLError:
-        return key.strip(), value
+        parsed = value
+    if isinstance(parsed, str):  # YAML 1.1 reads 1e6 as text; users mean a number
+        try:
+            parsed = float(parsed)
+        except ValueError:
+            pass
+    return key.strip(), parsed
 
 
 def apply_overrides(raw, overrides):
@@ -107,14 +126,17 @@ def apply_overrides(raw, overrides):
         if key in params:
             params[key] = value
             continue
+        known = key in SCHEMA_KEYS
         node = raw
         parts = key.split('.')
         for part in parts[:-1]:
+            if known and not isinstance(node.get(part), dict):
+                node[part] = {}
             if not isinstance(node.get(part), dict):
                 raise SceneError(f'unknown setting {key!r}: scene values are '
                                  f'{sorted(params)} or dotted keys of the scene file')
             node = node[part]
-        if parts[-1] not in node and key not in _ALTERNATIVES:
+        if parts[-1] not in node and not known:
             raise SceneError(f'unknown setting {key!r}: scene values are {sorted(params)} '
                              'or dotted keys of the scene file')
         node[parts[-1]] = value
@@ -160,6 +182,12 @@ def _validate(raw, path):
         raise SceneError(f'{where}: rft.plates_per_body must be a positive integer, got {count!r}')
     if density is not None:
         density = _number(rft, 'plate_density_per_mm2', where)
+    by_body = rft.get('plates') or {}
+    if not isinstance(by_body, dict) or not all(
+            b in bodies and isinstance(n, int) and not isinstance(n, bool) and n >= 1
+            for b, n in by_body.items()):
+        raise SceneError(f'{where}: rft.plates must map sand bodies to positive plate counts, '
+                         f'got {by_body!r}')
     legs = raw.get('legs') or {}
     if not isinstance(legs, dict) or not all(
             isinstance(v, list) and v and all(b in bodies for b in v) for v in legs.values()):
@@ -170,12 +198,13 @@ def _validate(raw, path):
         scenario=raw['scenario'],
         model_path=model_path,
         timestep=_number(raw, 'timestep', where),
-        duration=_number(raw, 'duration', where),
+        duration=(None if raw.get('duration') == 'auto' else _number(raw, 'duration', where)),
         zeta=float(raw['zeta']),
         surface_height=_number(sand, 'surface_height', where, positive=False, default=0.0),
         sand_bodies=tuple(bodies),
         plates_per_body=count,
         plate_density_per_mm2=density,
+        plates_by_body=dict(by_body),
         normalisation=str(rft.get('normalisation', 'treers')),
         low_velocity=dict(rft.get('low_velocity') or {}),
         dynamic=rft.get('dynamic'),
@@ -183,6 +212,8 @@ def _validate(raw, path):
         base_body=str(raw.get('base_body', bodies[0])),
         publish_rate=_number(raw, 'publish_rate', where, default=100.0),
         control_rate=_number(raw, 'control_rate', where, default=500.0),
+        servo_kp=(None if raw.get('servo_kp') is None
+                  else _number(raw, 'servo_kp', where)),
         params=dict(raw.get('params') or {}),
         raw=raw,
     )

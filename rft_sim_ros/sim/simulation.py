@@ -10,8 +10,9 @@ controllers (the ROS node) and built-in gaits (scenarios) both feed it; it is sa
 scene's control rate and held in between (zero-order hold, as a servo bus would).
 
 A diverging run is detected and reported through `diverged` (the reason) instead of stepping
-on with garbage: MuJoCo's own instability warnings (it resets a non-finite state) are
-checked every step, a runaway speed at every control tick.
+on with garbage: MuJoCo resets a non-finite state (caught every step by sim time going
+back) and counts instability warnings; those and a runaway speed are checked at every
+control tick.
 """
 import mujoco
 import numpy as np
@@ -27,17 +28,20 @@ from ..rft.force_law import DynamicTerm
 #: Generalised speeds above this (m/s or rad/s) mean the simulation has blown up.
 RUNAWAY_SPEED = 1.0e3
 
-_INSTABILITY_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
-                         mujoco.mjtWarning.mjWARN_BADQPOS)
+_INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
+                                  mujoco.mjtWarning.mjWARN_BADQVEL,
+                                  mujoco.mjtWarning.mjWARN_BADQPOS], dtype=int)
 
 
 def position_servos(model):
-    """[(actuator id, joint id)] of MuJoCo `position` actuators acting on a joint: a fixed
-    gain kp and an affine bias -kp q (what <position> compiles to), in actuator order."""
+    """[(actuator id, joint id)] of MuJoCo `position` actuators acting on a joint: no
+    activation dynamics, a fixed gain kp and an affine bias -kp q (what <position> compiles
+    to; <intvelocity> differs only by its integrator dynamics), in actuator order."""
     servos = []
     for a in range(model.nu):
         kp = model.actuator_gainprm[a, 0]
         if (model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
                 and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
                 and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
                 and kp != 0 and model.actuator_biasprm[a, 1] == -kp):
@@ -80,9 +84,10 @@ class Simulation:
                                  f'{scene.model_path.name}')
         plates = {}
         for body in scene.sand_bodies:
-            plates[body] = body_plates(self.model, self.model.body(body).id,
-                                       count=scene.plates_per_body,
-                                       density_per_mm2=scene.plate_density_per_mm2)
+            count = scene.plates_by_body.get(body, scene.plates_per_body)
+            plates[body] = body_plates(
+                self.model, self.model.body(body).id, count=count,
+                density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
         try:
             self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
                                      surface_height=scene.surface_height,
@@ -101,6 +106,10 @@ class Simulation:
         self._legs = [(name, [self.engine.body_names.index(b) for b in bodies],
                        self.model.body(bodies[-1]).id) for name, bodies in scene.legs.items()]
         self._servos = position_servos(self.model)
+        if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
+            for actuator, _ in self._servos:
+                self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
+                self.model.actuator_biasprm[actuator, 1] = -scene.servo_kp
         self.servo_joint_names = tuple(self.model.joint(j).name for _, j in self._servos)
         self._servo_ctrl = np.array([a for a, _ in self._servos], dtype=int)
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
@@ -140,7 +149,7 @@ class Simulation:
         self.engine.zeta = value
 
     def _warning_count(self):
-        return sum(self.data.warning[w].number for w in _INSTABILITY_WARNINGS)
+        return int(self.data.warning.number[_INSTABILITY_WARNINGS].sum())
 
     def step(self, count=1):
         """Advance `count` steps: at control ticks the scenario's control and the servo
@@ -157,7 +166,8 @@ class Simulation:
             engine.step()
             self.steps += 1
             if data.time <= before:  # MuJoCo reset a non-finite state
-                self._diverge(self._check() or 'MuJoCo reset an unstable state')
+                self._diverge(self._check() or 'MuJoCo reset an unstable state',
+                              self._time_offset + before)
             if self.steps % observe_every == 0:
                 scenario.observe(self)
 
@@ -169,8 +179,9 @@ class Simulation:
         if self.commands is not None:
             self._ctrl[self._servo_ctrl] = self.commands.sample(self.time).positions
 
-    def _diverge(self, problem):
-        self.diverged = f'at t = {self.time:.4f} s: {problem}'
+    def _diverge(self, problem, at_time=None):
+        at_time = self.time if at_time is None else at_time
+        self.diverged = f'at t = {at_time:.4f} s: {problem}'
         raise SimulationDiverged(self.diverged)
 
     def _check(self):
@@ -180,10 +191,8 @@ class Simulation:
             self._warnings = warnings
             return 'MuJoCo reported an unstable (non-finite or huge) state'
         qvel = self.data.qvel
-        if not np.all(np.isfinite(qvel)) or not np.all(np.isfinite(self.data.qpos)):
-            return 'state is not finite'
         peak = np.max(np.abs(qvel)) if qvel.size else 0.0
-        if peak > RUNAWAY_SPEED:
+        if not peak <= RUNAWAY_SPEED:  # also catches NaN
             return f'runaway speed {peak:.3g} (> {RUNAWAY_SPEED:g} m/s or rad/s)'
         return None
 

@@ -37,6 +37,11 @@ class BaseScenario:
                              f'got {value!r}')
         return float(value)
 
+    def duration(self):
+        """Sim time (s) the scene needs when its YAML says `duration: auto`."""
+        raise SceneError(f'scene {self.scene.name}: duration is auto, but its scenario has '
+                         'no duration of its own; give duration in seconds')
+
     def edit_model(self, spec):
         """Change the model (mujoco.MjSpec) from scene values before it is compiled."""
 

@@ -1,0 +1,41 @@
+"""`rft-sim bench`: speed of the sand simulation, against plain MuJoCo and against error.
+
+run_bench(out, quick) measures, in one process: the hexapod step against a rigid-floor
+MuJoCo step of the same robot and a full hexapod trial's real-time factor (`step_cost`),
+start-up cold and warm (`startup`), cost against plates in and above the sand (`scaling`),
+and speed against error for every scene (`pareto`); it writes JSON, markdown and PNG.
+"""
+from pathlib import Path
+
+from ..sim.runner import machine_info, run_scene
+from ..sim.scene import load_scene
+from . import pareto, report, scaling, startup, step_cost
+
+
+def run_bench(out, quick=False, log=print):
+    """Run the benchmark (`quick`: fewer, shorter measurements) and write it under `out`."""
+    results = {'machine': machine_info(), 'quick': quick}
+    log('step cost: hexapod on sand vs rigid floor')
+    results['step_cost'] = step_cost.hexapod_step_cost(
+        chunks=3 if quick else 9, chunk_steps=300 if quick else 1000,
+        settle_steps=500 if quick else 2500)
+    log('full hexapod trial')
+    trial = run_scene(load_scene('hexapod'), duration=1.0 if quick else None, progress=False,
+                      plots=False)
+    results['trial'] = {k: trial[k] for k in ('sim_time_s', 'wall_time_s', 'real_time_factor',
+                                              'startup_time_s', 'plates_total',
+                                              'plates_active_mean')}
+    log('start-up, cold and warm')
+    results['startup'] = startup.startup_times(warm_runs=1 if quick else 3)
+    log('cost against plates')
+    results['scaling'] = scaling.slab_scaling(
+        (1000, 4000) if quick else (1000, 2000, 5000, 10000, 20000, 50000),
+        steps=50 if quick else 200)
+    results['idle_plates'] = scaling.idle_plates_cost(
+        chunks=2 if quick else 7, chunk_steps=200 if quick else 500,
+        settle_steps=300 if quick else 2500)
+    sweeps = pareto.QUICK_SWEEPS if quick else pareto.SWEEPS
+    results['speed_against_error'] = [pareto.speed_against_error(name, sweep, log)
+                                      for name, sweep in sweeps.items()]
+    report.write(Path(out), results)
+    return results

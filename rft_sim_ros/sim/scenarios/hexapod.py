@@ -1,0 +1,145 @@
+"""hexapod: the RFT-SiM 12-DOF hexapod dropped onto sand, then walking a built-in gait.
+
+Model: models/hexapod.xml (4.04 kg, docs/hexapod.md) plus `payload` kg added to the
+electronics box through MjSpec. At t = 0 the robot is held in the neutral pose with its foot
+tips `drop_height` m above the sand and released; after `settle_time` s the gait starts
+(`gait`: 'tripod' = the alternating tripod of rft_sim_ros.sim.gaits with the scene's
+frequency / stance / step length / lift; 'none' = no built-in commands, the servos hold the
+neutral pose or whatever an external controller sends through `sim.commands`).
+
+The walk that the metrics describe is the `cycles` gait cycles after `settle_time` (or as
+much of it as was run). Frames: world (odom), z up, the robot starts facing +x; SI units.
+
+Metrics:
+  forward_distance_m    base_link displacement along world +x over the walk;
+  lateral_drift_m       ... along world y;
+  mean_speed_mps        forward_distance_m / walk time;
+  mean_sinkage_m        foot-tip depth below the sand surface, averaged over all legs and
+                        samples while the leg is in stance (gait phase < stance fraction;
+                        'none': all legs, the whole walk window); a tip above the surface
+                        counts 0;
+  backward_fraction     summed backward (-x) base motion over summed forward motion during
+                        the walk (the paper's "backward motion ... of the forward motion"),
+                        from the base x sampled every `observe_interval` steps;
+  settled_base_height_m base_link height at the start of the walk;
+  peak_force_z_N_<leg>  largest vertical sand force on the leg during the walk;
+  total_mass_kg         mass of the compiled model.
+"""
+import numpy as np
+
+from ..gaits import make_gait
+from ..hexapod import FOOT_SITES, LEG_NAMES, PAYLOAD_GEOM
+from ..scene import SceneError
+from . import BaseScenario
+
+#: Height of base_link above the foot tips in the neutral pose, m (docs/hexapod.md).
+NEUTRAL_FOOT_DROP_M = 0.176
+
+GAIT_NAMES = ('none', 'tripod')
+
+
+class Scenario(BaseScenario):
+    observe_interval = 10  # samples every 8 ms at the 0.8 ms timestep
+
+    def duration(self):
+        """Settling plus the gait cycles the metrics cover."""
+        return self.settle_time + self.walk_time
+
+    def __init__(self, scene):
+        super().__init__(scene)
+        self.payload = self.number('payload', minimum=0.0)
+        self.drop_height = self.number('drop_height', minimum=0.0)
+        self.settle_time = self.number('settle_time', minimum=0.0)
+        self.cycles = self.number('cycles', positive=True)
+        self.frequency = self.number('frequency', positive=True)
+        self.stance_fraction = self.number('stance_fraction', minimum=0.0, maximum=1.0)
+        gait = self.params.get('gait')
+        if gait not in GAIT_NAMES:
+            raise SceneError(f'scene {scene.name}: gait must be one of {GAIT_NAMES}, '
+                             f'got {gait!r}')
+        self.gait = None
+        if gait == 'tripod':
+            try:
+                self.gait = make_gait(
+                    'tripod', frequency_hz=self.frequency,
+                    stance_fraction=self.stance_fraction,
+                    step_length_m=self.number('step_length'),
+                    step_height_m=self.number('step_height', minimum=0.0),
+                    start_time_s=self.settle_time,
+                    ramp_time_s=self.number('ramp_time', minimum=0.0))
+            except ValueError as error:
+                raise SceneError(f'scene {scene.name}: gait: {error}') from None
+        self.walk_time = self.cycles / self.frequency
+        self._samples = []
+
+    def edit_model(self, spec):
+        spec.geom(PAYLOAD_GEOM).mass += self.payload
+
+    def initialize(self, sim):
+        qpos = sim.data.joint('base_free').qpos
+        qpos[:3] = (0.0, 0.0,
+                    self.scene.surface_height + self.drop_height + NEUTRAL_FOOT_DROP_M)
+        qpos[3:] = (1.0, 0.0, 0.0, 0.0)
+        self._base = sim.model.body(self.scene.base_body).id
+        self._feet = np.array([sim.model.site(name).id for name in FOOT_SITES])
+        names = sim.engine.body_names
+        self._leg_rows = [[names.index(b) for b in sim.scene.legs[leg]] for leg in LEG_NAMES]
+        self._samples = []
+
+    def control(self, sim):
+        # the gait's clock is the time since this run (or reset) started: sim.data.time
+        if self.gait is not None:
+            sim.commands.set_positions(self.gait.targets(sim.data.time), now=sim.time)
+
+    def observe(self, sim):
+        t = sim.data.time
+        if not self.settle_time <= t <= self.settle_time + self.walk_time + 1e-9:
+            return
+        d = sim.data
+        force_z = sim.engine.body_wrenches[:, 2]
+        self._samples.append(np.concatenate([
+            [t], d.xpos[self._base], d.site_xpos[self._feet, 2],
+            [force_z[rows].sum() for rows in self._leg_rows]]))
+
+    def series(self):
+        """The walk's time course: {'time_s', 'x_m', 'y_m', 'z_m'} (base_link origin, world)
+        and 'sinkage_m' (mean stance foot-tip depth), (n,) arrays."""
+        s = np.array(self._samples) if self._samples else np.zeros((0, 16))
+        depth = np.maximum(self.scene.surface_height - s[:, 4:10], 0.0)
+        stance = self._stance(s[:, 0])
+        counts = stance.sum(axis=1)
+        sinkage = np.where(counts > 0, (depth * stance).sum(axis=1) / np.maximum(counts, 1), 0.0)
+        return {'time_s': s[:, 0], 'x_m': s[:, 1], 'y_m': s[:, 2], 'z_m': s[:, 3],
+                'sinkage_m': sinkage}
+
+    def _stance(self, times):
+        """(n, 6) bool: which legs are in stance at the given gait times (s)."""
+        if self.gait is None:
+            return np.ones((len(times), len(LEG_NAMES)), dtype=bool)
+        return self.gait.phases(np.asarray(times)[:, None]) < self.stance_fraction
+
+    def metrics(self, sim):
+        total_mass = float(np.sum(sim.model.body_mass))
+        if len(self._samples) < 2:
+            return {'total_mass_kg': total_mass, 'walk_time_s': 0.0}
+        s = np.array(self._samples)
+        times, base, tips, legs_fz = s[:, 0], s[:, 1:4], s[:, 4:10], s[:, 10:16]
+        walked = times[-1] - times[0]
+        forward = base[-1, 0] - base[0, 0]
+        steps = np.diff(base[:, 0])
+        ahead = steps[steps > 0].sum()
+        depth = np.maximum(self.scene.surface_height - tips, 0.0)
+        stance = self._stance(times)
+        metrics = {
+            'forward_distance_m': float(forward),
+            'lateral_drift_m': float(base[-1, 1] - base[0, 1]),
+            'mean_speed_mps': float(forward / walked) if walked > 0 else 0.0,
+            'mean_sinkage_m': float(depth[stance].mean()) if stance.any() else 0.0,
+            'backward_fraction': float(-steps[steps < 0].sum() / ahead) if ahead > 0 else 0.0,
+            'settled_base_height_m': float(base[0, 2]),
+            'walk_time_s': float(walked),
+            'total_mass_kg': total_mass,
+        }
+        for i, leg in enumerate(LEG_NAMES):
+            metrics[f'peak_force_z_N_{leg}'] = float(legs_fz[:, i].max())
+        return metrics

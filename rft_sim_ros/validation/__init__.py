@@ -1,0 +1,91 @@
+"""`rft-sim validate`: reproduce the RFT-SiM paper's experiments and trends as a report.
+
+Runs the sweeps (`experiments`) over the bundled scenes, checks the paper's trends
+(`trends`), draws PNG plots (`plots`) and writes `report.md` (`report`) plus the raw
+figures as `results.json` into an output folder. `--quick` uses coarse plates and fewer
+cases (a few minutes); the full run uses the scenes' default resolutions.
+"""
+import datetime
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import experiments, plots, report, trends
+from .cases import FULL, QUICK, Settings
+
+
+@dataclass
+class Results:
+    """Everything the report needs: settings, the cases of each sweep, trends, plot names,
+    when and where it ran and how long it took (s)."""
+    settings: Settings
+    torque: dict
+    depths: dict
+    rails: dict
+    legs: dict
+    hexapod: dict
+    hexapod_ema: object
+    trends: list
+    plots: list
+    date: str
+    machine: str
+    wall_s: float
+    case_count: int
+
+
+def run_validation(out_dir, quick=False, log=print, settings=None):
+    """Run the validation into `out_dir` (created); return the Results. settings: what to
+    sweep (default: QUICK if `quick` else FULL)."""
+    from ..sim.runner import machine_info
+    settings = settings or (QUICK if quick else FULL)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    torque = experiments.torque_vs_speed(settings, log)
+    depths = experiments.torque_vs_depth(settings, log)
+    rails = experiments.rail_shapes(settings, log)
+    legs = experiments.leg_vs_zeta(settings, log)
+    hexapod = experiments.hexapod_grid(settings, log)
+    ema = experiments.hexapod_paper_smoothing(settings, log)
+    names = [
+        plots.torque_vs_angle(out, torque),
+        plots.rail_displacement_vs_angle(out, rails, settings.speeds),
+        plots.rail_displacement_vs_speed(out, rails, settings.speeds),
+        plots.articulated_leg(out, legs),
+        plots.hexapod_position_vs_time(out, hexapod, 3.75),
+        plots.hexapod_sinkage_vs_zeta(out, hexapod, settings.hexapod_zetas, settings.payloads),
+        plots.hexapod_speed_vs_payload(out, hexapod, settings.speed_zetas,
+                                       settings.speed_payloads),
+    ]
+    info = machine_info()
+    results = Results(
+        settings=settings, torque=torque, depths=depths, rails=rails, legs=legs,
+        hexapod=hexapod, hexapod_ema=ema, trends=trends.check(settings, torque, rails, hexapod),
+        plots=names, date=datetime.date.today().isoformat(),
+        machine=f'{info["cpu"]}, Python {info["python"]}, MuJoCo {info["mujoco"]}',
+        wall_s=time.perf_counter() - started,
+        case_count=len(torque) + len(depths) + len(rails) + len(legs) + len(hexapod) + 1)
+    report.write(out / 'report.md', results)
+    (out / 'results.json').write_text(json.dumps(_as_json(results), indent=2))
+    return results
+
+
+def _as_json(r):
+    """The figures of `r` as plain JSON (metrics per case; no time series)."""
+    def cases(group, label):
+        return [{**dict(zip(label, key if isinstance(key, tuple) else (key,))),
+                 'stable': c.stable, 'reason': c.reason, 'wall_s': c.wall_s,
+                 'plates_total': c.plates_total, 'metrics': c.metrics}
+                for key, c in sorted(group.items())]
+    return {
+        'quick': r.settings.quick, 'date': r.date, 'machine': r.machine, 'wall_s': r.wall_s,
+        'trends': [{'name': t.name, 'held': t.held, 'paper': t.paper, 'evidence': t.evidence}
+                   for t in r.trends],
+        'rotating_intruder': cases(r.torque, ('speed_radps',)),
+        'rotating_intruder_depth': cases(r.depths, ('max_depth_m',)),
+        'rail': cases(r.rails, ('shape', 'speed_radps')),
+        'articulated_leg': cases(r.legs, ('zeta',)),
+        'hexapod': cases(r.hexapod, ('zeta', 'payload_kg')),
+        'hexapod_paper_smoothing': cases({0: r.hexapod_ema}, ('zeta',))[0],
+    }

@@ -1,0 +1,37 @@
+"""The benchmark's own logic (the measurements themselves run in `rft-sim bench`)."""
+import math
+
+from rft_sim_ros.bench import pareto
+from rft_sim_ros.bench.report import markdown
+
+
+def test_pareto_front_keeps_only_undominated_points():
+    points = [(1.0, 0.10), (2.0, 0.05), (3.0, 0.05), (0.5, 0.50), (2.5, 0.01), (4.0, 0.2)]
+    assert pareto.pareto_front(points) == [0, 1, 3, 4]
+
+
+def test_equal_errors_within_rounding_favour_the_faster_run():
+    points = [(0.049, 0.0030000000001), (0.064, 0.0029999999999)]
+    assert pareto.pareto_front(points) == [0]
+
+
+def test_every_sweep_includes_its_reference_finer_than_its_grid():
+    for name, sweep in {**pareto.SWEEPS, **pareto.QUICK_SWEEPS}.items():
+        plates, timestep = sweep.reference
+        assert plates >= max(sweep.plates) and timestep <= min(sweep.timesteps), name
+
+
+def test_report_marks_front_default_and_unstable_runs():
+    results = {'machine': {'cpu': 'x', 'cores': 2, 'python': '3', 'mujoco': '4', 'numpy': '2'},
+               'speed_against_error': [{
+                   'scene': 's', 'metric': 'm',
+                   'reference': {'plates_per_body': 10, 'timestep_s': 1e-4, 'metric': 1.0},
+                   'rows': [{'plates_per_body': 5, 'timestep_s': 1e-3, 'wall_s_per_sim_s': 0.1,
+                             'metric': 1.01, 'relative_error': 0.01, 'default': True,
+                             'on_front': True},
+                            {'plates_per_body': 5, 'timestep_s': 2e-3, 'wall_s_per_sim_s': 0.05,
+                             'metric': None, 'relative_error': math.inf, 'default': False,
+                             'on_front': False}]}]}
+    text = markdown(results)
+    assert '| **5 (default)** | **1** |' in text
+    assert '| 5 | 2 | 0.050 | unstable | inf |' in text
