@@ -83,3 +83,33 @@ def test_a_receiver_fed_at_the_publish_rate_follows_the_gait():
         worst = max(worst, np.max(np.abs(handler.sample(t).positions
                                          - trajectories.gait.targets(t))))
     assert worst < 2e-3
+
+
+def test_the_hexapod_walks_on_gait_trajectories_sent_through_the_node_core():
+    """What walk.launch.py does, without ROS: tripod_gait's trajectories (as JointTrajectory
+    messages, every 0.05 s of sim time) into SimRuntime driving the hexapod scene with its
+    built-in gait off."""
+    from rft_sim_ros.ros.runtime import SimRuntime
+    from rft_sim_ros.sim.scene import load_scene
+    from rft_sim_ros.sim.simulation import Simulation
+    from ros_test_support import ListSink
+
+    sim = Simulation(load_scene('hexapod', {'gait': 'none', 'rft.plates_per_body': 150}))
+    sink = ListSink()
+    runtime = SimRuntime(sim, sink, publish_rate=100.0, real_time_factor=0.0)
+    trajectories = GaitTrajectories(lambda start: make_gait('tripod', start_time_s=start),
+                                    start_delay_s=1.0)
+    next_send = 0.0
+    while sim.time < 3.0:
+        runtime.tick()
+        if sim.time >= next_send:
+            command = trajectories.command(sim.time)
+            if command is not None:
+                msg = messages.joint_trajectory_message(FACTORY, command)
+                assert runtime.on_trajectory(msg).accepted
+            next_send += 0.05
+    x = {round(s.time, 2): s.base_position[0] for s in sink.states}
+    standing = [value for t, value in x.items() if t <= 1.0]
+    assert max(abs(v) for v in standing) < 0.005          # no gait yet: it stands
+    assert sink.states[-1].base_position[0] > 0.04        # walked forward (+x)
+    assert runtime.rejections == {} and not runtime.diverged
