@@ -4,6 +4,7 @@ Runs where ROS 2 Jazzy is sourced (rclpy and the message packages of package.xml
 with the reason everywhere else. Uses the servo_rig test scene (two position servos).
 """
 import math
+import os
 import time
 
 import pytest
@@ -36,6 +37,10 @@ from ros_test_support import SERVO_RIG  # noqa: E402
 pytestmark = pytest.mark.ros
 
 PERIOD = 0.01  # s of sim time between /clock messages (servo_rig publishes at 100 Hz)
+
+#: A DDS domain of this test process, so no other ROS graph on the machine (another
+#: simulator's /clock, say) mixes with the nodes under test.
+DOMAIN_ID = 1 + os.getpid() % 100
 
 
 def seconds(stamp):
@@ -72,7 +77,7 @@ class Ros:
 
     def __init__(self):
         self.context = rclpy.Context()
-        rclpy.init(context=self.context)
+        rclpy.init(context=self.context, domain_id=DOMAIN_ID)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.probe = Probe(self.context)
         self.executor.add_node(self.probe)
