@@ -52,6 +52,8 @@ setup(
     entry_points={
         'console_scripts': [
             'rft-sim = rft_sim_ros.cli:main',
+            'sim = rft_sim_ros.ros.node:main',
+            'tripod_gait = rft_sim_ros.ros.gait_node:main',
         ],
     },
 )

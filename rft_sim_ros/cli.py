@@ -2,9 +2,13 @@
 
   rft-sim scenes
   rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
-                    [--set key=value ...] [--out DIR]
+                    [--set key=value ...] [--set-at T:zeta=Z ...] [--out DIR]
+                    [--no-bag] [--plates]
   rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
+
+`run` writes DIR/summary.json, the time series and plots, and a rosbag2 (MCAP) under
+DIR/bag/ with the topics the ROS node publishes.
 
 Errors in what the user asked for (unknown scene, bad value) print one line and exit 2.
 """
@@ -15,6 +19,12 @@ import sys
 from pathlib import Path
 
 from .sim.scene import SceneError, bundled_scenes, load_scene, parse_assignment
+from .units import validated_zeta
+
+#: Values `--set-at` may change during a run: name -> (check(value), apply(sim, value)).
+RUNTIME_SETTINGS = {
+    'zeta': (validated_zeta, lambda sim, value: setattr(sim, 'zeta', value)),
+}
 
 
 def _scene_overrides(args):
@@ -25,6 +35,27 @@ def _scene_overrides(args):
         if value is not None:
             overrides[key] = value
     return overrides
+
+
+def parse_timed_assignment(text):
+    """'T:key=value' -> (T in s, action(sim)) for run_scene's schedule; raises SceneError."""
+    at, sep, assignment = text.partition(':')
+    try:
+        at = float(at)
+    except ValueError:
+        at = float('nan')
+    if not sep or not (at >= 0 and at != float('inf')):
+        raise SceneError(f'--set-at expects T:key=value with T >= 0 s, got {text!r}')
+    key, value = parse_assignment(assignment)
+    if key not in RUNTIME_SETTINGS:
+        raise SceneError(f'--set-at can change {", ".join(RUNTIME_SETTINGS)} during a run, '
+                         f'not {key!r}')
+    check, apply = RUNTIME_SETTINGS[key]
+    try:
+        value = check(value)
+    except ValueError as error:
+        raise SceneError(f'--set-at {text}: {error}') from None
+    return at, lambda sim: apply(sim, value)
 
 
 def cmd_scenes(args):
@@ -39,13 +70,24 @@ def cmd_run(args):
     scene = load_scene(args.scene, _scene_overrides(args))
     if args.duration is not None and not args.duration > 0:
         raise SceneError(f'--duration must be > 0 s, got {args.duration}')
+    schedule = [parse_timed_assignment(text) for text in args.set_at or []]
     out = Path(args.out) if args.out else Path('runs') / (
         f'{scene.name}-{datetime.datetime.now():%Y%m%d-%H%M%S}')
-    summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet)
+    recorders = []
+    if not args.no_bag:
+        if (out / 'bag').exists():
+            raise SceneError(f'{out / "bag"} exists: choose another --out, remove it, '
+                             'or pass --no-bag')
+        from .ros.recording import BagRecorder
+        out.mkdir(parents=True, exist_ok=True)
+        recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
+    summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
+                        recorders=recorders, schedule=schedule)
     keys = ('scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s', 'real_time_factor',
             'plates_total', 'plates_active_mean', 'stable', 'reason')
     print(json.dumps({**{k: summary[k] for k in keys}, 'metrics': summary['metrics']}, indent=2))
-    print(f'wrote {out}/summary.json', file=sys.stderr)
+    print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag'),
+          file=sys.stderr)
     return 0 if summary['stable'] else 1
 
 
@@ -92,7 +134,13 @@ def build_parser():
     run.add_argument('--plates-per-body', type=int, help='RFT plates per sand body')
     run.add_argument('--set', action='append', metavar='KEY=VALUE',
                      help='override a scene value (repeatable), e.g. --set drop_height=0.5')
+    run.add_argument('--set-at', action='append', metavar='T:KEY=VALUE',
+                     help='change a value when sim time reaches T s (repeatable); '
+                          f'KEY: {", ".join(RUNTIME_SETTINGS)}, e.g. --set-at 1.5:zeta=1.0')
     run.add_argument('--out', help='output folder (default: runs/<scene>-<time>)')
+    run.add_argument('--no-bag', action='store_true', help='do not write DIR/bag (rosbag2)')
+    run.add_argument('--plates', action='store_true',
+                     help='record the active plates (/rft/plates markers) in the bag')
     run.add_argument('--quiet', action='store_true', help='no progress bar')
     run.set_defaults(func=cmd_run)
     bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')

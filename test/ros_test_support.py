@@ -1,5 +1,6 @@
 """Shared helpers of the ROS-interface tests (not a test module)."""
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 
@@ -61,3 +62,36 @@ def messages_equal(a, b):
         return (isinstance(b, list) and len(a) == len(b)
                 and all(messages_equal(x, y) for x, y in zip(a, b)))
     return type(a) is type(b) and a == b
+
+
+#: Scene of the ROS-interface tests: two position servos (hip, knee), a foot in sand.
+SERVO_RIG = str(Path(__file__).resolve().parent / 'scenes' / 'servo_rig.yaml')
+
+
+class FakeClock:
+    """A wall clock for tests: returns `now`, then moves on by `per_call` s."""
+
+    def __init__(self, now=1000.0, per_call=0.0):
+        self.now, self.per_call = now, per_call
+
+    def __call__(self):
+        now = self.now
+        self.now += self.per_call
+        return now
+
+    def advance(self, seconds):
+        self.now += seconds
+
+
+class ListSink:
+    """A SimRuntime sink that keeps what would be published."""
+
+    def __init__(self):
+        self.states = []
+        self.diagnostics = []
+
+    def write_state(self, state):
+        self.states.append(state)
+
+    def write_diagnostics(self, state, status):
+        self.diagnostics.append((state, status))

@@ -220,6 +220,7 @@ def test_diagnostics_ok():
     assert float(values['real_time_factor']) == 14.5
     assert int(values['plates_active']) == state.plates_active
     assert values['stable'] == 'true'
+    assert status.message == 'running' and values['paused'] == 'false'
     assert int(values['commands_rejected']) == 4
     assert int(values['commands_rejected.unknown_joint']) == 3
     assert int(values['commands_rejected.not_finite']) == 1
@@ -234,6 +235,13 @@ def test_diagnostics_error_when_diverged():
     assert values['stable'] == 'false'
     assert values['commands_rejected'] == '0'
     assert np.isnan(float(values['real_time_factor']))
+
+
+def test_diagnostics_say_paused():
+    run = messages.RunStatus(scene='drop', real_time_factor=0.0, paused=True)
+    status, values = diagnostic_values(messages.diagnostics_message(FACTORY, make_state(), run))
+    assert status.level == TS.types['diagnostic_msgs/msg/DiagnosticStatus'].OK
+    assert status.message == 'paused' and values['paused'] == 'true'
 
 
 # --- the publishing cycle -------------------------------------------------------------------

@@ -89,7 +89,8 @@ class RclpyFactory:
     def __init__(self):
         self._classes = {}
 
-    def _class(self, type_name):
+    def message_class(self, type_name):
+        """The rclpy class of `type_name` ('pkg/msg/Name' or 'pkg/srv/Name')."""
         cls = self._classes.get(type_name)
         if cls is None:
             package, kind, name = type_name.split('/')
@@ -98,7 +99,7 @@ class RclpyFactory:
         return cls
 
     def make(self, type_name, **fields):
-        return self._class(type_name)(**fields)
+        return self.message_class(type_name)(**fields)
 
     def float64_sequence(self, values):
         return array.array('d', np.ascontiguousarray(values, dtype=np.float64).tobytes())

@@ -49,12 +49,14 @@ class RunStatus:
     stable: False once the run has diverged; `problem` then says why.
     commands_rejected: count of rejected commands per reason
         (`CommandHandler.rejections`).
+    paused: True while the simulation is paused (sim time stands still).
     """
     scene: str
     real_time_factor: float
     stable: bool = True
     problem: str = ''
     commands_rejected: Mapping[str, int] = field(default_factory=dict)
+    paused: bool = False
 
 
 def stamp(factory, t):
@@ -216,9 +218,10 @@ def _key_value(factory, key, value):
 def diagnostics_message(factory, state, status):
     """diagnostic_msgs/DiagnosticArray with one status 'rft_sim: simulation'.
 
-    level OK, or ERROR once the run diverged (message = the problem). Values (floats
-    round-trip through float()): sim_time_s, zeta_n_per_cm3, real_time_factor,
-    plates_active, stable, commands_rejected (total) and commands_rejected.<reason>.
+    level OK (message 'running' or 'paused'), or ERROR once the run diverged (message = the
+    problem). Values (floats round-trip through float()): sim_time_s, zeta_n_per_cm3,
+    real_time_factor, plates_active, stable, paused, commands_rejected (total) and
+    commands_rejected.<reason>.
     """
     rejected = dict(sorted(status.commands_rejected.items()))
     values = [('sim_time_s', float(state.time)),
@@ -226,13 +229,14 @@ def diagnostics_message(factory, state, status):
               ('real_time_factor', float(status.real_time_factor)),
               ('plates_active', int(state.plates_active)),
               ('stable', bool(status.stable)),
+              ('paused', bool(status.paused)),
               ('commands_rejected', int(sum(rejected.values())))]
     values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
     diagnostic = factory.make(
         'diagnostic_msgs/msg/DiagnosticStatus',
         level=factory.byte(0 if status.stable else 2),  # OK / ERROR
         name='rft_sim: simulation',
-        message='running' if status.stable else status.problem,
+        message=status.problem if not status.stable else 'paused' if status.paused else 'running',
         hardware_id=status.scene,
         values=[_key_value(factory, key, value) for key, value in values])
     return factory.make('diagnostic_msgs/msg/DiagnosticArray',
@@ -251,3 +255,26 @@ def state_messages(factory, state, *, plates):
     if plates and state.active_plates is not None:
         out.append((topics.PLATES, plates_message(factory, state)))
     return out
+
+
+def duration(factory, seconds):
+    """builtin_interfaces/Duration of `seconds` (s), rounded to the nearest nanosecond."""
+    sec, nanosec = split_ns(seconds_to_ns(seconds))
+    return factory.make('builtin_interfaces/msg/Duration', sec=sec, nanosec=nanosec)
+
+
+def joint_trajectory_message(factory, command):
+    """trajectory_msgs/JointTrajectory of a `TrajectoryCommand` (what a gait publisher
+    sends): header.stamp = start time (sim time, s; 0 = start on receipt), frame_id '';
+    per point positions (rad or m), velocities (rad/s or m/s; empty when not given) and
+    time_from_start (s). Accelerations and efforts are left empty."""
+    empty = factory.float64_sequence([])
+    points = [factory.make('trajectory_msgs/msg/JointTrajectoryPoint',
+                           positions=factory.float64_sequence(point.positions),
+                           velocities=factory.float64_sequence(point.velocities or []),
+                           accelerations=empty, effort=empty,
+                           time_from_start=duration(factory, point.time_from_start))
+              for point in command.points]
+    return factory.make('trajectory_msgs/msg/JointTrajectory',
+                        header=header(factory, command.start_time, ''),
+                        joint_names=[str(n) for n in command.joint_names], points=points)

@@ -59,47 +59,69 @@ def machine_info():
             'rft_sim_ros': __version__, 'platform': platform.platform()}
 
 
-def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True):
+def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True,
+              schedule=()):
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
 
     out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
-    recorders: objects with record(SimState) and close(), fed at the publish rate.
-    Returns the summary dict (see design section 4 for its fields).
+    recorders: objects with record(SimState) and close(), fed at the publish rate; an
+    optional start(sim) is called with the Simulation before the first step, and an optional
+    wants_plates attribute asks for the active plates in the states.
+    schedule: (time_s, action) pairs; action(sim) runs once, when sim time first reaches
+    time_s (rounded up to a whole step): after the state of that instant is recorded, before
+    the next step (e.g. a zeta change, which then acts from that step on).
+    Returns the summary dict (see design section 4 for its fields; recording_time_s is the
+    part of wall_time_s spent in the recorders).
     """
-    started = time.perf_counter()
-    sim = Simulation(scene)
-    startup = time.perf_counter() - started
-    if duration is None:
-        duration = scene.duration if scene.duration is not None else sim.scenario.duration()
-    duration = float(duration)
-    if not (math.isfinite(duration) and duration > 0):
-        raise ValueError(f'duration must be a positive number of seconds, got {duration}')
-    steps = int(round(duration / sim.timestep))
-    publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
-    bar = ProgressBar(steps, label=scene.name) if progress else ProgressBar(0, stream=None)
-    series = []
-    active_sum = 0
-    reason = None
-    loop_started = time.perf_counter()
-    done = 0
-    try:
+    bar = None
+    loop_started = None
+    try:  # recorders are closed however the run ends (a bag is only complete once closed)
+        actions = _scheduled_steps(schedule, scene.timestep)
+        started = time.perf_counter()
+        sim = Simulation(scene)
+        startup = time.perf_counter() - started
+        if duration is None:
+            duration = scene.duration if scene.duration is not None else sim.scenario.duration()
+        duration = float(duration)
+        if not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f'duration must be a positive number of seconds, got {duration}')
+        steps = int(round(duration / sim.timestep))
+        publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
+        with_plates = any(getattr(r, 'wants_plates', False) for r in recorders)
+        for recorder in recorders:
+            if hasattr(recorder, 'start'):
+                recorder.start(sim)
+        bar = ProgressBar(steps, label=scene.name) if progress else ProgressBar(0, stream=None)
+        series = []
+        active_sum = 0
+        reason = None
+        done = 0
+        recording = 0.0
+        loop_started = time.perf_counter()
+        _run_due(actions, done, sim)
         while done < steps:
             chunk = min(publish_every - done % publish_every, steps - done)
+            if actions:
+                chunk = min(chunk, actions[0][0] - done)
             sim.step(chunk)
             done += chunk
-            active_sum += sim.engine.plates_active
             if done % publish_every == 0 or done == steps:
-                state = sim.state(with_plates=any(getattr(r, 'wants_plates', False)
-                                                  for r in recorders))
+                active_sum += sim.engine.plates_active
+                state = sim.state(with_plates=with_plates)
                 series.append(_series_row(state))
+                recording_started = time.perf_counter()
                 for recorder in recorders:
                     recorder.record(state)
+                recording += time.perf_counter() - recording_started
                 bar.update(done)
+            _run_due(actions, done, sim)
     except SimulationDiverged as error:
         reason = f'diverged {error}'
     finally:
-        wall = time.perf_counter() - loop_started
-        bar.close()
+        if loop_started is not None:
+            wall = time.perf_counter() - loop_started
+        if bar is not None:
+            bar.close()
         for recorder in recorders:
             recorder.close()
     sim_time = sim.steps * sim.timestep
@@ -111,6 +133,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         'timestep_s': sim.timestep,
         'sim_time_s': sim_time,
         'wall_time_s': wall,
+        'recording_time_s': recording,
         'startup_time_s': startup,
         'real_time_factor': sim_time / wall if wall > 0 else float('inf'),
         'steps': sim.steps,
@@ -135,6 +158,23 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
             from .plots import plot_timeseries
             plot_timeseries(out / 'timeseries.png', series, scene)
     return summary
+
+
+def _scheduled_steps(schedule, timestep):
+    """[(step, action)] sorted by step: the first whole step at or after each time (s)."""
+    actions = []
+    for at, action in schedule:
+        at = float(at)
+        if not (math.isfinite(at) and at >= 0):
+            raise ValueError(f'scheduled time must be a finite number >= 0 s, got {at}')
+        actions.append((max(0, math.ceil(at / timestep - 1e-9)), action))
+    return sorted(actions, key=lambda item: item[0])
+
+
+def _run_due(actions, done, sim):
+    """Run (and drop) the scheduled actions due at step `done`."""
+    while actions and actions[0][0] <= done:
+        actions.pop(0)[1](sim)
 
 
 def _series_row(state):

@@ -98,8 +98,8 @@ class Simulation:
             raise SceneError(f'scene {scene.name}: rft: {error}') from None
         self._base_id = self.model.body(scene.base_body).id
         self._joints = [j for j in range(self.model.njnt)
-                        if self.model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE,
-                                                      mujoco.mjtJoint.mjJNT_SLIDE)]
+                        if mujoco.mjtJoint(int(self.model.jnt_type[j]))
+                        in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
         self.joint_names = tuple(self.model.joint(j).name for j in self._joints)
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]

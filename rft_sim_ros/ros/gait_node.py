@@ -1,0 +1,102 @@
+"""The `tripod_gait` node (`ros2 run rft_sim_ros tripod_gait`): drives the hexapod's
+alternating tripod gait (rft_sim_ros.sim.gaits) over /joint_trajectory_controller/joint_trajectory.
+
+rclpy wiring around `GaitTrajectories`: on a sim-time timer (`rate` Hz) it publishes a short
+trajectory of future gait targets stamped in sim time, which the simulator (or a real
+joint_trajectory_controller) interpolates. The node runs on sim time (it turns
+use_sim_time on), so it waits for /clock and stops when the simulation is paused.
+
+Parameters (read at start): frequency (Hz, gait cycles per second), stance_fraction,
+step_length (m), step_height (m), ramp_time (s), start_delay (s of sim time after the first
+/clock before walking), rate (Hz of sim time), horizon (s), spacing (s between waypoints).
+"""
+import sys
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from rft_sim_ros.ros import messages, topics
+from rft_sim_ros.ros.factory import RclpyFactory
+from rft_sim_ros.ros.gait_trajectory import GaitTrajectories
+from rft_sim_ros.ros.stamps import NS_PER_S
+from rft_sim_ros.sim.gaits import make_gait
+
+NODE_NAME = 'tripod_gait'
+QUEUE_DEPTH = 10
+
+#: Parameter -> (default, TripodGait keyword or None for the publisher's own settings,
+#: description).
+PARAMETERS = {
+    'frequency': (1.0, 'frequency_hz', 'gait cycles per second, Hz'),
+    'stance_fraction': (0.5, 'stance_fraction', 'fraction of a cycle a foot is in stance'),
+    'step_length': (0.05, 'step_length_m', 'fore-aft stroke of a foot tip, m'),
+    'step_height': (0.06, 'step_height_m', 'lift of a foot tip in swing, m'),
+    'ramp_time': (0.5, 'ramp_time_s', 'time over which stroke and lift grow from 0, s'),
+    'start_delay': (1.0, None, 'sim time after the first /clock before walking, s'),
+    'rate': (20.0, None, 'trajectories published per second of sim time, Hz'),
+    'horizon': (0.25, None, 'time covered by each trajectory, s'),
+    'spacing': (0.02, None, 'time between waypoints, s'),
+}
+
+
+class TripodGaitNode(Node):
+    """Publishes tripod-gait trajectories in sim time (see module docstring).
+
+    Raises ValueError (saying what to fix) if a parameter is out of range.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        if not self.get_parameter('use_sim_time').value:
+            self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, True)])
+        values = {name: float(self.declare_parameter(  # numbers: integers welcome too
+                      name, default, ParameterDescriptor(description=description,
+                                                         read_only=True,
+                                                         dynamic_typing=True)).value)
+                  for name, (default, _, description) in PARAMETERS.items()}
+        gait = {keyword: values[name] for name, (_, keyword, _) in PARAMETERS.items() if keyword}
+        make_gait('tripod', **gait)  # check the gait parameters now (raises ValueError)
+        self._trajectories = GaitTrajectories(
+            lambda start: make_gait('tripod', start_time_s=start, **gait),
+            horizon_s=values['horizon'], spacing_s=values['spacing'],
+            start_delay_s=values['start_delay'])
+        if not values['rate'] > 0.0:
+            raise ValueError(f'rate must be > 0 Hz, got {values["rate"]}')
+        self._factory = RclpyFactory()
+        self._publisher = self.create_publisher(
+            self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE), topics.JOINT_TRAJECTORY,
+            QUEUE_DEPTH)
+        self.create_timer(1.0 / values['rate'], self._publish)  # node clock: sim time
+
+    def _publish(self):
+        command = self._trajectories.command(self.get_clock().now().nanoseconds / NS_PER_S)
+        if command is not None:
+            self._publisher.publish(messages.joint_trajectory_message(self._factory, command))
+
+
+def main(args=None):
+    """Entry point of `ros2 run rft_sim_ros tripod_gait`; returns the exit status."""
+    rclpy.init(args=args)
+    try:
+        try:
+            node = TripodGaitNode()
+        except (TypeError, ValueError, ParameterException) as error:
+            rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
+            return 1
+        try:
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""The `rft_sim` node (`ros2 run rft_sim_ros sim`): rclpy wiring around `SimRuntime`.
+
+This module only connects ROS entities to `rft_sim_ros.ros.runtime.SimRuntime`, which makes
+every decision (pacing, checks, command dispatch, what to publish when). Interface
+(docs/ros.md): parameters of `rft_sim_ros.ros.parameters`; publishers of
+`topics.published_topics`; subscriptions to the ros2_control command topics; services
+~/pause (std_srvs/SetBool), ~/reset and ~/step (std_srvs/Trigger). The node publishes
+/clock itself and must not run on sim time; its timer runs on the steady wall clock.
+"""
+import sys
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from rft_sim_ros.ros import messages, parameters, topics
+from rft_sim_ros.ros.factory import RclpyFactory
+from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.sim.scene import SceneError, load_scene
+from rft_sim_ros.sim.simulation import Simulation
+
+NODE_NAME = 'rft_sim'
+DEFAULT_SCENE = 'hexapod'
+QUEUE_DEPTH = 10
+TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
+
+#: Numeric parameters accept integers too (`ros2 param set /rft_sim zeta 2`); their values
+#: are checked by `parameters`, not by rclpy's static typing.
+_ANY_NUMBER = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE)
+
+
+class SimNode(Node):
+    """Loads the scene named by its parameters and serves it over ROS (see module docstring).
+
+    Raises SceneError, ValueError or rclpy's ParameterException (the message says what to
+    fix) if the scene or a parameter is unusable.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        overrides = parameters.scene_overrides(
+            self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
+        sim = Simulation(load_scene(self._declare(parameters.SCENE, DEFAULT_SCENE), overrides))
+        initial = {name: self._declare(name, default) for name, default in (
+            (parameters.ZETA, sim.zeta), (parameters.REAL_TIME_FACTOR, 1.0),
+            (parameters.PAUSED, False))}
+        for name, value in initial.items():
+            problem = parameters.parameter_problem(name, value)
+            if problem:
+                raise ValueError(problem)
+        sim.zeta = float(initial[parameters.ZETA])
+        joint_names = self._declare(parameters.JOINT_NAMES,
+                                    list(sim.servo_joint_names) or Parameter.Type.STRING_ARRAY)
+        self._plates = self._declare(parameters.PLATES, False)
+        self._factory = RclpyFactory()
+        self._topic_publishers = {
+            topic: self.create_publisher(self._factory.message_class(msgtype), topic,
+                                         TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH)
+            for topic, msgtype in topics.published_topics(list(sim.scene.legs),
+                                                          plates=self._plates).items()}
+        logger = self.get_logger()
+        self.runtime = SimRuntime(
+            sim, self, publish_rate=self._declare(parameters.PUBLISH_RATE,
+                                                  sim.scene.publish_rate),
+            joint_names=joint_names, real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
+            paused=initial[parameters.PAUSED], plates=self._plates,
+            warn=logger.warning, error=logger.error)
+        self.create_subscription(self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE),
+                                 topics.JOINT_TRAJECTORY, self.runtime.on_trajectory,
+                                 QUEUE_DEPTH)
+        self.create_subscription(self._factory.message_class(topics.POSITION_COMMANDS_TYPE),
+                                 topics.POSITION_COMMANDS, self.runtime.on_positions,
+                                 QUEUE_DEPTH)
+        set_bool = self._factory.message_class('std_srvs/srv/SetBool')
+        trigger = self._factory.message_class('std_srvs/srv/Trigger')
+        self.create_service(set_bool, '~/pause',
+                            lambda req, res: self._answer(self.runtime.pause(req.data), res))
+        self.create_service(trigger, '~/reset',
+                            lambda req, res: self._answer(self.runtime.reset(), res))
+        self.create_service(trigger, '~/step',
+                            lambda req, res: self._answer(self.runtime.step(), res))
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._timer = self.create_timer(self.runtime.tick_period, self._tick,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+        logger.info(f'scene {sim.scene.name}: publishing every {self.runtime.publish_period:g} s '
+                    f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
+                    f'{" (paused)" if self.runtime.paused else ""}')
+
+    def _declare(self, name, default):
+        """Declare parameter `name` from its spec; returns its value (None if unset)."""
+        spec = parameters.SPECS[name]
+        descriptor = ParameterDescriptor(description=spec.description,
+                                         read_only=not spec.dynamic,
+                                         dynamic_typing=name in _ANY_NUMBER)
+        return self.declare_parameter(name, default, descriptor).value
+
+    # --- sink of SimRuntime -----------------------------------------------------------------
+
+    def write_state(self, state):
+        """Publish one cycle of `state` (SimState)."""
+        for topic, message in messages.state_messages(self._factory, state, plates=self._plates):
+            self._topic_publishers[topic].publish(message)
+
+    def write_diagnostics(self, state, status):
+        """Publish /diagnostics for `state` and `status` (messages.RunStatus)."""
+        self._topic_publishers[topics.DIAGNOSTICS].publish(
+            messages.diagnostics_message(self._factory, state, status))
+
+    # --- callbacks --------------------------------------------------------------------------
+
+    def _tick(self):
+        self.runtime.tick()
+        self._sync_paused()
+
+    def _answer(self, result, response):
+        response.success, response.message = result.success, result.message
+        self._sync_paused()
+        return response
+
+    def _sync_paused(self):
+        """Keep the `paused` parameter equal to the runtime's state (services, divergence)."""
+        if self.get_parameter(parameters.PAUSED).value != self.runtime.paused:
+            self.set_parameters([Parameter(parameters.PAUSED, value=self.runtime.paused)])
+
+    def _check_parameters(self, changes):
+        for change in changes:
+            if change.name in parameters.SPECS:
+                problem = self.runtime.parameter_problem(change.name, change.value)
+                if problem:
+                    return SetParametersResult(successful=False, reason=problem)
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, changes):
+        for change in changes:
+            if change.name in parameters.SPECS:
+                self.runtime.set_parameter(change.name, change.value)
+                if change.name == parameters.REAL_TIME_FACTOR:
+                    self._timer.timer_period_ns = int(self.runtime.tick_period * 1e9)
+
+
+def main(args=None):
+    """Entry point of `ros2 run rft_sim_ros sim`; returns the exit status."""
+    rclpy.init(args=args)
+    try:
+        try:
+            node = SimNode()
+        except (SceneError, ValueError, ParameterException) as error:
+            rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
+            return 1
+        try:
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

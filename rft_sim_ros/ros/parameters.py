@@ -1,0 +1,96 @@
+"""Parameters of the `rft_sim` node: names, meaning, which may change at runtime, checks.
+
+ROS-free: the rclpy node declares its parameters from `PARAMETERS` (static ones read-only)
+and asks `parameter_problem` before it accepts a change; a non-empty answer is the reason
+`ros2 param set` prints. Defaults that depend on the scene (zeta, publish_rate,
+joint_names) are taken from the loaded scene by the node.
+"""
+import math
+from dataclasses import dataclass
+
+from rft_sim_ros.sim.scene import SceneError, parse_assignment
+from rft_sim_ros.units import zeta_problem
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One node parameter: `dynamic` ones may be set while the node runs."""
+    name: str
+    description: str
+    dynamic: bool
+
+
+SCENE = 'scene'
+SCENE_OVERRIDES = 'scene_overrides'
+ZETA = 'zeta'
+REAL_TIME_FACTOR = 'real_time_factor'
+PUBLISH_RATE = 'publish_rate'
+JOINT_NAMES = 'joint_names'
+PAUSED = 'paused'
+PLATES = 'plates'
+
+PARAMETERS = (
+    ParameterSpec(SCENE, 'bundled scene name or path to a scene YAML', False),
+    ParameterSpec(SCENE_OVERRIDES, "scene values as 'key=value' strings (as rft-sim run --set)",
+                  False),
+    ParameterSpec(ZETA, "sand stiffness, N/cm^3, 0 < zeta <= 100 (default: the scene's); "
+                        'applies from the next step', True),
+    ParameterSpec(REAL_TIME_FACTOR, 'sim seconds per wall second; 0 = as fast as possible', True),
+    ParameterSpec(PUBLISH_RATE, "state messages per second of sim time (default: the scene's)",
+                  False),
+    ParameterSpec(JOINT_NAMES, 'joint order of /forward_position_controller/commands '
+                               "(default: the scene's position servos)", False),
+    ParameterSpec(PAUSED, 'stop stepping (sim time and /clock stand still)', True),
+    ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
+)
+
+SPECS = {spec.name: spec for spec in PARAMETERS}
+
+
+def _number(value):
+    """`value` as a finite float, or None if it is not a finite real number (bools excluded)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def parameter_problem(name, value):
+    """Why `value` cannot be given to parameter `name` at runtime, or None if it can.
+
+    zeta: see `rft_sim_ros.units.zeta_problem`; real_time_factor: a finite number >= 0;
+    paused: a bool. Static parameters are read-only once the node has started.
+    """
+    spec = SPECS.get(name)
+    if spec is None:
+        return f'unknown parameter {name!r}; parameters are {", ".join(SPECS)}'
+    if not spec.dynamic:
+        return f'{name} is read-only while the node runs: restart the node to change it'
+    if name == ZETA:
+        return zeta_problem(value)
+    if name == REAL_TIME_FACTOR:
+        number = _number(value)
+        if number is None:
+            return f'real_time_factor must be a finite number, got {value!r}'
+        if number < 0.0:
+            return f'real_time_factor must be >= 0 (0 = as fast as possible), got {number}'
+        return None
+    if not isinstance(value, bool):
+        return f'paused must be true or false, got {value!r}'
+    return None
+
+
+def publish_rate(value):
+    """`value` (Hz of sim time) as a float; raises ValueError unless finite and > 0."""
+    number = _number(value)
+    if number is None or number <= 0.0:
+        raise ValueError(f'publish_rate must be a finite number > 0 Hz, got {value!r}')
+    return number
+
+
+def scene_overrides(assignments):
+    """{key: value} from 'key=value' strings (values read as YAML); raises SceneError."""
+    if isinstance(assignments, str):
+        raise SceneError(f"scene_overrides must be a list of 'key=value' strings, "
+                         f'got the string {assignments!r}')
+    return dict(parse_assignment(str(text)) for text in assignments or ())

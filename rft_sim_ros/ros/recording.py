@@ -1,0 +1,61 @@
+"""Record a headless run (`rft_sim_ros.sim.runner.run_scene`) into a rosbag2 (MCAP) folder.
+
+`BagRecorder` is a run_scene recorder: every state it is given is one publish cycle of the
+node (the same `BagWriter.write_state` messages), and /diagnostics follows the node's rule
+(`rft_sim_ros.ros.diagnostics`) counted in sim seconds, so a headless bag holds the topics
+and types that `ros2 bag record` of the node holds. If the run diverges, a last /diagnostics
+(level ERROR, the reason as message) is stamped with the last recorded state's time.
+"""
+import time
+
+from rft_sim_ros.ros.bag import BagWriter
+from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, status_key
+from rft_sim_ros.ros.messages import RunStatus
+
+
+class BagRecorder:
+    """Write a run of `scene` (SceneConfig) into a new rosbag2 folder `path`.
+
+    plates: record /rft/plates (active plate markers). diagnostics_period_s: sim seconds
+    between /diagnostics. clock: wall time, s, for the reported real-time factor.
+    """
+
+    def __init__(self, path, scene, *, plates=False, diagnostics_period_s=1.0,
+                 clock=time.perf_counter):
+        self.wants_plates = bool(plates)
+        self._scene = scene.name
+        self._writer = BagWriter(path, list(scene.legs), plates=self.wants_plates)
+        self._schedule = DiagnosticsSchedule(diagnostics_period_s)
+        self._clock = clock
+        self._sim = None
+        self._started = None
+        self._last = None
+
+    def start(self, sim):
+        """Called by run_scene with the Simulation before its first step."""
+        self._sim = sim
+        self._started = (sim.time, self._clock())
+
+    def _status(self, state):
+        sim_start, wall_start = self._started
+        wall = self._clock() - wall_start
+        rejected = self._sim.commands.rejections if self._sim.commands is not None else {}
+        return RunStatus(scene=self._scene,
+                         real_time_factor=(state.time - sim_start) / wall if wall > 0 else
+                         float('nan'),
+                         stable=self._sim.diverged is None, problem=self._sim.diverged or '',
+                         commands_rejected=rejected)
+
+    def record(self, state):
+        """One publish cycle of `state` (SimState), plus /diagnostics when due."""
+        self._writer.write_state(state)
+        self._last = state
+        status = self._status(state)
+        if self._schedule.due(state.time, status_key(state, status)):
+            self._writer.write_diagnostics(state, status)
+
+    def close(self):
+        """Report a divergence on /diagnostics, then finish the bag."""
+        if self._sim is not None and self._sim.diverged and self._last is not None:
+            self._writer.write_diagnostics(self._last, self._status(self._last))
+        self._writer.close()

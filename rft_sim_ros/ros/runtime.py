@@ -1,0 +1,253 @@
+"""ROS-free core of the `rft_sim` node: every decision the node makes, none of the wiring.
+
+`SimRuntime` owns a `Simulation` and a sink (anything with `write_state(SimState)` and
+`write_diagnostics(SimState, RunStatus)`: the node's publishers, or a `BagWriter`). The
+rclpy node only forwards events to it:
+
+* `tick()` on a wall-clock timer (period `tick_period`): runs the publish cycles that are
+  due (`Pacer`), each one publish period of sim time followed by one state publication,
+  for at most `tick_budget_s` of wall time so the executor stays responsive, then
+  /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
+  initial state.
+* `on_trajectory(msg)` / `on_positions(msg)`: incoming commands (any message backend) go to
+  `sim.commands` at the current sim time; bad ones are rejected with a throttled warning
+  naming the problem and counted per reason (reported on /diagnostics). Never raises.
+* `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused.
+* `pause(flag)`, `reset()`, `step()`: the services, each answering a `ServiceResult`.
+
+A diverging simulation (SimulationDiverged) is logged as an error, reported on /diagnostics
+(level ERROR) and pauses the runtime; nothing is published for the failed cycle, and it can
+only resume after `reset()`. Times in s (sim time unless said otherwise).
+"""
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass
+
+from rft_sim_ros.ros import inbound, parameters, topics
+from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_key
+from rft_sim_ros.ros.messages import RunStatus
+from rft_sim_ros.ros.pacing import Pacer
+from rft_sim_ros.sim.commands import CommandResult, Reason
+from rft_sim_ros.sim.simulation import SimulationDiverged
+from rft_sim_ros.sim.throttle import ThrottledLog
+
+
+@dataclass(frozen=True)
+class ServiceResult:
+    """Answer of a service: std_srvs' `success` and `message`."""
+    success: bool
+    message: str
+
+
+def array_order(servo_joints, joint_names):
+    """Indices that reorder an array command given in `joint_names` order into
+    `servo_joints` order; raises ValueError unless `joint_names` lists every servo joint
+    exactly once (as forward_position_controller, which commands all its joints)."""
+    joint_names = tuple(str(n) for n in joint_names)
+    if sorted(joint_names) != sorted(servo_joints):
+        raise ValueError(f'joint_names must list each position-servo joint of the scene once '
+                         f'({", ".join(servo_joints) or "none"}), got {list(joint_names)}')
+    return tuple(joint_names.index(name) for name in servo_joints)
+
+
+class SimRuntime:
+    """Drives `sim` for the node and decides what it publishes (see module docstring).
+
+    publish_rate: state publications per second of sim time (rounded to whole steps; the
+    effective value is `publish_period`). joint_names: order of array commands (None: the
+    scene's servo joints). plates: publish active plates. warn, error: log functions (str).
+    clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
+    diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
+    rejected-command warnings (one line per reason and topic per period).
+    """
+
+    def __init__(self, sim, sink, *, publish_rate, joint_names=None, real_time_factor=1.0,
+                 paused=False, plates=False, warn=print, error=print, clock=time.monotonic,
+                 tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
+        self.sim = sim
+        self._sink = sink
+        rate = parameters.publish_rate(publish_rate)
+        self._publish_every = max(1, int(round(1.0 / (rate * sim.timestep))))
+        servo_joints = tuple(sim.servo_joint_names)
+        self.joint_names = servo_joints if joint_names is None else tuple(joint_names)
+        self._array_order = array_order(servo_joints, self.joint_names)
+        self.plates = bool(plates)
+        self._clock = clock
+        self._error = error
+        self._warn = ThrottledLog(warn, warn_period_s, clock=clock)
+        self._budget = float(tick_budget_s)
+        self._pacer = Pacer(real_time_factor)
+        self._pacer.restart(clock(), sim.time)
+        self._schedule = DiagnosticsSchedule(diagnostics_period_s)
+        self._meter = RateMeter()
+        self._meter.rate(sim.time, clock())
+        self._rejections = Counter()
+        self.paused = bool(paused)
+        self.diverged = None
+        self.last_state = None
+
+    # --- properties -------------------------------------------------------------------------
+
+    @property
+    def publish_period(self):
+        """Sim time between state publications, s (a whole number of steps)."""
+        return self._publish_every * self.sim.timestep
+
+    @property
+    def real_time_factor(self):
+        """Requested sim seconds per wall second (0 = as fast as possible)."""
+        return self._pacer.real_time_factor
+
+    @property
+    def tick_period(self):
+        """Wall seconds between the node's timer ticks at the current real-time factor."""
+        return self._pacer.tick_period(self.publish_period)
+
+    @property
+    def rejections(self):
+        """{reason: count} of rejected commands since the start (kept across resets)."""
+        return dict(self._rejections)
+
+    def status(self, real_time_factor=math.nan):
+        """The run's `RunStatus` (for /diagnostics), with a measured real-time factor."""
+        return RunStatus(scene=self.sim.scene.name, real_time_factor=real_time_factor,
+                         stable=self.diverged is None, problem=self.diverged or '',
+                         commands_rejected=self.rejections, paused=self.paused)
+
+    # --- stepping and publishing ------------------------------------------------------------
+
+    def tick(self):
+        """Run the publish cycles due now (within the tick budget), then /diagnostics if due."""
+        started = self._clock()
+        if self.last_state is None:
+            self._publish_state()
+        now = started
+        while (not self.paused and now - started < self._budget
+               and self._pacer.due(now, self.sim.time + self.publish_period)):
+            self._cycle()
+            now = self._clock()
+        self._diagnostics(now)
+
+    def _cycle(self):
+        """Step one publish period and publish the state, or pause on divergence."""
+        try:
+            self.sim.step(self._publish_every)
+        except SimulationDiverged as diverged:
+            self.diverged = str(diverged)
+            self.paused = True
+            self._error(f'simulation diverged {self.diverged}; paused, nothing more is '
+                        'published until reset')
+            return False
+        self._publish_state()
+        return True
+
+    def _publish_state(self):
+        self.last_state = self.sim.state(with_plates=self.plates)
+        self._sink.write_state(self.last_state)
+
+    def _diagnostics(self, now):
+        status = self.status()
+        if self._schedule.due(now, status_key(self.last_state, status)):
+            rate = self._meter.rate(self.last_state.time, now)
+            self._sink.write_diagnostics(self.last_state, self.status(0.0 if self.paused else rate))
+
+    # --- commands ---------------------------------------------------------------------------
+
+    def on_trajectory(self, msg):
+        """A trajectory_msgs/JointTrajectory for the servos; returns the CommandResult."""
+        try:
+            command = inbound.trajectory_command(msg)
+        except (AttributeError, TypeError, ValueError) as error:
+            result = CommandResult(Reason.MALFORMED, f'not a joint trajectory ({error})')
+        else:
+            if self.sim.commands is None:
+                result = CommandResult(Reason.UNKNOWN_JOINT, 'this scene has no position '
+                                       'servos to command')
+            else:
+                result = self.sim.commands.set_trajectory(command, now=self.sim.time)
+        return self._outcome(topics.JOINT_TRAJECTORY, result)
+
+    def on_positions(self, msg):
+        """A std_msgs/Float64MultiArray of positions in `joint_names` order (rad or m)."""
+        try:
+            values = inbound.position_command(msg)
+        except (AttributeError, TypeError, ValueError) as error:
+            result = CommandResult(Reason.MALFORMED, f'not a position array ({error})')
+        else:
+            if self.sim.commands is None:
+                result = CommandResult(Reason.ARRAY_LENGTH, f'position command has '
+                                       f'{len(values)} values, but this scene has no '
+                                       'position servos')
+            else:
+                if len(values) == len(self._array_order):
+                    values = [values[i] for i in self._array_order]
+                result = self.sim.commands.set_positions(values, now=self.sim.time)
+        return self._outcome(topics.POSITION_COMMANDS, result)
+
+    def _outcome(self, topic, result):
+        if not result.accepted:
+            self._rejections[result.reason.value] += 1
+            self._warn((topic, result.reason), f'rejected command on {topic}: {result.message}')
+        return result
+
+    # --- parameters -------------------------------------------------------------------------
+
+    def parameter_problem(self, name, value):
+        """Why parameter `name` cannot take `value` now, or None (see `parameters`)."""
+        problem = parameters.parameter_problem(name, value)
+        if problem is None and name == parameters.PAUSED and not value and self.diverged:
+            problem = self._diverged_problem()
+        return problem
+
+    def set_parameter(self, name, value):
+        """Apply a dynamic parameter accepted by `parameter_problem`."""
+        if name == parameters.ZETA:
+            self.sim.zeta = float(value)
+        elif name == parameters.REAL_TIME_FACTOR:
+            self._pacer.set_real_time_factor(float(value), self._clock(), self.sim.time)
+        elif name == parameters.PAUSED:
+            self._set_paused(bool(value))
+        else:
+            raise KeyError(f'{name} cannot change while the node runs')
+
+    def _set_paused(self, paused):
+        if paused != self.paused:
+            self.paused = paused
+            if not paused:
+                self._pacer.restart(self._clock(), self.sim.time)
+
+    def _diverged_problem(self):
+        return f'the simulation diverged ({self.diverged}): call reset first'
+
+    # --- services ---------------------------------------------------------------------------
+
+    def pause(self, paused):
+        """std_srvs/SetBool `pause`: True pauses, False resumes (refused after divergence)."""
+        if not paused and self.diverged:
+            return ServiceResult(False, self._diverged_problem())
+        self._set_paused(bool(paused))
+        return ServiceResult(True, f'{"paused" if paused else "running"} at sim time '
+                                   f'{self.sim.time:.6f} s')
+
+    def step(self):
+        """std_srvs/Trigger `step`: while paused, advance one publish period and publish."""
+        if self.diverged:
+            return ServiceResult(False, self._diverged_problem())
+        if not self.paused:
+            return ServiceResult(False, 'step works while paused: call pause (true) first')
+        stepped = self._cycle()
+        self._diagnostics(self._clock())
+        if not stepped:
+            return ServiceResult(False, f'simulation diverged {self.diverged}')
+        return ServiceResult(True, f'stepped {self.publish_period:.6g} s to sim time '
+                                   f'{self.sim.time:.6f} s')
+
+    def reset(self):
+        """std_srvs/Trigger `reset`: back to the scene's initial state; sim time keeps
+        running forward; commands are dropped; paused stays as it is."""
+        self.sim.reset()
+        self.diverged = None
+        self._pacer.restart(self._clock(), self.sim.time)
+        return ServiceResult(True, f'reset at sim time {self.sim.time:.6f} s '
+                                   f'({"paused" if self.paused else "running"})')

@@ -1,0 +1,253 @@
+"""The rclpy nodes in-process (one executor, the test's probe node beside them).
+
+Runs where ROS 2 Jazzy is sourced (rclpy and the message packages of package.xml); skipped
+with the reason everywhere else. Uses the servo_rig test scene (two position servos).
+"""
+import math
+import os
+import time
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy', reason='ROS 2 Jazzy (rclpy) is not installed here')
+for _package in ('std_srvs.srv', 'trajectory_msgs.msg', 'sensor_msgs.msg', 'nav_msgs.msg',
+                 'tf2_msgs.msg', 'diagnostic_msgs.msg', 'rosgraph_msgs.msg',
+                 'visualization_msgs.msg'):
+    pytest.importorskip(_package, reason=f'ROS 2 package {_package} is not installed here')
+
+from builtin_interfaces.msg import Duration, Time  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from rcl_interfaces.srv import SetParameters  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
+
+from rft_sim_ros.ros import topics  # noqa: E402
+from rft_sim_ros.ros.gait_node import TripodGaitNode  # noqa: E402
+from rft_sim_ros.ros.node import SimNode  # noqa: E402
+from rft_sim_ros.sim.hexapod import JOINT_NAMES as HEXAPOD_JOINTS  # noqa: E402
+from rft_sim_ros.sim.scene import SceneError  # noqa: E402
+from ros_test_support import SERVO_RIG  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+PERIOD = 0.01  # s of sim time between /clock messages (servo_rig publishes at 100 Hz)
+
+#: A DDS domain of this test process, so no other ROS graph on the machine (another
+#: simulator's /clock, say) mixes with the nodes under test.
+DOMAIN_ID = 1 + os.getpid() % 100
+
+
+def seconds(stamp):
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+class Probe(Node):
+    """Test-side node: records what rft_sim publishes, sends commands, calls services."""
+
+    def __init__(self, context):
+        super().__init__('probe', context=context)
+        self.clocks, self.joint_states, self.diagnostics, self.trajectories = [], [], [], []
+        self.create_subscription(Clock, topics.CLOCK, lambda m: self.clocks.append(m), 100)
+        self.create_subscription(JointState, topics.JOINT_STATES,
+                                 lambda m: self.joint_states.append(m), 100)
+        self.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
+                                 lambda m: self.diagnostics.append(m), 100)
+        self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY,
+                                 lambda m: self.trajectories.append(m), 100)
+        self.trajectory = self.create_publisher(JointTrajectory, topics.JOINT_TRAJECTORY, 10)
+        self.positions = self.create_publisher(Float64MultiArray, topics.POSITION_COMMANDS, 10)
+        self.clock = self.create_publisher(Clock, topics.CLOCK, 10)
+        self.pause = self.create_client(SetBool, '/rft_sim/pause')
+        self.step = self.create_client(Trigger, '/rft_sim/step')
+        self.reset = self.create_client(Trigger, '/rft_sim/reset')
+        self.set_parameters = self.create_client(SetParameters, '/rft_sim/set_parameters')
+
+    def clock_times(self):
+        return [seconds(m.clock) for m in self.clocks]
+
+
+class Ros:
+    """An rclpy context with an executor spinning the nodes under test and the probe."""
+
+    def __init__(self):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=DOMAIN_ID)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.probe = Probe(self.context)
+        self.executor.add_node(self.probe)
+        self.nodes = [self.probe]
+
+    def add(self, node):
+        self.executor.add_node(node)
+        self.nodes.append(node)
+        return node
+
+    def spin_until(self, predicate, timeout=10.0):
+        deadline = time.monotonic() + timeout
+        while not predicate() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+        return predicate()
+
+    def spin_for(self, seconds_):
+        deadline = time.monotonic() + seconds_
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def call(self, client, request):
+        assert client.wait_for_service(timeout_sec=5.0), client.srv_name
+        future = client.call_async(request)
+        assert self.spin_until(future.done), f'no answer from {client.srv_name}'
+        return future.result()
+
+    def close(self):
+        self.executor.shutdown()
+        for node in self.nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros():
+    session = Ros()
+    yield session
+    session.close()
+
+
+def start_sim(ros, **parameters):
+    overrides = {'scene': SERVO_RIG, 'real_time_factor': 2.0, **parameters}
+    return ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in overrides.items()]))
+
+
+def hip(message):
+    return message.position[list(message.name).index('hip')]
+
+
+def trajectory(names, positions, after_s):
+    point = JointTrajectoryPoint(positions=positions,
+                                 time_from_start=Duration(sec=0, nanosec=int(after_s * 1e9)))
+    return JointTrajectory(joint_names=names, points=[point])
+
+
+def test_clock_advances_and_joint_states_arrive(ros):
+    start_sim(ros)
+    assert ros.spin_until(lambda: len(ros.probe.clocks) >= 10 and ros.probe.joint_states)
+    times = ros.probe.clock_times()
+    assert all(b > a for a, b in zip(times, times[1:]))
+    assert all(math.isclose(b - a, PERIOD, abs_tol=1e-6) for a, b in zip(times, times[1:]))
+    state = ros.probe.joint_states[-1]
+    assert list(state.name) == ['hip', 'knee']
+    assert any(math.isclose(seconds(state.header.stamp), t, abs_tol=1e-9) for t in times)
+
+
+def test_zeta_parameter_is_validated(ros):
+    sim = start_sim(ros)
+
+    def set_(name, value):
+        request = SetParameters.Request(parameters=[Parameter(name, value=value)
+                                                    .to_parameter_msg()])
+        return ros.call(ros.probe.set_parameters, request).results[0]
+
+    refused = set_('zeta', -1.0)
+    assert not refused.successful and '> 0' in refused.reason
+    assert not set_('zeta', float('nan')).successful
+    assert '<= 100' in set_('zeta', 250.0).reason
+    assert sim.runtime.sim.zeta == 0.5
+    accepted = set_('zeta', 2)  # an integer is a number too
+    assert accepted.successful and sim.runtime.sim.zeta == 2.0
+    assert sim.get_parameter('zeta').value == 2
+    assert not set_('scene', 'plate_drop').successful        # read-only
+    assert not set_('real_time_factor', -1.0).successful
+    assert set_('real_time_factor', 0.5).successful and sim.runtime.real_time_factor == 0.5
+
+
+def test_a_trajectory_moves_a_joint_and_a_malformed_one_is_rejected(ros):
+    sim = start_sim(ros)
+    assert ros.spin_until(lambda: ros.probe.joint_states)
+    ros.probe.trajectory.publish(trajectory(['hip', 'ankle'], [0.4, 0.1], 0.1))
+    ros.probe.trajectory.publish(trajectory(['hip'], [math.nan], 0.1))
+    ros.probe.positions.publish(Float64MultiArray(data=[0.1]))
+    assert ros.spin_until(lambda: sum(sim.runtime.rejections.values()) == 3)
+    assert sim.runtime.rejections == {'unknown_joint': 1, 'not_finite': 1, 'array_length': 1}
+    ros.spin_for(0.3)
+    assert abs(hip(ros.probe.joint_states[-1])) < 1e-3        # nothing moved
+    ros.probe.trajectory.publish(trajectory(['hip'], [0.4], 0.1))
+    assert ros.spin_until(lambda: abs(hip(ros.probe.joint_states[-1]) - 0.4) < 0.01)
+    ros.probe.positions.publish(Float64MultiArray(data=[-0.2, 0.0]))
+    assert ros.spin_until(lambda: abs(hip(ros.probe.joint_states[-1]) + 0.2) < 0.01)
+    assert ros.spin_until(lambda: any(
+        kv.key == 'commands_rejected' and kv.value == '3'
+        for m in ros.probe.diagnostics for kv in m.status[0].values), timeout=5.0)
+
+
+def test_pause_step_and_reset_services(ros):
+    sim = start_sim(ros)
+    ros.probe.positions.publish(Float64MultiArray(data=[0.3, 0.0]))
+    assert ros.spin_until(lambda: ros.probe.joint_states
+                          and abs(hip(ros.probe.joint_states[-1]) - 0.3) < 0.01)
+    refused = ros.call(ros.probe.step, Trigger.Request())
+    assert not refused.success and 'pause' in refused.message
+    answer = ros.call(ros.probe.pause, SetBool.Request(data=True))
+    assert answer.success and sim.get_parameter('paused').value is True
+    ros.spin_for(0.2)
+    count, last = len(ros.probe.clocks), ros.probe.clock_times()[-1]
+    ros.spin_for(0.3)
+    assert len(ros.probe.clocks) == count                      # time stands still
+    assert ros.call(ros.probe.step, Trigger.Request()).success
+    assert ros.spin_until(lambda: len(ros.probe.clocks) == count + 1)
+    assert ros.probe.clock_times()[-1] == pytest.approx(last + PERIOD, abs=1e-9)
+    reset = ros.call(ros.probe.reset, Trigger.Request())
+    assert reset.success and 'paused' in reset.message
+    assert ros.call(ros.probe.step, Trigger.Request()).success
+    assert ros.spin_until(lambda: len(ros.probe.clocks) == count + 2)
+    assert ros.probe.clock_times()[-1] == pytest.approx(last + 2 * PERIOD, abs=1e-9)
+    assert abs(hip(ros.probe.joint_states[-1])) < 0.05         # back at the initial pose
+    assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
+    assert sim.get_parameter('paused').value is False
+    assert ros.spin_until(lambda: len(ros.probe.clocks) > count + 5)
+
+
+def test_divergence_pauses_and_reports_an_error(ros):
+    sim = start_sim(ros)
+    assert ros.spin_until(lambda: ros.probe.clocks)
+    sim.runtime.sim.data.qvel[:] = 1e5   # rad/s: a runaway, caught at the next control tick
+    assert ros.spin_until(lambda: any(m.status[0].level == DiagnosticStatus.ERROR
+                                      for m in ros.probe.diagnostics))
+    assert sim.get_parameter('paused').value is True
+    refused = ros.call(ros.probe.pause, SetBool.Request(data=False))
+    assert not refused.success and 'reset' in refused.message
+    assert ros.call(ros.probe.reset, Trigger.Request()).success
+    assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
+    count = len(ros.probe.clocks)
+    assert ros.spin_until(lambda: len(ros.probe.clocks) > count + 3)
+
+
+@pytest.mark.parametrize('parameters, words', [
+    ({'scene': 'no_such_scene'}, 'unknown scene'),
+    ({'zeta': -1.0}, 'zeta must be > 0'),
+    ({'joint_names': ['hip']}, 'joint_names'),
+    ({'publish_rate': 0.0}, 'publish_rate'),
+    ({'scene_overrides': ['no_such_key=1']}, 'no_such_key')])
+def test_bad_start_parameters_are_refused_with_the_reason(ros, parameters, words):
+    with pytest.raises((SceneError, ValueError), match=words):
+        start_sim(ros, **parameters)
+
+
+def test_tripod_gait_publishes_trajectories_in_sim_time(ros):
+    ros.add(TripodGaitNode(context=ros.context, parameter_overrides=[
+        Parameter('start_delay', value=0.5), Parameter('rate', value=20)]))
+    for k in range(1, 60):  # play the simulator: /clock at 100 Hz from t = 0.01 s
+        ros.probe.clock.publish(Clock(clock=Time(sec=0, nanosec=k * 10_000_000)))
+        ros.spin_for(0.005)
+    assert ros.spin_until(lambda: len(ros.probe.trajectories) >= 3)
+    message = ros.probe.trajectories[-1]
+    assert tuple(message.joint_names) == HEXAPOD_JOINTS
+    assert 0.0 < seconds(message.header.stamp) <= 0.6
+    assert len(message.points) == 13 and len(message.points[0].velocities) == 12
+    assert seconds(message.points[-1].time_from_start) == pytest.approx(0.24)

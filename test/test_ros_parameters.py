@@ -1,0 +1,73 @@
+"""The rft_sim node's parameters: which may change at runtime and which values are refused."""
+import math
+
+import pytest
+
+from rft_sim_ros.ros import parameters
+from rft_sim_ros.ros.parameters import parameter_problem
+from rft_sim_ros.sim.scene import SceneError
+
+
+@pytest.mark.parametrize('value, words', [
+    (-1, '> 0'), (0.0, '> 0'), (math.nan, 'finite'), (math.inf, 'finite'),
+    (100.5, '<= 100'), ('abc', 'number'), (True, 'number'), ([1.0], 'number')])
+def test_bad_zeta_is_refused_with_the_reason(value, words):
+    problem = parameter_problem('zeta', value)
+    assert problem and words in problem and 'zeta' in problem
+
+
+@pytest.mark.parametrize('value', [0.1, 1, 3.75, 100.0])
+def test_good_zeta_is_accepted(value):
+    assert parameter_problem('zeta', value) is None
+
+
+@pytest.mark.parametrize('value, words', [(-0.5, '>= 0'), (math.nan, 'finite'),
+                                          (math.inf, 'finite'), ('fast', 'number'),
+                                          (False, 'number')])
+def test_bad_real_time_factor_is_refused(value, words):
+    problem = parameter_problem('real_time_factor', value)
+    assert problem and words in problem
+
+
+@pytest.mark.parametrize('value', [0, 0.0, 0.25, 1, 50.0])
+def test_good_real_time_factor_is_accepted(value):
+    assert parameter_problem('real_time_factor', value) is None
+
+
+def test_paused_must_be_a_bool():
+    assert parameter_problem('paused', True) is None
+    assert parameter_problem('paused', False) is None
+    assert 'true or false' in parameter_problem('paused', 1)
+
+
+@pytest.mark.parametrize('name', ['scene', 'scene_overrides', 'publish_rate', 'joint_names',
+                                  'plates'])
+def test_static_parameters_are_read_only(name):
+    assert not parameters.SPECS[name].dynamic
+    assert 'read-only' in parameter_problem(name, 'anything')
+
+
+def test_dynamic_parameters_are_exactly_zeta_rate_and_paused():
+    assert {s.name for s in parameters.PARAMETERS if s.dynamic} == {
+        'zeta', 'real_time_factor', 'paused'}
+
+
+def test_unknown_parameter_is_named():
+    assert "'speed'" in parameter_problem('speed', 1.0)
+
+
+@pytest.mark.parametrize('bad', [0, -10.0, math.nan, math.inf, 'fast', True])
+def test_publish_rate_must_be_positive(bad):
+    with pytest.raises(ValueError, match='publish_rate'):
+        parameters.publish_rate(bad)
+    assert parameters.publish_rate(50) == 50.0
+
+
+def test_scene_overrides_parse_like_the_cli():
+    assert parameters.scene_overrides(['gait=none', 'payload=1.5', 'rft.plates_per_body=80']) == {
+        'gait': 'none', 'payload': 1.5, 'rft.plates_per_body': 80}
+    assert parameters.scene_overrides(None) == {}
+    with pytest.raises(SceneError, match='key=value'):
+        parameters.scene_overrides(['gait'])
+    with pytest.raises(SceneError, match='list'):
+        parameters.scene_overrides('gait=none')
