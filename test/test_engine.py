@@ -188,7 +188,8 @@ def test_predicted_end_velocity_matches_mujocos_step(integrator):
                               model.actuator_actadr, data.actuator_force, engine._damping)
     assert engine._damping.any()
     mass = np.zeros((model.nv, model.nv))
-    engine_module._full_inertia(model, data, mass)
+    function, args = engine_module.full_inertia_call(model, data, mass)
+    function(*args)
     solved = np.zeros_like(rows)
     coupling.solve_implicit_mass(mass, engine._damping, model.opt.timestep, rows, solved)
     predicted = data.qvel + model.opt.timestep * solved[0]

@@ -23,12 +23,12 @@ from . import coupling
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
 
-def _full_inertia(model, data, out):
-    """Dense joint-space inertia M (nv x nv) into `out` (MuJoCo 3 and 4 signatures)."""
-    try:
-        mujoco.mj_fullM(model, data, out)  # MuJoCo >= 4
-    except TypeError:
-        mujoco.mj_fullM(model, out, data.qM)  # MuJoCo 3
+def full_inertia_call(model, data, out):
+    """(function, args) that write the dense joint-space inertia M (nv x nv) into `out`:
+    mj_fullM, whose signature changed in MuJoCo 4."""
+    if int(mujoco.__version__.split('.')[0]) >= 4:
+        return mujoco.mj_fullM, (model, data, out)
+    return mujoco.mj_fullM, (model, out, data.qM)
 
 
 @dataclass(frozen=True)
@@ -158,6 +158,8 @@ class SandEngine:
             m.actuator_forcelimited, m.actuator_forcerange)
         self._damping = np.zeros(m.nv)
         self._mass = np.zeros((m.nv, m.nv))
+        self._damping_state = (d.ctrl, d.act, m.actuator_actadr, d.actuator_force, self._damping)
+        self._full_inertia, self._full_inertia_args = full_inertia_call(m, d, self._mass)
         self._xpos, self._xmat, self._xipos = d.xpos, d.xmat, d.xipos
         self._cvel, self._subtree_com, self._cdof = d.cvel, d.subtree_com, d.cdof
         self._qvel, self._xfrc = d.qvel, d.xfrc_applied
@@ -220,10 +222,8 @@ class SandEngine:
         coupling.prepare_solve(slots, self._slot_body, self.body_ids, self._xipos,
                                self._subtree_com, self._cdof, *self._model_arrays,
                                *self._qfrc, rows)
-        coupling.implicit_damping(*self._damping_arrays, d.ctrl, d.act, m.actuator_actadr,
-                                  d.actuator_force,
-                                  self._damping)
-        _full_inertia(m, d, self._mass)
+        coupling.implicit_damping(*self._damping_arrays, *self._damping_state)
+        self._full_inertia(*self._full_inertia_args)
         minv = self._minv[:6 * slots + 1]
         coupling.solve_implicit_mass(self._mass, self._damping, m.opt.timestep, rows, minv)
         iterations = coupling.implicit_wrenches(
