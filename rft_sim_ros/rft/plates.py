@@ -33,15 +33,19 @@ class Plates:
 
     @classmethod
     def from_mesh(cls, mesh):
-        """One plate per triangle of `mesh` (a trimesh.Trimesh), in the mesh's frame.
+        """One plate per triangle of `mesh` (a trimesh.Trimesh), in the mesh's frame."""
+        return cls.from_triangles(np.asarray(mesh.triangles, dtype=float))
 
-        Degenerate (zero-area) triangles are dropped.
-        """
-        areas = np.asarray(mesh.area_faces, dtype=float)
-        keep = areas > 0.0
-        return cls(centroids=np.asarray(mesh.triangles_center, dtype=float)[keep],
-                   normals=np.asarray(mesh.face_normals, dtype=float)[keep],
-                   areas=areas[keep])
+    @classmethod
+    def from_triangles(cls, triangles):
+        """One plate per triangle ((T, 3, 3) vertices, m, counter-clockwise seen from
+        outside). Degenerate (zero-area) triangles are dropped."""
+        cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+        double_area = np.linalg.norm(cross, axis=1)
+        keep = double_area > 0.0
+        return cls(centroids=triangles[keep].mean(axis=1),
+                   normals=cross[keep] / double_area[keep, None],
+                   areas=0.5 * double_area[keep])
 
     def transformed(self, rotation, translation):
         """These plates expressed in a parent frame: p' = R p + t, n' = R n."""
@@ -65,6 +69,27 @@ class Plates:
                       np.concatenate([p.areas for p in parts]))
 
 
+def bisect(triangles):
+    """Each triangle ((T, 3, 3)) cut in two at the midpoint of its longest edge: (2T, 3, 3),
+    same orientation, same plane, so the surface they cover is unchanged."""
+    edges = np.stack([triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 1],
+                      triangles[:, 0] - triangles[:, 2]], axis=1)
+    longest = np.argmax(np.linalg.norm(edges, axis=2), axis=1)
+    # rotate each triangle so that its longest edge runs from vertex 0 to vertex 1
+    order = (np.arange(3)[None, :] + longest[:, None]) % 3
+    triangles = np.take_along_axis(triangles, order[:, :, None], axis=1)
+    middle = 0.5 * (triangles[:, 0] + triangles[:, 1])
+    return np.concatenate([np.stack([triangles[:, 0], middle, triangles[:, 2]], axis=1),
+                           np.stack([middle, triangles[:, 1], triangles[:, 2]], axis=1)])
+
+
+def longest_edges(triangles):
+    """(T,) length of each triangle's longest edge, m."""
+    edges = np.stack([triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 1],
+                      triangles[:, 0] - triangles[:, 2]], axis=1)
+    return np.linalg.norm(edges, axis=2).max(axis=1)
+
+
 def refine(mesh, max_edge):
     """Triangles of `mesh` (a trimesh.Trimesh, m) split until no edge exceeds max_edge (m).
 
@@ -77,24 +102,25 @@ def refine(mesh, max_edge):
     triangles = np.asarray(mesh.triangles, dtype=float)
     done = []
     while len(triangles):
-        edges = np.stack([triangles[:, 1] - triangles[:, 0],
-                          triangles[:, 2] - triangles[:, 1],
-                          triangles[:, 0] - triangles[:, 2]], axis=1)
-        lengths = np.linalg.norm(edges, axis=2)
-        longest = np.argmax(lengths, axis=1)
-        split = lengths[np.arange(len(triangles)), longest] > max_edge
+        split = longest_edges(triangles) > max_edge
         done.append(triangles[~split])
-        triangles, longest = triangles[split], longest[split]
-        # rotate each triangle so that its longest edge runs from vertex 0 to vertex 1
-        order = (np.arange(3)[None, :] + longest[:, None]) % 3
-        triangles = np.take_along_axis(triangles, order[:, :, None], axis=1)
-        middle = 0.5 * (triangles[:, 0] + triangles[:, 1])
-        triangles = np.concatenate([
-            np.stack([triangles[:, 0], middle, triangles[:, 2]], axis=1),
-            np.stack([middle, triangles[:, 1], triangles[:, 2]], axis=1)])
+        triangles = bisect(triangles[split])
     triangles = np.concatenate(done) if done else np.zeros((0, 3, 3))
     return trimesh.Trimesh(vertices=triangles.reshape(-1, 3),
                            faces=np.arange(3 * len(triangles)).reshape(-1, 3), process=False)
+
+
+def top_up(triangles, count):
+    """Bisect the largest triangles until there are exactly `count` (>= len(triangles)):
+    plates of even size, the surface unchanged."""
+    while len(triangles) < count:
+        doubled = 0.5 * np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0],
+                                                triangles[:, 2] - triangles[:, 0]), axis=1)
+        largest = np.argsort(-doubled, kind='stable')[:count - len(triangles)]
+        keep = np.ones(len(triangles), dtype=bool)
+        keep[largest] = False
+        triangles = np.concatenate([triangles[keep], bisect(triangles[largest])])
+    return triangles
 
 
 def edge_for_plate_area(area):

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import trimesh
 
-from ..rft.plates import Plates, edge_for_plate_area, refine
+from ..rft.plates import Plates, edge_for_plate_area, refine, top_up
 
 _INSIDE_MARGIN = 1e-7  # m; centroids closer than this to another geom's surface are kept
 
@@ -113,54 +113,63 @@ def body_geoms(model, body_id):
     return list(range(start, start + count)) if start >= 0 else []
 
 
-def body_plates_at_edge(model, body_id, edge):
-    """Plates of body `body_id` (body frame) with triangle edges <= ~`edge` (m)."""
+def body_triangles(model, body_id, edge):
+    """Surface triangles of body `body_id` ((T, 3, 3), m, body frame) with edges <= ~`edge`:
+    its geoms' surfaces without the parts inside another geom of the body."""
     geoms = body_geoms(model, body_id)
     parts = []
     for geom_id in geoms:
-        plates = Plates.from_mesh(geom_mesh(model, geom_id, edge)).transformed(
-            _geom_rotation(model, geom_id), model.geom_pos[geom_id])
-        hidden = np.zeros(len(plates), dtype=bool)
+        rotation = _geom_rotation(model, geom_id)
+        triangles = (np.asarray(geom_mesh(model, geom_id, edge).triangles) @ rotation.T
+                     + model.geom_pos[geom_id])
+        centroids = triangles.mean(axis=1)
+        hidden = np.zeros(len(triangles), dtype=bool)
         for other in geoms:
             if other != geom_id:
-                hidden |= inside_geom(model, other, plates.centroids)
-        parts.append(plates.subset(~hidden))
-    return Plates.concatenate(parts)
+                hidden |= inside_geom(model, other, centroids)
+        parts.append(triangles[~hidden])
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+
+
+def body_plates_at_edge(model, body_id, edge):
+    """Plates of body `body_id` (body frame) with triangle edges <= ~`edge` (m)."""
+    return Plates.from_triangles(body_triangles(model, body_id, edge))
 
 
 def body_plates(model, body_id, count=None, density_per_mm2=None):
     """Plates of body `body_id` in its body frame, sized by a target count or density.
 
-    count: target number of plates on the body. density_per_mm2: plates per mm^2 of surface
-    (the paper's unit), i.e. a count of density x area. Give one. The count is met to within
-    5 % where the geometry allows (refinement halves triangles, and a primitive's coarsest
-    tessellation sets a floor), else as near as a bisection on the plate edge length gets.
+    count: number of plates on the body. density_per_mm2: plates per mm^2 of surface (the
+    paper's unit), i.e. a count of density x area. Give one. The count is met exactly
+    (above the coarsest tessellation of the body's geoms): the finest refinement that stays
+    within it is found by bisecting the edge length, then its largest triangles are halved.
     """
     if (count is None) == (density_per_mm2 is None):
         raise ValueError('give exactly one of count or density_per_mm2')
     if not body_geoms(model, body_id):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body_id)
         raise ValueError(f'body {name!r} has no geoms to make RFT plates from')
-    area = body_plates_at_edge(model, body_id, np.inf).total_area
+    coarsest = body_triangles(model, body_id, np.inf)
+    area = Plates.from_triangles(coarsest).total_area
     if density_per_mm2 is not None:
         if not density_per_mm2 > 0:
             raise ValueError(f'plate density must be > 0 plates/mm^2, got {density_per_mm2}')
         count = max(1, int(round(density_per_mm2 * area * 1e6)))
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f'plate count must be a positive integer, got {count!r}')
+    best = coarsest  # the most triangles found that do not exceed `count`
     edge = edge_for_plate_area(area / count)
-    fine, coarse = None, None  # edges known to give too many / too few plates
-    best = None
-    for _ in range(16):  # bracket, then bisect in log(edge); counts fall as the edge grows
-        plates = body_plates_at_edge(model, body_id, edge)
-        if best is None or abs(len(plates) - count) < abs(len(best) - count):
-            best = plates
-        if abs(len(plates) - count) <= 0.05 * count:
-            break
-        if len(plates) > count:
+    fine, coarse = None, None  # edges known to give too many / at most `count` triangles
+    for _ in range(14):  # bracket, then bisect in log(edge); counts fall as the edge grows
+        triangles = body_triangles(model, body_id, edge)
+        if len(triangles) > count:
             fine = edge
         else:
             coarse = edge
+            if len(triangles) > len(best):
+                best = triangles
+            if len(triangles) == count:
+                break
         edge = (np.sqrt(fine * coarse) if fine and coarse
                 else edge * (1.5 if coarse is None else 1 / 1.5))
-    return best
+    return Plates.from_triangles(top_up(best, count) if len(best) < count else best)
