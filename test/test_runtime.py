@@ -348,7 +348,7 @@ def test_reset_keeps_paused(rig):
 # --- divergence -----------------------------------------------------------------------------
 
 def blow_up(sim):
-    sim.data.qvel[:] = 1e5  # rad/s: caught as a runaway at the next control tick
+    sim.data.qvel[:] = 1e5  # rad/s: caught as a runaway, or by MuJoCo's own reset
 
 
 def test_divergence_pauses_reports_and_publishes_no_garbage(rig):
@@ -359,9 +359,11 @@ def test_divergence_pauses_reports_and_publishes_no_garbage(rig):
     assert rig.runtime.paused and rig.runtime.diverged
     assert len(rig.times()) == published           # the failed cycle is not published
     assert all(np.all(np.isfinite(s.joint_velocities)) for s in rig.sink.states)
-    assert len(rig.errors) == 1 and 'diverged' in rig.errors[0] and 'runaway' in rig.errors[0]
+    error = rig.errors[0]
+    assert len(rig.errors) == 1 and 'diverged' in error
+    assert 'runaway' in error or 'unstable' in error
     _, status = rig.sink.diagnostics[-1]
-    assert not status.stable and 'runaway' in status.problem
+    assert not status.stable and ('runaway' in status.problem or 'unstable' in status.problem)
     # the only way on is a reset
     assert not rig.runtime.pause(False).success
     assert 'reset' in rig.runtime.parameter_problem('paused', False)

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from rft_sim_ros.sim import hexapod
-from rft_sim_ros.sim.leg_kinematics import LateralLegs
+from rft_sim_ros.sim.leg_kinematics import LateralLegs, leg_inverse
 
 
 def _joint_names(legs):
@@ -44,6 +44,25 @@ def foot_path(phi, beta, length, height):
                      + slope * s * (1.0 - s) * (1.0 - 2.0 * s))
             dz[i] = height * np.sin(np.pi * s) ** 2
     return dx, dz
+
+
+@njit(cache=True)
+def _tripod_targets(phases, scale, beta, length, height, neutral, knee_xyz, mid_length,
+                    dactyl_length, dactyl_neutral_angle):
+    """Knee and ankle targets (rad), interleaved per leg, for legs at `phases` with stroke
+    and lift times `scale`: the foot path, then the legs' inverse kinematics."""
+    dx, dz = foot_path(phases, beta, scale * length, scale * height)
+    feet_x = np.empty((1, dx.shape[0]))
+    feet_z = np.empty((1, dx.shape[0]))
+    for i in range(dx.shape[0]):
+        feet_x[0, i] = neutral[i, 0] + dx[i]
+        feet_z[0, i] = neutral[i, 2] + dz[i]
+    knee, ankle = leg_inverse(feet_x, feet_z, knee_xyz, mid_length, dactyl_length,
+                              dactyl_neutral_angle)
+    out = np.empty(2 * dx.shape[0])
+    for i in range(dx.shape[0]):
+        out[2 * i], out[2 * i + 1] = knee[0, i], ankle[0, i]
+    return out
 
 
 def _smoothstep(u):
@@ -144,14 +163,11 @@ class TripodGait(StandGait):
 
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
-        scale = self.amplitude(t)
-        dx, dz = foot_path(self.phases(t), self.stance_fraction, scale * self.step_length_m,
-                           scale * self.step_height_m)
-        knee, ankle = self.legs.inverse((self._neutral[:, 0] + dx)[None],
-                                        (self._neutral[:, 2] + dz)[None])
-        out = np.empty(2 * len(dx))
-        out[0::2], out[1::2] = knee[0], ankle[0]
-        return out
+        legs = self.legs
+        return _tripod_targets(self.phases(t), self.amplitude(t), self.stance_fraction,
+                               self.step_length_m, self.step_height_m, self._neutral,
+                               legs.knee_xyz, legs.mid_length, legs.dactyl_length,
+                               legs.dactyl_neutral_angle)
 
     def _path(self, phi, scale):
         """Foot offsets (dx, dz) in m at phases phi (any shape), stroke and lift times scale."""

@@ -26,7 +26,7 @@ from numba import njit
 
 
 @njit(cache=True)
-def _inverse(foot_x, foot_z, knee_xyz, mid_length, dactyl_length, dactyl_neutral_angle):
+def leg_inverse(foot_x, foot_z, knee_xyz, mid_length, dactyl_length, dactyl_neutral_angle):
     """`LateralLegs.inverse` for (M, N) foot targets (m; N legs): knee, ankle angles (rad)."""
     knee = np.empty(foot_x.shape)
     ankle = np.empty(foot_x.shape)
@@ -99,7 +99,7 @@ class LateralLegs:
         if foot_x.shape != foot_z.shape:
             foot_x, foot_z = np.broadcast_arrays(foot_x, foot_z)
         shape = foot_x.shape
-        knee, ankle = _inverse(foot_x.reshape(-1, len(self.names)),
+        knee, ankle = leg_inverse(foot_x.reshape(-1, len(self.names)),
                                foot_z.reshape(-1, len(self.names)), self.knee_xyz,
                                self.mid_length, self.dactyl_length, self.dactyl_neutral_angle)
         return knee.reshape(shape), ankle.reshape(shape)

@@ -11,8 +11,8 @@ scene's control rate and held in between (zero-order hold, as a servo bus would)
 
 A diverging run is detected and reported through `diverged` (the reason) instead of stepping
 on with garbage: MuJoCo resets a non-finite state (caught every step by sim time going
-back) and counts instability warnings; those and a runaway speed are checked at every
-control tick.
+back) and counts instability warnings; those and a runaway speed are checked at CHECK_RATE
+Hz of sim time.
 """
 import mujoco
 import numpy as np
@@ -27,6 +27,8 @@ from ..rft.force_law import DynamicTerm
 
 #: Generalised speeds above this (m/s or rad/s) mean the simulation has blown up.
 RUNAWAY_SPEED = 1.0e3
+#: Hz of sim time at which the state is checked for a runaway speed and MuJoCo's warnings.
+CHECK_RATE = 100.0
 
 _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
                                   mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -113,6 +115,10 @@ class Simulation:
         self.servo_joint_names = tuple(self.model.joint(j).name for _, j in self._servos)
         self._servo_ctrl = np.array([a for a, _ in self._servos], dtype=int)
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
+        # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
+        self._check_every = max(1, int(round(
+            1.0 / (CHECK_RATE * self._control_every * scene.timestep))))
+        self._ticks = 0
         self._ctrl = self.data.ctrl
         self._time_offset = 0.0
         self.steps = 0
@@ -172,9 +178,11 @@ class Simulation:
                 scenario.observe(self)
 
     def _control_tick(self):
-        problem = self._check()
-        if problem:
-            self._diverge(problem)
+        self._ticks += 1
+        if self._ticks % self._check_every == 0:
+            problem = self._check()
+            if problem:
+                self._diverge(problem)
         self.scenario.control(self)
         if self.commands is not None:
             self._ctrl[self._servo_ctrl] = self.commands.sample(self.time).positions
