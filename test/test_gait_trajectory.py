@@ -1,5 +1,7 @@
 """Gait trajectories for the tripod_gait publisher: what it sends, and that a
 joint_trajectory_controller-style receiver (CommandHandler) reproduces the gait from them."""
+import itertools
+
 import numpy as np
 import pytest
 
@@ -90,13 +92,16 @@ def test_the_hexapod_walks_on_gait_trajectories_sent_through_the_node_core():
     messages, every 0.05 s of sim time) into SimRuntime driving the hexapod scene with its
     built-in gait off."""
     from rft_sim_ros.ros.runtime import SimRuntime
+    from rft_sim_ros.sim.runner import run_scene
     from rft_sim_ros.sim.scene import load_scene
     from rft_sim_ros.sim.simulation import Simulation
     from ros_test_support import ListSink
 
     sim = Simulation(load_scene('hexapod', {'gait': 'none', 'rft.plates_per_body': 150}))
     sink = ListSink()
-    runtime = SimRuntime(sim, sink, publish_rate=100.0, real_time_factor=0.0)
+    wall = itertools.count(0.0, 0.06)   # each clock reading 60 ms on: one cycle per tick
+    runtime = SimRuntime(sim, sink, publish_rate=100.0, real_time_factor=0.0,
+                         clock=lambda: next(wall), tick_budget_s=0.05)
     trajectories = GaitTrajectories(lambda start: make_gait('tripod', start_time_s=start),
                                     start_delay_s=1.0)
     next_send = 0.0
@@ -111,5 +116,9 @@ def test_the_hexapod_walks_on_gait_trajectories_sent_through_the_node_core():
     x = {round(s.time, 2): s.base_position[0] for s in sink.states}
     standing = [value for t, value in x.items() if t <= 1.0]
     assert max(abs(v) for v in standing) < 0.005          # no gait yet: it stands
-    assert sink.states[-1].base_position[0] > 0.04        # walked forward (+x)
+    # the same walk as the scene's built-in gait (which starts at 1.0 s, not 1.01 s)
+    built_in = run_scene(load_scene('hexapod', {'rft.plates_per_body': 150, 'cycles': 2}),
+                         progress=False, plots=False)['metrics']['forward_distance_m']
+    assert built_in > 0.1
+    assert sink.states[-1].base_position[0] == pytest.approx(built_in, rel=0.05)
     assert runtime.rejections == {} and not runtime.diverged

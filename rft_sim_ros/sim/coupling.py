@@ -314,6 +314,16 @@ def _point_velocity(lever, twist, base):
 
 
 @njit(cache=True, inline='always')
+def across_damper(magnitude, speed, v_reg, turn_speed):
+    """Across-d damper c of a plate (N s/m) with RFT force magnitude |G| (N) and speed |v|:
+    |G| / max(2 |v|, v_reg) - stiff at rest, then the first-order turn of a drag-like force
+    to the direction of motion at mid-step while the step can turn the plate's motion -
+    fading as turn_speed / |v| once the plate moves faster than its sand could change within
+    a step (turn_speed, m/s), where the explicit direction is the better one."""
+    return magnitude / max(2.0 * speed, v_reg) * min(1.0, turn_speed / max(speed, v_reg))
+
+
+@njit(cache=True, inline='always')
 def _along_factor(state, speed, inv_reg, v_reg):
     """Coefficient of a plate's linear along response G (d.w) x factor, 1/(m/s), by set:
     1/v_reg resting, 1/max(|v|, v_reg) frozen (a secant through its current speed), else 0."""
@@ -362,12 +372,12 @@ def _resting_block(k_rank, iso, out):
 
 
 @njit(cache=True, error_model='numpy')
-def implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, xi_new, v_reg,
-                          out):
+def implicit_plate_forces(k, out_slot, lever, force, direction, speed, across, states, xi_new,
+                          v_reg, out):
     """Per-plate forces (N, world, on the body) that an implicit step applied, from the
-    plates' final sets and the end-of-step twists xi_new: G - c w_perp if moving,
-    a G - c w_perp if resting (frozen: with |v| in place of v_reg in a), 0 if off (module
-    docstring); the terms of the step's wrench."""
+    plates' final sets, their across dampers and the end-of-step twists xi_new:
+    G - c w_perp if moving, a G - c w_perp if resting (frozen: with |v| in place of v_reg in
+    a), 0 if off (module docstring); the terms of the step's wrench."""
     inv_reg = 1.0 / v_reg
     for j in range(k):
         if states[j] == OFF:
@@ -380,17 +390,15 @@ def implicit_plate_forces(k, out_slot, lever, force, direction, speed, states, x
         factor = 1.0 if states[j] == MOVING else along * _along_factor(
             states[j], speed[j], inv_reg, v_reg)
         px, py, pz = vx - along * d[0], vy - along * d[1], vz - along * d[2]
-        magnitude = np.sqrt(force[j, 0] ** 2 + force[j, 1] ** 2 + force[j, 2] ** 2)
-        damp = magnitude / max(speed[j], v_reg)
-        out[j, 0] = factor * force[j, 0] - damp * px
-        out[j, 1] = factor * force[j, 1] - damp * py
-        out[j, 2] = factor * force[j, 2] - damp * pz
+        out[j, 0] = factor * force[j, 0] - across[j] * px
+        out[j, 1] = factor * force[j, 1] - across[j] * py
+        out[j, 2] = factor * force[j, 2] - across[j] * pz
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, speed, v_reg,
                       jac, minv_rows, qvel, timestep, step, plate_state, plate_step,
-                      states, xi_new, wrench):
+                      states, xi_new, across, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S, nv) slot Jacobians. minv_rows: (>= 6S+1, nv) rows Mh^-1 jac_r^T for the 6S
@@ -427,10 +435,21 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     qvel_free = np.empty(nv)
     for i in range(nv):
         qvel_free[i] = qvel[i] + timestep * minv_rows[n6, i]
+    # Speed each slot's sand could take out of it in one step: dt x (sum of its plates' |G|)
+    # x its translational inverse effective mass (diagonal of J Mh^-1 J^T, averaged).
+    turn_speed = np.zeros(slots)
+    for j in range(k):
+        turn_speed[out_slot[j]] += np.sqrt(force[j, 0] ** 2 + force[j, 1] ** 2
+                                           + force[j, 2] ** 2)
+    for s in range(slots):
+        inverse_mass = 0.0
+        for r in range(6 * s, 6 * s + 3):
+            for i in range(nv):
+                inverse_mass += jac[r, i] * minv_rows[r, i]
+        turn_speed[s] = max(turn_speed[s] * timestep * inverse_mass / 3.0, v_reg)
     # per plate: h = [G; r x G], u = [d; r x d], across damper c
     h = np.empty((k, 6))
     u = np.empty((k, 6))
-    across = np.empty(k)
     for j in range(k):
         rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
         gx, gy, gz = force[j, 0], force[j, 1], force[j, 2]
@@ -439,7 +458,8 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
         h[j, 3], h[j, 4], h[j, 5] = ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx
         u[j, 0], u[j, 1], u[j, 2] = dx, dy, dz
         u[j, 3], u[j, 4], u[j, 5] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
-        across[j] = np.sqrt(gx * gx + gy * gy + gz * gz) / max(speed[j], v_reg)
+        across[j] = across_damper(np.sqrt(gx * gx + gy * gy + gz * gz), speed[j], v_reg,
+                                  turn_speed[out_slot[j]])
     visited = np.zeros(k, dtype=np.int8)  # bit per set a plate has been in this step
     solved = np.empty(k, dtype=np.int8)  # sets the last solve used
     for j in range(k):

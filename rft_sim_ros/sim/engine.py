@@ -96,6 +96,7 @@ class SandEngine:
         self._law_work = (np.empty((9, n)), np.empty(n, dtype=np.int64), np.empty((3, n)),
                           np.empty((6, n)))
         self._states = np.zeros(n, dtype=np.int8)
+        self._across = np.zeros(n)
         self._plate_state = np.zeros(n, dtype=np.int8)
         self._plate_step = np.full(n, -2, dtype=np.int64)
         self._xi = np.zeros(6 * nb)
@@ -229,7 +230,8 @@ class SandEngine:
         iterations = coupling.implicit_wrenches(
             k, slots, self._plate, self._slot, self._lever, self._force, self._dir, self._speed,
             self.low_velocity.rest_speed, rows, minv, self._qvel, m.opt.timestep, self._step,
-            self._plate_state, self._plate_step, self._states, self._xi, self._slot_wrench)
+            self._plate_state, self._plate_step, self._states, self._xi, self._across,
+            self._slot_wrench)
         self.solves += abs(iterations)
         self.unsettled_steps += iterations < 0
 
@@ -239,7 +241,7 @@ class SandEngine:
         k = self._k
         if self.low_velocity.method == 'implicit':
             coupling.implicit_plate_forces(k, self._slot, self._lever, self._force, self._dir,
-                                           self._speed, self._states, self._xi,
+                                           self._speed, self._across, self._states, self._xi,
                                            self.low_velocity.rest_speed, self._applied)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
         return self._lever[:k] + com, self._applied[:k].copy(), self.areas[self._plate[:k]]
