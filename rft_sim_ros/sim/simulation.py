@@ -105,8 +105,17 @@ class Simulation:
         self.joint_names = tuple(self.model.joint(j).name for j in self._joints)
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
-        self._legs = [(name, [self.engine.body_names.index(b) for b in bodies],
-                       self.model.body(bodies[-1]).id) for name, bodies in scene.legs.items()]
+        self._leg_names = tuple(scene.legs)
+        self._leg_feet = np.array([self.model.body(bodies[-1]).id
+                                   for bodies in scene.legs.values()], dtype=int)
+        # rows: the engine's body index of every (leg, sand body) pair; membership: (legs, rows)
+        # 0/1 matrix that sums the rows of each leg
+        self._leg_rows = np.array([self.engine.body_names.index(b)
+                                   for bodies in scene.legs.values() for b in bodies], dtype=int)
+        leg_of_row = np.repeat(np.arange(len(scene.legs)),
+                               [len(bodies) for bodies in scene.legs.values()])
+        self._leg_of_row = leg_of_row
+        self._leg_membership = (leg_of_row == np.arange(len(scene.legs))[:, None]).astype(float)
         self._servos = position_servos(self.model)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in self._servos:
@@ -212,19 +221,13 @@ class Simulation:
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py)."""
-        wrenches = self.engine.body_wrenches
-        xipos = self.data.xipos
-        legs = []
-        for name, indices, foot in self._legs:
-            point = self.data.xpos[foot].copy()
-            force = np.zeros(3)
-            torque = np.zeros(3)
-            for i in indices:
-                f, t = wrenches[i, :3], wrenches[i, 3:]
-                force += f
-                torque += t + np.cross(xipos[self.engine.body_ids[i]] - point, f)
-            legs.append(LegWrench(name, force, torque, point))
-        return tuple(legs)
+        wrenches = self.engine.body_wrenches[self._leg_rows]
+        points = self.data.xpos[self._leg_feet]
+        levers = self.data.xipos[self.engine.body_ids[self._leg_rows]] - points[self._leg_of_row]
+        forces = self._leg_membership @ wrenches[:, :3]
+        torques = self._leg_membership @ (wrenches[:, 3:] + np.cross(levers, wrenches[:, :3]))
+        return tuple(LegWrench(name, force, torque, point) for name, force, torque, point
+                     in zip(self._leg_names, forces, torques, points))
 
     def state(self, with_plates=False):
         """A SimState snapshot of the current state."""
