@@ -59,6 +59,10 @@ class CommandResult:
         return self.reason is None
 
 
+#: The result of every accepted command.
+ACCEPTED = CommandResult()
+
+
 @dataclass(frozen=True)
 class TrajectoryPoint:
     """One waypoint: positions (one per joint of the command), optional velocities (None or
@@ -159,8 +163,9 @@ def _float_scalar(value, what):
 
 
 def _check_finite(values, what, names):
-    bad = [names[i] for i in np.flatnonzero(~np.isfinite(values))]
-    if bad:
+    finite = np.isfinite(values)
+    if not finite.all():
+        bad = [names[i] for i in np.flatnonzero(~finite)]
         raise _Rejected(Reason.NOT_FINITE, f'{what} not finite for joint(s) {", ".join(bad)}')
 
 
@@ -208,7 +213,7 @@ class CommandHandler:
             return self._reject(rejected)
         self._pending = None
         self._active = _Spline.hold(now, values)
-        return CommandResult()
+        return ACCEPTED
 
     def set_trajectory(self, command, now):
         """Accept `command` (a `TrajectoryCommand`) received at sim time `now` (s), or reject it.
@@ -225,7 +230,7 @@ class CommandHandler:
         else:
             self._pending = None
             self._active = self._spline(plan, now)
-        return CommandResult()
+        return ACCEPTED
 
     def _reject(self, rejected):
         self._rejections[rejected.reason] += 1

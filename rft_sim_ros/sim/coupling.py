@@ -13,15 +13,19 @@ plate jumps when the direction of motion does, and explicit integration makes a 
 chatter or bounce out of the sand. The default scheme treats the law implicitly, like
 implicit Coulomb friction. For each plate, let G be the RFT force for its current direction of
 motion d and speed |v|, w its velocity at the end of the step, w_perp the part of w across d,
-a = d.w / v_reg with v_reg a small regularisation speed, and c = |G| / max(|v|, v_reg).
-Over the step the plate feels
+a = d.w / v_reg with v_reg a small regularisation speed, and c its across damper
+(`across_damper`). Over the step the plate feels
     F = min(a, 1) G - c w_perp    while it leads (a >= 0),     F = 0    once it trails (a < 0).
-While it keeps moving along d (a >= 1) the along part is exactly RFT's G, and the across part
-is the first-order turn of a drag-like force as the direction of motion turns (c = |G|/|v|);
-a plate coming to rest (0 <= a < 1) feels a G, so the sand can stop it within a step but never
-push it back past rest; a plate already at rest (|v| < v_reg) is held across d as well by a
-stiff damper of its RFT magnitude. The law is continuous at a = 1, so the implicit solve
-settles in one or two passes. A loaded body at rest creeps at most ~v_reg * load / capacity.
+While it keeps moving along d (a >= 1) the along part is exactly RFT's G; a plate coming to
+rest (0 <= a < 1) feels a G, so the sand can stop it within a step but never push it back
+past rest. The across damper c = |G| / max(2 |v|, v_reg) x min(1, turn_speed / max(|v|, v_reg))
+is the first-order turn of a drag-like force towards the direction of motion at mid-step,
+stiff for a plate at rest (which the sand then holds across d as well), and fading once the
+plate moves faster than its sand could change within one step (turn_speed: dt x the slot's
+summed |G| x its inverse effective mass), where the explicit direction is the better one.
+The law is continuous at a = 1, so the implicit solve settles in one or two passes; a plate
+that would return to a set it already had in the step is frozen (see `implicit_wrenches`).
+A loaded body at rest creeps at most ~v_reg * load / capacity.
 """
 import numpy as np
 from numba import njit
@@ -396,6 +400,49 @@ def implicit_plate_forces(k, out_slot, lever, force, direction, speed, across, s
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
+def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, weighted,
+                     w_moving, k_rank, k_iso):
+    """A slot's accumulators from its plates j0..j1-1 (module layout: h, u (6, K), arm (3, K),
+    per-plate set coefficients): w_moving = sum m h, k_rank = sum (a h + c u) u^T and the 10
+    moments of c (c, c r, c r r^T). Reductions over 1-d slices, which the compiler vectorises."""
+    moving, damper = coef_moving[j0:j1], coef_across[j0:j1]
+    along = coef_along[j0:j1]
+    for a in range(6):
+        h_a, u_a, weighted_a = h[a, j0:j1], u[a, j0:j1], weighted[a, j0:j1]
+        acc = 0.0
+        for j in range(j1 - j0):
+            weighted_a[j] = along[j] * h_a[j] + damper[j] * u_a[j]
+            acc += moving[j] * h_a[j]
+        w_moving[a] = acc
+    for a in range(6):
+        weighted_a = weighted[a, j0:j1]
+        for b in range(6):
+            u_b = u[b, j0:j1]
+            acc = 0.0
+            for j in range(j1 - j0):
+                acc += weighted_a[j] * u_b[j]
+            k_rank[a, b] = acc
+    arm_x, arm_y, arm_z = arm[0, j0:j1], arm[1, j0:j1], arm[2, j0:j1]
+    g = g_x = g_y = g_z = g_xx = g_yy = g_zz = g_xy = g_yz = g_zx = 0.0
+    for j in range(j1 - j0):
+        c = damper[j]
+        rx, ry, rz = arm_x[j], arm_y[j], arm_z[j]
+        g += c
+        g_x += c * rx
+        g_y += c * ry
+        g_z += c * rz
+        g_xx += c * rx * rx
+        g_yy += c * ry * ry
+        g_zz += c * rz * rz
+        g_xy += c * rx * ry
+        g_yz += c * ry * rz
+        g_zx += c * rz * rx
+    k_iso[0], k_iso[1], k_iso[2], k_iso[3] = g, g_x, g_y, g_z
+    k_iso[4], k_iso[5], k_iso[6] = g_xx, g_yy, g_zz
+    k_iso[7], k_iso[8], k_iso[9] = g_xy, g_yz, g_zx
+
+
+@njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, speed, v_reg,
                       jac, minv_rows, qvel, timestep, step, plate_state, plate_step,
                       states, xi_new, across, wrench):
@@ -413,21 +460,22 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     Each plate starts from its set of the previous step if it was in the sand then
     (`plate_state`/`plate_step`, indexed by plate, updated here) and not frozen, otherwise
     as moving when faster than v_reg; so a step usually needs one solve. Writes states[:k],
-    xi_new[:6S] (end-of-step twists) and wrench[:S] ([force; torque about COM], N, N m).
+    across[:k] (across dampers, N s/m), xi_new[:6S] (end-of-step twists) and wrench[:S]
+    ([force; torque about COM], N, N m).
     A plate that would return to a set it already had this step is frozen for the rest of
-    the step (the law
-    is not monotone where RFT's lift makes G d^T non-symmetric, and plain active-set
-    iterations can cycle): its along response becomes the secant (d.w / max(|v|, v_reg)) G
-    through its current speed - the resting response for a plate at rest, about G for a
-    plate that keeps its speed, less as it slows - linear and opposing the plate's motion
-    (RFT's G always opposes d). The wrench is exactly what the last solve assumed. Returns
-    the number of solves, negative if some plate was frozen.
+    the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
+    active-set iterations can cycle): its along response becomes the secant
+    (d.w / max(|v|, v_reg)) G through its current speed - the resting response for a plate
+    at rest, about G for a plate that keeps its speed, less as it slows - linear and
+    opposing the plate's motion (RFT's G always opposes d). The wrench is exactly what the
+    last solve assumed. Returns the number of solves, negative if some plate was frozen or
+    the sets had not settled within MAX_ITERATIONS.
 
-    Each plate adds to its slot's accumulators, by set: moving -> wrench h = [G; r x G];
-    resting -> along response h u^T / v_reg (u = [d; r x d]); both -> across damper
-    -c (I - d d^T), i.e. c u u^T minus c P^T P (kept as 10 moments c, c r, c r r^T).
-    A set change adds the difference of those coefficients, so the accumulators are built
-    once per step and updated only for plates that change set.
+    Each plate enters its slot's accumulators with coefficients set by its set: moving ->
+    wrench h = [G; r x G]; resting -> along response h u^T / v_reg (u = [d; r x d]); all but
+    off -> across damper -c (I - d d^T), i.e. c u u^T minus c P^T P (kept as the 10 moments
+    c, c r, c r r^T). After a solve, only the slots with plates that changed set are summed
+    again.
     """
     n6 = 6 * slots
     nv = qvel.shape[0]
@@ -435,124 +483,121 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     qvel_free = np.empty(nv)
     for i in range(nv):
         qvel_free[i] = qvel[i] + timestep * minv_rows[n6, i]
-    # Speed each slot's sand could take out of it in one step: dt x (sum of its plates' |G|)
-    # x its translational inverse effective mass (diagonal of J Mh^-1 J^T, averaged).
-    turn_speed = np.zeros(slots)
+    # plates come slot by slot: slot s holds plates first[s] .. first[s + 1] - 1
+    first = np.zeros(slots + 1, dtype=np.int64)
     for j in range(k):
-        turn_speed[out_slot[j]] += np.sqrt(force[j, 0] ** 2 + force[j, 1] ** 2
-                                           + force[j, 2] ** 2)
+        first[out_slot[j] + 1] += 1
     for s in range(slots):
-        inverse_mass = 0.0
-        for r in range(6 * s, 6 * s + 3):
-            for i in range(nv):
-                inverse_mass += jac[r, i] * minv_rows[r, i]
-        turn_speed[s] = max(turn_speed[s] * timestep * inverse_mass / 3.0, v_reg)
-    # per plate: h = [G; r x G], u = [d; r x d], across damper c
-    h = np.empty((k, 6))
-    u = np.empty((k, 6))
+        first[s + 1] += first[s]
+    # per plate, as structure of arrays (plates innermost, so the loops vectorise):
+    # h = [G; r x G], u = [d; r x d], lever arm r, |G|
+    h = np.empty((6, k))
+    u = np.empty((6, k))
+    arm = np.empty((3, k))
+    magnitude = np.empty(k)
+    h0, h1, h2, h3, h4, h5 = h[0], h[1], h[2], h[3], h[4], h[5]
+    u0, u1, u2, u3, u4, u5 = u[0], u[1], u[2], u[3], u[4], u[5]
+    arm_x, arm_y, arm_z = arm[0], arm[1], arm[2]
     for j in range(k):
         rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
         gx, gy, gz = force[j, 0], force[j, 1], force[j, 2]
         dx, dy, dz = direction[j, 0], direction[j, 1], direction[j, 2]
-        h[j, 0], h[j, 1], h[j, 2] = gx, gy, gz
-        h[j, 3], h[j, 4], h[j, 5] = ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx
-        u[j, 0], u[j, 1], u[j, 2] = dx, dy, dz
-        u[j, 3], u[j, 4], u[j, 5] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
-        across[j] = across_damper(np.sqrt(gx * gx + gy * gy + gz * gz), speed[j], v_reg,
-                                  turn_speed[out_slot[j]])
+        arm_x[j], arm_y[j], arm_z[j] = rx, ry, rz
+        h0[j], h1[j], h2[j] = gx, gy, gz
+        h3[j], h4[j], h5[j] = ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx
+        u0[j], u1[j], u2[j] = dx, dy, dz
+        u3[j], u4[j], u5[j] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
+        magnitude[j] = np.sqrt(gx * gx + gy * gy + gz * gz)
+    # Across dampers. Turn speed of a slot: the speed its sand could take out of it in one
+    # step, dt x (sum of its plates' |G|) x its translational inverse effective mass
+    # (diagonal of J Mh^-1 J^T, averaged).
+    for s in range(slots):
+        total = magnitude[first[s]:first[s + 1]].sum()
+        inverse_mass = 0.0
+        for row in range(6 * s, 6 * s + 3):
+            for i in range(nv):
+                inverse_mass += jac[row, i] * minv_rows[row, i]
+        turn_speed = max(total * timestep * inverse_mass / 3.0, v_reg)
+        for j in range(first[s], first[s + 1]):
+            across[j] = across_damper(magnitude[j], speed[j], v_reg, turn_speed)
+    # initial sets and each plate's coefficients for its set: along factor, across damper,
+    # moving (0/1)
     visited = np.zeros(k, dtype=np.int8)  # bit per set a plate has been in this step
-    solved = np.empty(k, dtype=np.int8)  # sets the last solve used
+    coef_along = np.empty(k)
+    coef_across = np.empty(k)
+    coef_moving = np.empty(k)
     for j in range(k):
         p = out_plate[j]
-        if plate_step[p] == step - 1 and plate_state[p] != FROZEN:
-            states[j] = plate_state[p]
-        else:
-            states[j] = MOVING if speed[j] > v_reg else RESTING
-        visited[j] = 1 << states[j]
-    # accumulators per slot, in one pass over the plates (which come slot by slot)
+        previous = plate_state[p]
+        warm = plate_step[p] == step - 1 and previous != FROZEN
+        state = previous if warm else (MOVING if speed[j] > v_reg else RESTING)
+        states[j] = state
+        visited[j] = 1 << state
+        coef_along[j] = _along_factor(state, speed[j], inv_reg, v_reg)
+        coef_across[j] = 0.0 if state == OFF else across[j]
+        coef_moving[j] = 1.0 if state == MOVING else 0.0
     w_moving = np.zeros((slots, 6))
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
-    for j in range(k):
-        s = out_slot[j]
-        state = states[j]
-        if state == OFF:
-            continue
-        along_w = _along_factor(state, speed[j], inv_reg, v_reg)
-        g = across[j]
-        if state == MOVING:
-            for a in range(6):
-                w_moving[s, a] += h[j, a]
-        for a in range(6):
-            weighted = along_w * h[j, a] + g * u[j, a]
+    weighted = np.empty((6, k))
+    dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
+    solved = np.empty(k, dtype=np.int8)  # sets the last solve used
+    wanted = np.empty(k, dtype=np.int8)
+    along = np.empty(k)  # plate velocity along d at the end of the step, u . xi+ (m/s)
+    # the dofs each slot's Jacobian reaches (its kinematic chain)
+    chain = np.empty((slots, nv), dtype=np.int64)
+    chain_count = np.zeros(slots, dtype=np.int64)
+    for s in range(slots):
+        for c in range(nv):
+            reaches = False
             for b in range(6):
-                k_rank[s, a, b] += weighted * u[j, b]
-        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
-        k_iso[s, 0] += g
-        k_iso[s, 1] += g * rx
-        k_iso[s, 2] += g * ry
-        k_iso[s, 3] += g * rz
-        k_iso[s, 4] += g * rx * rx
-        k_iso[s, 5] += g * ry * ry
-        k_iso[s, 6] += g * rz * rz
-        k_iso[s, 7] += g * rx * ry
-        k_iso[s, 8] += g * ry * rz
-        k_iso[s, 9] += g * rz * rx
-    # pending coefficient changes: plate, d(along factor), d(across damper), d(moving)
-    change_plate = np.empty(k, dtype=np.int64)
-    change_along = np.empty(k)
-    change_across = np.empty(k)
-    change_moving = np.empty(k)
-    changes = 0
+                reaches = reaches or jac[6 * s + b, c] != 0.0
+            if reaches:
+                chain[s, chain_count[s]] = c
+                chain_count[s] += 1
     block = np.zeros((6, 6))
-    block_jac = np.zeros((6, nv))
     system = np.zeros((nv, nv))
+    system_t = np.zeros((nv, nv))
     rhs = np.zeros(nv)
     iterations = 0
-    held = 0
+    frozen = 0  # plates frozen this step
     converged = False
     while iterations < MAX_ITERATIONS and not converged:
         iterations += 1
-        for q in range(changes):
-            j = change_plate[q]
-            s = out_slot[j]
-            da, dg, dm = change_along[q], change_across[q], change_moving[q]
-            for a in range(6):
-                w_moving[s, a] += dm * h[j, a]
-                ha = da * h[j, a] + dg * u[j, a]
-                for b in range(6):
-                    k_rank[s, a, b] += ha * u[j, b]
-            rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
-            k_iso[s, 0] += dg
-            k_iso[s, 1] += dg * rx
-            k_iso[s, 2] += dg * ry
-            k_iso[s, 3] += dg * rz
-            k_iso[s, 4] += dg * rx * rx
-            k_iso[s, 5] += dg * ry * ry
-            k_iso[s, 6] += dg * rz * rz
-            k_iso[s, 7] += dg * rx * ry
-            k_iso[s, 8] += dg * ry * rz
-            k_iso[s, 9] += dg * rz * rx
-        # (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving; xi+ = J qvel+
+        for s in range(slots):
+            if dirty[s]:
+                _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
+                                 coef_moving, weighted, w_moving[s], k_rank[s], k_iso[s])
+                dirty[s] = False
+        # (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving; xi+ = J qvel+.
+        # Assembled transposed, column c of the system (a contiguous row of system_t) from
+        # the slots whose Jacobian reaches dof c only, so the inner loops run over
+        # contiguous rows and skip the dofs outside a slot's kinematic chain.
         for r in range(nv):
             for c in range(nv):
-                system[r, c] = 1.0 if r == c else 0.0
+                system_t[r, c] = 1.0 if r == c else 0.0
             rhs[r] = qvel_free[r]
         for s in range(slots):
             _resting_block(k_rank[s], k_iso[s], block)
             for a in range(6):
-                for c in range(nv):
-                    acc = 0.0
-                    for b in range(6):
-                        acc += block[a, b] * jac[6 * s + b, c]
-                    block_jac[a, c] = acc
-            for a in range(6):
+                minv_row = minv_rows[6 * s + a]
+                weight = timestep * w_moving[s, a]
                 for r in range(nv):
-                    weight = timestep * minv_rows[6 * s + a, r]
-                    if weight != 0.0:
-                        for c in range(nv):
-                            system[r, c] -= weight * block_jac[a, c]
-                        rhs[r] += weight * w_moving[s, a]
+                    rhs[r] += weight * minv_row[r]
+            for q in range(chain_count[s]):
+                c = chain[s, q]
+                column = system_t[c]
+                for a in range(6):
+                    coefficient = 0.0
+                    for b in range(6):
+                        coefficient += block[a, b] * jac[6 * s + b, c]
+                    coefficient *= timestep
+                    minv_row = minv_rows[6 * s + a]
+                    for r in range(nv):
+                        column[r] -= coefficient * minv_row[r]
+        for r in range(nv):
+            for c in range(nv):
+                system[r, c] = system_t[c, r]
         solution = _solve(system, rhs)
         for j in range(k):
             solved[j] = states[j]
@@ -561,39 +606,46 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
             for i in range(nv):
                 acc += jac[r, i] * solution[i]
             xi_new[r] = acc
-        changes = 0
-        held = 0
+        for s in range(slots):
+            x0, x1, x2 = xi_new[6 * s], xi_new[6 * s + 1], xi_new[6 * s + 2]
+            x3, x4, x5 = xi_new[6 * s + 3], xi_new[6 * s + 4], xi_new[6 * s + 5]
+            j0, j1 = first[s], first[s + 1]
+            d0, d1, d2 = u[0, j0:j1], u[1, j0:j1], u[2, j0:j1]
+            d3, d4, d5 = u[3, j0:j1], u[4, j0:j1], u[5, j0:j1]
+            along_s, wanted_s = along[j0:j1], wanted[j0:j1]
+            for j in range(j1 - j0):
+                value = (d0[j] * x0 + d1[j] * x1 + d2[j] * x2 + d3[j] * x3 + d4[j] * x4
+                         + d5[j] * x5)
+                along_s[j] = value
+                wanted_s[j] = OFF if value < 0.0 else (MOVING if value >= v_reg else RESTING)
+        converged = True
         for j in range(k):
-            base = 6 * out_slot[j]
-            # plate velocity along d at the end of the step: u . xi+
-            along = 0.0
-            for a in range(6):
-                along += u[j, a] * xi_new[base + a]
-            wanted = OFF if along < 0.0 else (MOVING if along >= v_reg else RESTING)
             old = states[j]
-            # moving and off are reached from resting only
-            new = wanted if (wanted == old or old == RESTING or wanted == RESTING) else RESTING
-            if states[j] == FROZEN:
+            if wanted[j] == old or old == FROZEN:
                 continue
-            if new != old and visited[j] & (1 << new):  # back to a set it had: a cycle
-                held += 1
+            # moving and off are reached from resting only
+            new = wanted[j] if (old == RESTING or wanted[j] == RESTING) else RESTING
+            if visited[j] & (1 << new):  # back to a set it had: a cycle
+                frozen += 1
                 new = FROZEN
-            if new != old:
-                change_plate[changes] = j
-                change_along[changes] = (_along_factor(new, speed[j], inv_reg, v_reg)
-                                         - _along_factor(old, speed[j], inv_reg, v_reg))
-                change_across[changes] = ((across[j] if new != OFF else 0.0)
-                                          - (across[j] if old != OFF else 0.0))
-                change_moving[changes] = ((1.0 if new == MOVING else 0.0)
-                                          - (1.0 if old == MOVING else 0.0))
-                changes += 1
-                states[j] = new
-                visited[j] |= 1 << new
-        converged = changes == 0
+            states[j] = new
+            visited[j] |= 1 << new
+            coef_along[j] = _along_factor(new, speed[j], inv_reg, v_reg)
+            coef_across[j] = 0.0 if new == OFF else across[j]
+            coef_moving[j] = 1.0 if new == MOVING else 0.0
+            dirty[out_slot[j]] = True
+            converged = False
     # The wrench the last solve assumed: moving plates' G plus every plate's linear response.
     for j in range(k):
         states[j] = solved[j]
     for s in range(slots):
+        if dirty[s]:  # back to the coefficients of the last solve
+            for j in range(first[s], first[s + 1]):
+                coef_along[j] = _along_factor(solved[j], speed[j], inv_reg, v_reg)
+                coef_across[j] = 0.0 if solved[j] == OFF else across[j]
+                coef_moving[j] = 1.0 if solved[j] == MOVING else 0.0
+            _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
+                             coef_moving, weighted, w_moving[s], k_rank[s], k_iso[s])
         _resting_block(k_rank[s], k_iso[s], block)
         for a in range(6):
             acc = w_moving[s, a]
@@ -603,7 +655,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     for j in range(k):
         plate_state[out_plate[j]] = states[j]
         plate_step[out_plate[j]] = step
-    return iterations if converged and held == 0 else -iterations
+    return iterations if converged and frozen == 0 else -iterations
 
 
 @njit(cache=True, error_model='numpy')

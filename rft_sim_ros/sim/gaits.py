@@ -47,10 +47,14 @@ def foot_path(phi, beta, length, height):
 
 
 @njit(cache=True)
-def _tripod_targets(phases, scale, beta, length, height, neutral, knee_xyz, mid_length,
-                    dactyl_length, dactyl_neutral_angle):
-    """Knee and ankle targets (rad), interleaved per leg, for legs at `phases` with stroke
-    and lift times `scale`: the foot path, then the legs' inverse kinematics."""
+def _tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_xyz,
+                    mid_length, dactyl_length, dactyl_neutral_angle):
+    """Knee and ankle targets (rad), interleaved per leg, `cycles` gait cycles after the
+    start for legs at phase `offsets` (cycles) with stroke and lift times `scale`: the foot
+    path, then the legs' inverse kinematics."""
+    phases = np.empty(offsets.shape[0])
+    for i in range(offsets.shape[0]):
+        phases[i] = (cycles + offsets[i]) % 1.0  # in [0, 1), as np.mod
     dx, dz = foot_path(phases, beta, scale * length, scale * height)
     feet_x = np.empty((1, dx.shape[0]))
     feet_z = np.empty((1, dx.shape[0]))
@@ -164,7 +168,8 @@ class TripodGait(StandGait):
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
         legs = self.legs
-        return _tripod_targets(self.phases(t), self.amplitude(t), self.stance_fraction,
+        return _tripod_targets(self.frequency_hz * (t - self.start_time_s), self._offsets,
+                               self.amplitude(t), self.stance_fraction,
                                self.step_length_m, self.step_height_m, self._neutral,
                                legs.knee_xyz, legs.mid_length, legs.dactyl_length,
                                legs.dactyl_neutral_angle)

@@ -83,7 +83,10 @@ class Scenario(BaseScenario):
         self._base = sim.model.body(self.scene.base_body).id
         self._feet = np.array([sim.model.site(name).id for name in FOOT_SITES])
         names = sim.engine.body_names
-        self._leg_rows = [[names.index(b) for b in sim.scene.legs[leg]] for leg in LEG_NAMES]
+        self._leg_sum = np.zeros((len(LEG_NAMES), len(names)))  # sand body -> its leg
+        for row, leg in enumerate(LEG_NAMES):
+            for body in sim.scene.legs[leg]:
+                self._leg_sum[row, names.index(body)] = 1.0
         self._samples = []
 
     def control(self, sim):
@@ -98,8 +101,7 @@ class Scenario(BaseScenario):
         d = sim.data
         force_z = sim.engine.body_wrenches[:, 2]
         self._samples.append(np.concatenate([
-            [t], d.xpos[self._base], d.site_xpos[self._feet, 2],
-            [force_z[rows].sum() for rows in self._leg_rows]]))
+            [t], d.xpos[self._base], d.site_xpos[self._feet, 2], self._leg_sum @ force_z]))
 
     def series(self):
         """The walk's time course: {'time_s', 'x_m', 'y_m', 'z_m'} (base_link origin, world)
