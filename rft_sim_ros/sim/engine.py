@@ -109,7 +109,8 @@ class SandEngine:
         self._step = 0
         self._k = self._slots = self.plates_active = 0
         self.solves = 0  # implicit solves so far (about one per step with sand contact)
-        self.unsettled_steps = 0  # steps whose active set had not settled (clamped fallback)
+        # steps in which a plate was frozen (anti-cycling) or the sets had not settled
+        self.unsettled_steps = 0
         self.body_wrenches = np.zeros((nb, 6))
         self._views()
 

@@ -142,6 +142,10 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
                             for i, name in enumerate(sim.engine.body_names)},
         'plates_active_mean': active_sum / max(1, len(series)),
         'low_velocity': sim.engine.low_velocity.method,
+        # implicit treatment: solves per step, and steps in which a plate had to be frozen
+        # (anti-cycling) or the sets did not settle (see sim/coupling.py)
+        'implicit_solves_per_step': sim.engine.solves / max(1, sim.steps),
+        'implicit_unsettled_steps': sim.engine.unsettled_steps,
         'normalisation': scene.normalisation,
         'stable': reason is None,
         'reason': reason,
