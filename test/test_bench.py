@@ -1,6 +1,8 @@
 """The benchmark's own logic (the measurements themselves run in `rft-sim bench`)."""
 import math
 
+import pytest
+
 from rft_sim_ros.bench import pareto
 from rft_sim_ros.bench.report import markdown
 
@@ -35,3 +37,12 @@ def test_report_marks_front_default_and_unstable_runs():
     text = markdown(results)
     assert '| **5 (default)** | **1** |' in text
     assert '| 5 | 2 | 0.050 | unstable | inf |' in text
+
+
+def test_hexapod_trial_times_the_walk_apart_from_the_drop():
+    from rft_sim_ros.bench.step_cost import hexapod_trial
+    summary, walk = hexapod_trial({'cycles': 1, 'settle_time': 0.4, 'rft.plates_per_body': 100})
+    assert summary['sim_time_s'] == pytest.approx(1.4, abs=1e-3)
+    assert walk['sim_time_s'] == pytest.approx(1.0, abs=1e-3)   # one cycle at 1 Hz
+    assert 0.0 < walk['wall_time_s'] < summary['wall_time_s']
+    assert walk['real_time_factor'] == pytest.approx(walk['sim_time_s'] / walk['wall_time_s'])

@@ -41,9 +41,12 @@ def markdown(results):
                   f'{cost["ratio_full_to_rigid"]:.2f} |', '']
     trial = results.get('trial')
     if trial:
-        lines += [f'Full `hexapod` trial ({trial["sim_time_s"]:g} s: drop, settle, 5 gait cycles): '
-                  f'{trial["wall_time_s"]:.2f} s wall, real-time factor '
-                  f'**{trial["real_time_factor"]:.1f}** (the paper: 0.04).', '']
+        walk = trial['walk']
+        lines += [f'Full `hexapod` run ({trial["sim_time_s"]:g} s of sim time: 1 s drop and '
+                  f'settle, then the walk): {trial["wall_time_s"]:.2f} s wall, real-time factor '
+                  f'**{trial["real_time_factor"]:.1f}**. Its walk alone ({walk["sim_time_s"]:g} '
+                  f's, the paper\'s trial): {walk["wall_time_s"]:.2f} s wall, real-time factor '
+                  f'**{walk["real_time_factor"]:.1f}** (the paper: 0.04).', '']
     start = results.get('startup')
     if start:
         lines += ['## Start-up (import + model + plates + kernels)', '',
