@@ -6,6 +6,7 @@ import matplotlib
 
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402  (backend must be chosen first)
+from matplotlib.ticker import FormatStrFormatter, LogLocator  # noqa: E402
 
 
 def _us(seconds):
@@ -116,6 +117,9 @@ def plot_pareto(path, sweeps):
             ax.step(*zip(*front), where='post', color='tab:red', linewidth=1)
         ax.set_xscale('log')
         ax.set_yscale('log')
+        ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))  # a short span: 1-2-5 labels
+        ax.xaxis.set_minor_formatter(FormatStrFormatter('%g'))
+        ax.tick_params(labelsize=7)
         ax.set_title(f'{sweep["scene"]}', fontsize=9)
         ax.set_xlabel('wall s per sim s', fontsize=8)
         ax.set_ylabel('relative error', fontsize=8)
