@@ -113,6 +113,7 @@ class SandEngine:
         self.unsettled_steps = 0
         self.body_wrenches = np.zeros((nb, 6))
         self._views()
+        self._load_kernels()
 
     def _cluster(self, plates):
         """Store all plates, body by body and within a body cluster by cluster, with the
@@ -193,23 +194,10 @@ class SandEngine:
     def apply(self):
         """Compute the sand wrenches from the current state (after mj_step1) and write them
         into xfrc_applied of the sand bodies."""
-        method = self.low_velocity.method
         self._step += 1
-        k, self.plates_active, slots = coupling.gather_plates(
-            self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
-            self._cluster_center, self._cluster_radius, self.local_pos, self.local_normal,
-            self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
-            self._model_arrays[0], self.surface_height, self._zeta_si, 1.0 / self._a4,
-            1.0 / self._b4, self._dyn, method == 'ema', self._plate, self._slot, self._lever,
-            self._force, self._dir, self._speed, self._slot_body, *self._law_work)
+        k, self.plates_active, slots = self._gather()
         if slots:
-            if method == 'implicit':
-                self._implicit(k, slots)
-            else:
-                alpha = self.low_velocity.ema_alpha if method == 'ema' else 1.0
-                coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._lever,
-                                           self._force, alpha, self._step, self._ema_force,
-                                           self._ema_step, self._applied, self._slot_wrench)
+            self._wrenches(k, slots)
             coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench,
                                       self.body_ids, self.body_wrenches, self._xfrc)
         elif self._slots:  # the last bodies left the sand
@@ -217,7 +205,32 @@ class SandEngine:
                                       self.body_wrenches, self._xfrc)
         self._k, self._slots = k, slots
 
+    def _gather(self):
+        """The plates in the sand and their RFT forces (coupling.gather_plates)."""
+        return coupling.gather_plates(
+            self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
+            self._cluster_center, self._cluster_radius, self.local_pos, self.local_normal,
+            self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
+            self._model_arrays[0], self.surface_height, self._zeta_si, 1.0 / self._a4,
+            1.0 / self._b4, self._dyn, self.low_velocity.method == 'ema', self._plate,
+            self._slot, self._lever, self._force, self._dir, self._speed, self._slot_body,
+            *self._law_work)
+
+    def _wrenches(self, k, slots):
+        """Slot wrenches of the gathered plates by the low-velocity method."""
+        method = self.low_velocity.method
+        if method == 'implicit':
+            iterations = self._implicit(k, slots)
+            self.solves += abs(iterations)
+            self.unsettled_steps += iterations < 0
+        else:
+            alpha = self.low_velocity.ema_alpha if method == 'ema' else 1.0
+            coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._lever,
+                                       self._force, alpha, self._step, self._ema_force,
+                                       self._ema_step, self._applied, self._slot_wrench)
+
     def _implicit(self, k, slots):
+        """Implicit slot wrenches (coupling.implicit_wrenches); returns its solve count."""
         m, d = self.model, self.data
         mujoco.mj_fwdActuation(m, d)
         rows = self._rhs[:6 * slots + 1]
@@ -228,13 +241,27 @@ class SandEngine:
         self._full_inertia(*self._full_inertia_args)
         minv = self._minv[:6 * slots + 1]
         coupling.solve_implicit_mass(self._mass, self._damping, m.opt.timestep, rows, minv)
-        iterations = coupling.implicit_wrenches(
+        return coupling.implicit_wrenches(
             k, slots, self._plate, self._slot, self._lever, self._force, self._dir, self._speed,
             self.low_velocity.rest_speed, rows, minv, self._qvel, m.opt.timestep, self._step,
             self._plate_state, self._plate_step, self._states, self._xi, self._across,
             self._slot_wrench)
-        self.solves += abs(iterations)
-        self.unsettled_steps += iterations < 0
+
+    def _load_kernels(self):
+        """Run every compiled kernel once on no plates (their outputs are scratch), so that
+        numba loads them from its cache (or compiles them) now, as part of start-up, and not
+        at the first step in contact with sand, where it would stall a running simulation
+        (a paced ROS node) for up to a few tenths of a second."""
+        self._gather()
+        if self.low_velocity.method == 'implicit':
+            self._implicit(0, 0)
+            coupling.implicit_plate_forces(0, self._slot, self._lever, self._force, self._dir,
+                                           self._speed, self._across, self._states, self._xi,
+                                           self.low_velocity.rest_speed, self._applied)
+        else:
+            self._wrenches(0, 0)
+        coupling.scatter_wrenches(0, self._slot_body, self._slot_wrench, self.body_ids,
+                                  self.body_wrenches, self._xfrc)
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
