@@ -98,7 +98,8 @@ def test_refine_bisects_slivers_into_well_shaped_plates():
     assert np.allclose(centroid, sliver.triangles_center[0], atol=1e-12)
 
 
-@pytest.mark.parametrize('name, position', [('sphere', [0, 0, 0.0123]), ('cone', [0, 0, 0.0071])])
+@pytest.mark.parametrize('name, position', [('sphere', [0, 0, 0.0123]), ('cylinder', [0, 0, 0.0137]),
+                                            ('cone', [0, 0, 0.0071])])
 def test_mesh_convergence_of_the_body_force(model, name, position):
     """Force on a partly buried body moving down and sideways: the two finest plate sets
     agree within 2 %."""

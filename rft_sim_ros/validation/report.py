@@ -109,8 +109,8 @@ def write(path, r):
         f'({r.machine}); {r.wall_s:.0f} s of wall time for {r.case_count} runs.',
         ('**Quick mode**: coarse plates and fewer cases; figures move by a few per cent '
          'against the full run (`rft-sim validate`).' if s.quick else
-         '**Full run** at the scenes\' default resolutions.'),
-        f'Plates per sand body: rail scenes {s.rail_plates}, articulated leg {s.leg_plates} '
+         '**Full run**: the scenes\' timesteps, and plates at or above their defaults.'),
+        f'Plates per sand body: intruders {s.rail_plates}, articulated leg {s.leg_plates} '
         f'(timestep {1e3 * s.leg_timestep:g} ms), hexapod {s.hexapod_plates}. Paper: '
         'see `shared/reference/facts.md` section 4; the paper gives few absolute numbers and '
         'its plots are not digitised, so most comparisons are relative.',
