@@ -29,7 +29,9 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 
 from rft_sim_ros.ros import topics  # noqa: E402
 from rft_sim_ros.ros.gait_node import TripodGaitNode  # noqa: E402
+from rft_sim_ros.ros.gait_node import main as gait_main  # noqa: E402
 from rft_sim_ros.ros.node import SimNode  # noqa: E402
+from rft_sim_ros.ros.node import main as sim_main  # noqa: E402
 from rft_sim_ros.sim.hexapod import JOINT_NAMES as HEXAPOD_JOINTS  # noqa: E402
 from rft_sim_ros.sim.scene import SceneError  # noqa: E402
 from ros_test_support import SERVO_RIG  # noqa: E402
@@ -237,6 +239,14 @@ def test_divergence_pauses_and_reports_an_error(ros):
 def test_bad_start_parameters_are_refused_with_the_reason(ros, parameters, words):
     with pytest.raises((SceneError, ValueError), match=words):
         start_sim(ros, **parameters)
+
+
+@pytest.mark.parametrize('main, arguments', [
+    (sim_main, ['-p', 'scene:=no_such_scene']),
+    (gait_main, ['-p', 'frequency:=-1.0'])])
+def test_executables_exit_with_status_1_on_a_bad_start_parameter(main, arguments):
+    assert main(['--ros-args', *arguments]) == 1
+    assert not rclpy.ok()                          # the default context is shut down again
 
 
 def test_tripod_gait_publishes_trajectories_in_sim_time(ros):

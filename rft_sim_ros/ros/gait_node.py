@@ -12,14 +12,12 @@ step_length (m), step_height (m), ramp_time (s), start_delay (s of sim time afte
 """
 import sys
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from rft_sim_ros.ros import messages, topics
+from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.gait_trajectory import GaitTrajectories
 from rft_sim_ros.ros.stamps import NS_PER_S
@@ -80,22 +78,7 @@ class TripodGaitNode(Node):
 
 def main(args=None):
     """Entry point of `ros2 run rft_sim_ros tripod_gait`; returns the exit status."""
-    rclpy.init(args=args)
-    try:
-        try:
-            node = TripodGaitNode()
-        except (TypeError, ValueError, ParameterException) as error:
-            rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
-            return 1
-        try:
-            rclpy.spin(node)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            node.destroy_node()
-    finally:
-        rclpy.try_shutdown()
-    return 0
+    return run_node(TripodGaitNode, NODE_NAME, (TypeError, ValueError), args)
 
 
 if __name__ == '__main__':

@@ -9,15 +9,13 @@ every decision (pacing, checks, command dispatch, what to publish when). Interfa
 """
 import sys
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from rft_sim_ros.ros import messages, parameters, topics
+from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
 from rft_sim_ros.sim.scene import SceneError, load_scene
@@ -145,22 +143,7 @@ class SimNode(Node):
 
 def main(args=None):
     """Entry point of `ros2 run rft_sim_ros sim`; returns the exit status."""
-    rclpy.init(args=args)
-    try:
-        try:
-            node = SimNode()
-        except (SceneError, ValueError, ParameterException) as error:
-            rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
-            return 1
-        try:
-            rclpy.spin(node)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            node.destroy_node()
-    finally:
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimNode, NODE_NAME, (SceneError, ValueError), args)
 
 
 if __name__ == '__main__':
