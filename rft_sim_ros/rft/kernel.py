@@ -125,13 +125,35 @@ def leading_forces(count, nx, ny, nz, ux, uy, uz, n_v, scale, area, inv_a4, inv_
         fz[j] = scale[j] * f23 * scratch[3, j] - dyn * nz[j]
 
 
+@njit(cache=True, inline='always')
+def stage_leading(soa, m, nx, ny, nz, ux, uy, uz, n_v, scale, area):
+    """Put leading plate number m into the (9, N) staging array of `staged_forces`: unit
+    normal, unit velocity, n . v (m/s), scale = zeta_si * depth * area (N), area (m^2)."""
+    soa[0, m], soa[1, m], soa[2, m] = nx, ny, nz
+    soa[3, m], soa[4, m], soa[5, m] = ux, uy, uz
+    soa[6, m] = n_v
+    soa[7, m] = scale
+    soa[8, m] = area
+
+
+@njit(cache=True, error_model='numpy')
+def staged_forces(count, soa, where, inv_a4, inv_b4, dyn_lam_rho, force, scratch, out):
+    """RFT forces of the `count` leading plates staged in `soa` (`stage_leading`), written
+    to out[where[m]] (N, world). force: (3, >= count), scratch: (6, >= count) work space."""
+    leading_forces(count, soa[0], soa[1], soa[2], soa[3], soa[4], soa[5], soa[6], soa[7],
+                   soa[8], inv_a4, inv_b4, dyn_lam_rho, force[0], force[1], force[2], scratch)
+    for m in range(count):
+        at = where[m]
+        out[at, 0], out[at, 1], out[at, 2] = force[0, m], force[1, m], force[2, m]
+
+
 @njit(cache=True, error_model='numpy')
 def plate_forces_compiled(positions, normals, areas, velocities, zeta_si, surface_height,
                           a4, b4, dyn_lam_rho):
     """Compiled `force_law.plate_forces`: arrays as there (SI; zeta_si in N/m^3). Returns
     (N, 3) forces, N. Plates above the surface or trailing (n . v <= 0) feel zero."""
     n = areas.shape[0]
-    soa = np.empty((9, n))  # nx, ny, nz, ux, uy, uz, n.v, scale, area of leading plates
+    soa = np.empty((9, n))
     where = np.empty(n, dtype=np.int64)
     count = 0
     for j in range(n):
@@ -142,18 +164,11 @@ def plate_forces_compiled(positions, normals, areas, velocities, zeta_si, surfac
         if depth <= 0.0 or n_v <= 0.0 or speed <= 0.0:
             continue
         inv = 1.0 / speed
-        soa[0, count], soa[1, count], soa[2, count] = normals[j, 0], normals[j, 1], normals[j, 2]
-        soa[3, count], soa[4, count], soa[5, count] = vx * inv, vy * inv, vz * inv
-        soa[6, count] = n_v
-        soa[7, count] = zeta_si * depth * areas[j]
-        soa[8, count] = areas[j]
+        stage_leading(soa, count, normals[j, 0], normals[j, 1], normals[j, 2], vx * inv,
+                      vy * inv, vz * inv, n_v, zeta_si * depth * areas[j], areas[j])
         where[count] = j
         count += 1
-    force = np.empty((3, count))
-    leading_forces(count, soa[0], soa[1], soa[2], soa[3], soa[4], soa[5], soa[6], soa[7],
-                   soa[8], 1.0 / a4, 1.0 / b4, dyn_lam_rho, force[0], force[1], force[2],
-                   np.empty((6, count)))
     out = np.zeros((n, 3))
-    for m in range(count):
-        out[where[m], 0], out[where[m], 1], out[where[m], 2] = force[0, m], force[1, m], force[2, m]
+    staged_forces(count, soa, where, 1.0 / a4, 1.0 / b4, dyn_lam_rho, np.empty((3, count)),
+                  np.empty((6, count)), out)
     return out

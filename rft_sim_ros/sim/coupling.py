@@ -30,7 +30,7 @@ A loaded body at rest creeps at most ~v_reg * load / capacity.
 import numpy as np
 from numba import njit
 
-from ..rft.kernel import leading_forces
+from ..rft.kernel import stage_leading, staged_forces
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 
@@ -116,13 +116,9 @@ def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, clus
                 speed = np.sqrt(vx * vx + vy * vy + vz * vz)
                 inv = 1.0 / speed if speed > 0.0 else 0.0
                 if leading:  # inputs of the law, evaluated for all plates at once below
-                    m = leading_count
-                    soa[0, m], soa[1, m], soa[2, m] = nx, ny, nz
-                    soa[3, m], soa[4, m], soa[5, m] = vx * inv, vy * inv, vz * inv
-                    soa[6, m] = n_v
-                    soa[7, m] = zeta_si * depth * areas[j]
-                    soa[8, m] = areas[j]
-                    lead_at[m] = k
+                    stage_leading(soa, leading_count, nx, ny, nz, vx * inv, vy * inv,
+                                  vz * inv, n_v, zeta_si * depth * areas[j], areas[j])
+                    lead_at[leading_count] = k
                     leading_count += 1
                 out_force[k, 0], out_force[k, 1], out_force[k, 2] = 0.0, 0.0, 0.0
                 out_plate[k] = j
@@ -136,13 +132,8 @@ def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, clus
         if k > first:
             slot_body[slots] = i
             slots += 1
-    leading_forces(leading_count, soa[0], soa[1], soa[2], soa[3], soa[4], soa[5], soa[6],
-                   soa[7], soa[8], inv_a4, inv_b4, dyn_lam_rho, lead_force[0], lead_force[1],
-                   lead_force[2], law_scratch)
-    for m in range(leading_count):
-        at = lead_at[m]
-        out_force[at, 0], out_force[at, 1], out_force[at, 2] = (
-            lead_force[0, m], lead_force[1, m], lead_force[2, m])
+    staged_forces(leading_count, soa, lead_at, inv_a4, inv_b4, dyn_lam_rho, lead_force,
+                  law_scratch, out_force)
     return k, leading_count, slots
 
 
