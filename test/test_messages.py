@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rft_sim_ros.ros import messages, topics
-from rft_sim_ros.ros.factory import RclpyFactory, RosbagsFactory, jazzy_typestore
+from rft_sim_ros.ros.factory import (MessageFactory, RclpyFactory, RosbagsFactory,
+                                     jazzy_typestore)
 from rft_sim_ros.ros.stamps import ros_time_to_seconds, seconds_to_ns, split_ns
 from rft_sim_ros.sim.state import ActivePlates, LegWrench, SimState
 from rft_sim_ros.units import zeta_to_si
@@ -34,6 +35,20 @@ def vec(v):
 
 
 # --- stamps ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize('backend', [RosbagsFactory, RclpyFactory])
+def test_both_backends_implement_the_factory_interface(backend):
+    """messages.py uses only MessageFactory's methods; each backend has all of them with the
+    same parameters."""
+    import inspect
+    for name, method in inspect.getmembers(MessageFactory, inspect.isfunction):
+        if name.startswith('_'):
+            continue
+        implemented = getattr(backend, name, None)
+        assert callable(implemented), f'{backend.__name__} lacks {name}'
+        assert (list(inspect.signature(implemented).parameters)
+                == list(inspect.signature(method).parameters)), name
 
 @pytest.mark.parametrize('t, sec, nanosec', [
     (0.0, 0, 0),

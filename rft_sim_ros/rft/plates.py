@@ -47,13 +47,6 @@ class Plates:
                    normals=cross[keep] / double_area[keep, None],
                    areas=0.5 * double_area[keep])
 
-    def transformed(self, rotation, translation):
-        """These plates expressed in a parent frame: p' = R p + t, n' = R n."""
-        rotation = np.asarray(rotation, dtype=float).reshape(3, 3)
-        return Plates(centroids=self.centroids @ rotation.T + np.asarray(translation, float),
-                      normals=self.normals @ rotation.T,
-                      areas=self.areas.copy())
-
     def subset(self, keep):
         """The plates selected by boolean mask or index array `keep`."""
         return Plates(self.centroids[keep], self.normals[keep], self.areas[keep])

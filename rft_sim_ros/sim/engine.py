@@ -79,7 +79,7 @@ class SandEngine:
         self._cluster(plates)
         self.surface_height = float(surface_height)
         norm = find_normalisation(normalisation)
-        self._a4, self._b4 = norm.a4, norm.b4
+        self._inv_a4, self._inv_b4 = 1.0 / norm.a4, 1.0 / norm.b4  # reciprocal normalisers
         self.dynamic = dynamic
         self._dyn = 0.0 if dynamic is None else dynamic.lam * dynamic.density
         self.low_velocity = low_velocity
@@ -211,8 +211,8 @@ class SandEngine:
             self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
             self._cluster_center, self._cluster_radius, self.local_pos, self.local_normal,
             self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
-            self._model_arrays[0], self.surface_height, self._zeta_si, 1.0 / self._a4,
-            1.0 / self._b4, self._dyn, self.low_velocity.method == 'ema', self._plate,
+            self._model_arrays[0], self.surface_height, self._zeta_si, self._inv_a4,
+            self._inv_b4, self._dyn, self.low_velocity.method == 'ema', self._plate,
             self._slot, self._lever, self._force, self._dir, self._speed, self._slot_body,
             *self._law_work)
 

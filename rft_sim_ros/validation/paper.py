@@ -7,9 +7,6 @@ paper's plots are not digitised.
 #: Peak servo torque that sand adds to the rotating intruder, simulated, at every speed, N m.
 TORQUE_INCREASE_SIM_NM = 0.055
 
-#: Rotation speeds of the intruder tests, rad/s.
-INTRUDER_SPEEDS = (0.5, 1.0, 2.0)
-
 #: Open C carriage progress relative to the flat intruder (fraction): simulated, experiment.
 OPEN_C_VS_FLAT_SIM = -0.25
 OPEN_C_VS_FLAT_EXPERIMENT = -0.53
