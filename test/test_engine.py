@@ -173,7 +173,7 @@ DAMPED = """
 def test_predicted_end_velocity_matches_mujocos_step(integrator):
     """Without sand, qvel + dt (M + dt D)^-1 tau_free is exactly what mj_step2 integrates
     (joint damping and actuator velocity gains implicit, clamped actuators excluded); the
-    sand solve builds on this prediction."""
+    sand solve builds on this prediction, with Mh = M + dt D from implicit_mass."""
     model = mujoco.MjModel.from_xml_string(DAMPED.format(integrator=integrator))
     data = mujoco.MjData(model)
     plates = {'tip': body_plates(model, model.body('tip').id, count=50)}
@@ -190,9 +190,8 @@ def test_predicted_end_velocity_matches_mujocos_step(integrator):
     mass = np.zeros((model.nv, model.nv))
     function, args = engine_module.full_inertia_call(model, data, mass)
     function(*args)
-    solved = np.zeros_like(rows)
-    coupling.solve_implicit_mass(mass, engine._damping, model.opt.timestep, rows, solved)
-    predicted = data.qvel + model.opt.timestep * solved[0]
+    coupling.implicit_mass(mass, engine._damping, model.opt.timestep)
+    predicted = data.qvel + model.opt.timestep * np.linalg.solve(mass, rows[0])
     mujoco.mj_step2(model, data)
     tolerance = 1e-3 if integrator == 'implicit' else 1e-10  # 'implicit' adds Coriolis terms
     assert np.allclose(data.qvel, predicted, rtol=tolerance, atol=tolerance)

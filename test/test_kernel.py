@@ -7,6 +7,7 @@ from hypothesis.extra.numpy import arrays
 
 from rft_sim_ros.rft import DynamicTerm, plate_forces
 from rft_sim_ros.rft.coefficients import NORMALISATIONS
+from rft_sim_ros.rft import kernel
 from rft_sim_ros.rft.kernel import plate_forces_compiled
 from rft_sim_ros.units import zeta_to_si
 
@@ -57,3 +58,15 @@ def test_kernel_matches_reference_on_edge_cases():
     positions[200:260, 2] = 0.0                            # exactly at the surface
     reference = _compare(positions, normals, np.full(n, 1e-5), velocities, 3.75)
     assert np.count_nonzero(np.linalg.norm(reference, axis=1)) > 50
+
+
+def test_arithmetic_log_and_exp_match_numpy_over_their_ranges():
+    """The law's vectorisable exp and log hold 1e-15 relative over the ranges the law feeds
+    them (tanh's argument within [-2 a3, 2 (a2 - a3)], atanh's ratio within [0.013, 4.6])
+    and the documented margins beyond."""
+    x = np.linspace(-4.3, 4.3, 20001)
+    exp = np.array([kernel._exp_bounded(value) for value in x])
+    assert np.max(np.abs(exp / np.exp(x) - 1)) < 3e-15
+    y = np.geomspace(2 ** -7.5, 2 ** 2.5 * (1 - 1e-12), 20001)
+    log = np.array([kernel._log_bounded(value) for value in y])
+    assert np.max(np.abs(log - np.log(y)) / np.maximum(np.abs(np.log(y)), 1e-3)) < 2e-15

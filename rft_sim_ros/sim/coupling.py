@@ -30,12 +30,22 @@ A loaded body at rest creeps at most ~v_reg * load / capacity.
 import numpy as np
 from numba import njit
 
-from ..rft.kernel import stage_leading, staged_forces
+from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
+                           leading_forces)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 
 #: Solves per step at most (the active set settles in one or two almost always).
 MAX_ITERATIONS = 16
+
+#: Rows of the implicit law's per-plate work space (`implicit_wrenches`), plates along the
+#: second axis: |G|, across damper c (N s/m), the set coefficients, end-of-step speed along
+#: d (m/s).
+MAGNITUDE, ACROSS, COEF_ALONG, COEF_ACROSS, COEF_MOVING, ALONG = 0, 1, 2, 3, 4, 5
+WORK_ROWS = 6
+#: Rows of its per-plate flags (int8): final set, sets visited (bits), solved, wanted set.
+STATE, VISITED, SOLVED, WANTED = 0, 1, 2, 3
+FLAG_ROWS = 4
 
 
 def cluster_plates(centroids, size=32):
@@ -58,22 +68,31 @@ def cluster_plates(centroids, size=32):
     return np.array(order, dtype=np.int64), np.array(starts, dtype=np.int64)
 
 
+#: Rows of the gathered-plate table after the law's (`kernel.NORMAL` ... `kernel.DIRECTION`):
+MOMENT = LAW_ROWS      # r x d, m (3 rows): rows DIRECTION .. MOMENT + 2 are u = [d; r x d]
+LEVER = LAW_ROWS + 3   # lever arm r from the body's COM, m, world (3 rows)
+SPEED = LAW_ROWS + 6   # |v|, m/s
+PLATE_ROWS = LAW_ROWS + 7
+
+
 @njit(cache=True, error_model='numpy')
 def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, cluster_center,
-                  cluster_radius, local_pos, local_normal, areas,
-                  xpos, xmat, xipos, cvel, subtree_com, body_rootid,
-                  surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
-                  out_plate, out_slot, out_lever, out_force, out_dir, out_speed, slot_body,
-                  soa, lead_at, lead_force, law_scratch):
+                  cluster_radius, local, areas, xpos, xmat, xipos, cvel, subtree_com,
+                  body_rootid, surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho,
+                  include_trailing, out_plate, out_slot, slot_body, table, motion, force):
     """Find the plates in the sand and their RFT force for the current direction of motion.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
     whose bounding sphere, lies above the surface are skipped without touching their plates.
-    For every plate below the surface that leads (n . v > 0), or for every plate below the
-    surface when `include_trailing`, writes at index k: plate index, slot, lever arm from the
-    body's COM (m, world), RFT force (N, world; inv_a4, inv_b4 are the reciprocal
-    normalisers), unit direction of motion and speed (m/s).
-    Returns (plates written, of those leading, slots S); slot_body[s] = sand-body index.
+    local: (N, 9) body-frame plate position l, normal n_l and l x n_l. A plate below the
+    surface first has n . v = n_l . V + (l x n_l) . W with the body-frame velocity V of the
+    body origin and angular velocity W (9 multiply-adds), so only leading plates (n . v > 0),
+    or all plates below the surface when `include_trailing`, are transformed to the world.
+    For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
+    SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
+    index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world; inv_a4, inv_b4:
+    reciprocal normalisers). Returns (plates written, of those leading, slots S); slot_body[s] = the
+    slot's sand-body index.
     """
     k = 0
     leading_count = 0
@@ -84,57 +103,84 @@ def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, clus
             continue
         first = k
         root = body_rootid[b]
+        ox, oy, oz = xpos[b, 0], xpos[b, 1], xpos[b, 2]
+        r00, r01, r02 = xmat[b, 0], xmat[b, 1], xmat[b, 2]
+        r10, r11, r12 = xmat[b, 3], xmat[b, 4], xmat[b, 5]
+        r20, r21, r22 = xmat[b, 6], xmat[b, 7], xmat[b, 8]
+        # cvel = [omega; velocity of the point at the root's subtree com], world
         wx, wy, wz = cvel[b, 0], cvel[b, 1], cvel[b, 2]
+        cx, cy, cz = subtree_com[root, 0], subtree_com[root, 1], subtree_com[root, 2]
+        vcx, vcy, vcz = cvel[b, 3], cvel[b, 4], cvel[b, 5]
+        comx, comy, comz = xipos[b, 0], xipos[b, 1], xipos[b, 2]
+        vx0 = vcx + wy * (oz - cz) - wz * (oy - cy)  # velocity of the body origin
+        vy0 = vcy + wz * (ox - cx) - wx * (oz - cz)
+        vz0 = vcz + wx * (oy - cy) - wy * (ox - cx)
+        body_v = (r00 * vx0 + r10 * vy0 + r20 * vz0, r01 * vx0 + r11 * vy0 + r21 * vz0,
+                  r02 * vx0 + r12 * vy0 + r22 * vz0)
+        body_w = (r00 * wx + r10 * wy + r20 * wz, r01 * wx + r11 * wy + r21 * wz,
+                  r02 * wx + r12 * wy + r22 * wz)
         for c in range(body_cluster_start[i], body_cluster_start[i + 1]):
-            cz = (xpos[b, 2] + xmat[b, 6] * cluster_center[c, 0]
-                  + xmat[b, 7] * cluster_center[c, 1] + xmat[b, 8] * cluster_center[c, 2])
-            if cz - cluster_radius[c] >= surface_height:
+            if (oz + r20 * cluster_center[c, 0] + r21 * cluster_center[c, 1]
+                    + r22 * cluster_center[c, 2] - cluster_radius[c] >= surface_height):
                 continue
-            for j in range(cluster_plate_start[c], cluster_plate_start[c + 1]):
-                lx, ly, lz = local_pos[j, 0], local_pos[j, 1], local_pos[j, 2]
-                pz = xpos[b, 2] + xmat[b, 6] * lx + xmat[b, 7] * ly + xmat[b, 8] * lz
+            j0 = cluster_plate_start[c]
+            cluster = local[j0:cluster_plate_start[c + 1]]  # indexed from 0: no wraparound
+            for i_c in range(cluster.shape[0]):
+                lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
+                pz = oz + r20 * lx + r21 * ly + r22 * lz
                 depth = surface_height - pz
                 if depth <= 0.0:
                     continue
-                px = xpos[b, 0] + xmat[b, 0] * lx + xmat[b, 1] * ly + xmat[b, 2] * lz
-                py = xpos[b, 1] + xmat[b, 3] * lx + xmat[b, 4] * ly + xmat[b, 5] * lz
-                mx, my, mz = local_normal[j, 0], local_normal[j, 1], local_normal[j, 2]
-                nx = xmat[b, 0] * mx + xmat[b, 1] * my + xmat[b, 2] * mz
-                ny = xmat[b, 3] * mx + xmat[b, 4] * my + xmat[b, 5] * mz
-                nz = xmat[b, 6] * mx + xmat[b, 7] * my + xmat[b, 8] * mz
-                # plate velocity from the com-based twist cvel = [omega; v at the root's com]
-                rx = px - subtree_com[root, 0]
-                ry = py - subtree_com[root, 1]
-                rz = pz - subtree_com[root, 2]
-                vx = cvel[b, 3] + wy * rz - wz * ry
-                vy = cvel[b, 4] + wz * rx - wx * rz
-                vz = cvel[b, 5] + wx * ry - wy * rx
-                n_v = nx * vx + ny * vy + nz * vz
+                mx, my, mz = cluster[i_c, 3], cluster[i_c, 4], cluster[i_c, 5]
+                n_v = (mx * body_v[0] + my * body_v[1] + mz * body_v[2]
+                       + cluster[i_c, 6] * body_w[0] + cluster[i_c, 7] * body_w[1]
+                       + cluster[i_c, 8] * body_w[2])
                 leading = n_v > 0.0
                 if not (leading or include_trailing):
                     continue
-                speed = np.sqrt(vx * vx + vy * vy + vz * vz)
-                inv = 1.0 / speed if speed > 0.0 else 0.0
-                if leading:  # inputs of the law, evaluated for all plates at once below
-                    stage_leading(soa, leading_count, nx, ny, nz, vx * inv, vy * inv,
-                                  vz * inv, n_v, zeta_si * depth * areas[j], areas[j])
-                    lead_at[leading_count] = k
-                    leading_count += 1
-                out_force[k, 0], out_force[k, 1], out_force[k, 2] = 0.0, 0.0, 0.0
+                px = ox + r00 * lx + r01 * ly + r02 * lz
+                py = oy + r10 * lx + r11 * ly + r12 * lz
+                rx, ry, rz = px - cx, py - cy, pz - cz
+                motion[0, k] = vcx + wy * rz - wz * ry
+                motion[1, k] = vcy + wz * rx - wx * rz
+                motion[2, k] = vcz + wx * ry - wy * rx
+                motion[3, k], motion[4, k], motion[5, k] = px - comx, py - comy, pz - comz
+                table[NORMAL, k] = r00 * mx + r01 * my + r02 * mz
+                table[NORMAL + 1, k] = r10 * mx + r11 * my + r12 * mz
+                table[NORMAL + 2, k] = r20 * mx + r21 * my + r22 * mz
+                table[NORMAL_SPEED, k] = n_v
+                j = j0 + i_c
+                table[SCALE, k] = zeta_si * depth * areas[j] if leading else 0.0
+                table[AREA, k] = areas[j] if leading else 0.0
                 out_plate[k] = j
                 out_slot[k] = slots
-                out_lever[k, 0] = px - xipos[b, 0]
-                out_lever[k, 1] = py - xipos[b, 1]
-                out_lever[k, 2] = pz - xipos[b, 2]
-                out_dir[k, 0], out_dir[k, 1], out_dir[k, 2] = vx * inv, vy * inv, vz * inv
-                out_speed[k] = speed
+                leading_count += leading
                 k += 1
         if k > first:
             slot_body[slots] = i
             slots += 1
-    staged_forces(leading_count, soa, lead_at, inv_a4, inv_b4, dyn_lam_rho, lead_force,
-                  law_scratch, out_force)
+    _directions(k, motion, table)
+    leading_forces(k, table, inv_a4, inv_b4, dyn_lam_rho, force[0], force[1], force[2])
     return k, leading_count, slots
+
+
+@njit(cache=True, error_model='numpy', fastmath=True)
+def _directions(k, motion, table):
+    """Rows DIRECTION, MOMENT, LEVER and SPEED of the plate table from the plates' world
+    velocity v and lever arm r (rows 0..2 and 3..5 of motion): d = v/|v| (0 at rest),
+    r x d, r, |v|. Reads and writes different arrays, so the loop vectorises."""
+    for j in range(k):
+        vx, vy, vz = motion[0, j], motion[1, j], motion[2, j]
+        rx, ry, rz = motion[3, j], motion[4, j], motion[5, j]
+        speed = np.sqrt(vx * vx + vy * vy + vz * vz)
+        inv = 1.0 / speed if speed > 0.0 else 0.0
+        dx, dy, dz = vx * inv, vy * inv, vz * inv
+        table[DIRECTION, j], table[DIRECTION + 1, j], table[DIRECTION + 2, j] = dx, dy, dz
+        table[MOMENT, j] = ry * dz - rz * dy
+        table[MOMENT + 1, j] = rz * dx - rx * dz
+        table[MOMENT + 2, j] = rx * dy - ry * dx
+        table[LEVER, j], table[LEVER + 1, j], table[LEVER + 2, j] = rx, ry, rz
+        table[SPEED, j] = speed
 
 
 @njit(cache=True, error_model='numpy')
@@ -201,50 +247,44 @@ def implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_t
         out[jnt_dofadr[joint]] -= gear[a, 0] * gear[a, 0] * slope
 
 
+@njit(cache=True, error_model='numpy')
+def implicit_mass(mass, damping, timestep):
+    """mass += dt D in place: the dense joint-space inertia M (nv x nv) becomes Mh = M + dt D,
+    with D the diagonal damping of `implicit_damping`: MuJoCo's own step matrix, so predicted
+    end-of-step velocities match what mj_step2 integrates. Mh is SPD."""
+    for i in range(mass.shape[0]):
+        mass[i, i] += timestep * damping[i]
+
+
 @njit(cache=True, error_model='numpy', fastmath=True)
-def solve_implicit_mass(mass, damping, timestep, rows, out):
-    """out = rows (M + dt D)^-1 (each row solved), M the dense joint-space inertia (nv x nv),
-    D the diagonal damping of `implicit_damping`: MuJoCo's own step matrix, so predicted
-    end-of-step velocities match what mj_step2 integrates. Cholesky; M + dt D is SPD."""
-    n = mass.shape[0]
-    factor = mass.copy()
-    for i in range(n):
-        factor[i, i] += timestep * damping[i]
-    for j in range(n):  # lower Cholesky factor in place
-        acc = factor[j, j]
-        for k in range(j):
-            acc -= factor[j, k] * factor[j, k]
+def _cholesky(matrix):
+    """Lower Cholesky factor L of the SPD matrix (L L^T = matrix), a new array."""
+    n = matrix.shape[0]
+    factor = np.zeros((n, n))
+    for j in range(n):
+        acc = matrix[j, j]
+        for m in range(j):
+            acc -= factor[j, m] * factor[j, m]
         factor[j, j] = np.sqrt(acc)
         for i in range(j + 1, n):
-            acc = factor[i, j]
-            for k in range(j):
-                acc -= factor[i, k] * factor[j, k]
+            acc = matrix[i, j]
+            for m in range(j):
+                acc -= factor[i, m] * factor[j, m]
             factor[i, j] = acc / factor[j, j]
-    # all right-hand sides at once, their index innermost (contiguous, vectorised)
-    count = rows.shape[0]
-    work = np.empty((n, count))
-    for r in range(count):
-        for i in range(n):
-            work[i, r] = rows[r, i]
-    for i in range(n):  # forward substitution: L y = b
-        for k in range(i):
-            f = factor[i, k]
-            for r in range(count):
-                work[i, r] -= f * work[k, r]
-        inv = 1.0 / factor[i, i]
-        for r in range(count):
-            work[i, r] *= inv
-    for i in range(n - 1, -1, -1):  # back substitution: L^T x = y
-        for k in range(i + 1, n):
-            f = factor[k, i]
-            for r in range(count):
-                work[i, r] -= f * work[k, r]
-        inv = 1.0 / factor[i, i]
-        for r in range(count):
-            work[i, r] *= inv
-    for r in range(count):
-        for i in range(n):
-            out[r, i] = work[i, r]
+    return factor
+
+
+@njit(cache=True, error_model='numpy', fastmath=True)
+def _inverse_quadratic(factor, row, work):
+    """row Mh^-1 row^T for Mh = L L^T (factor L): |L^-1 row^T|^2 by forward substitution."""
+    total = 0.0
+    for i in range(factor.shape[0]):
+        acc = row[i]
+        for m in range(i):
+            acc -= factor[i, m] * work[m]
+        work[i] = acc / factor[i, i]
+        total += work[i] * work[i]
+    return total
 
 
 @njit(cache=True, error_model='numpy')
@@ -290,22 +330,12 @@ def _solve(matrix, rhs):
 
 
 @njit(cache=True, inline='always')
-def _wrench_row(lever, vec, out):
-    """out = [vec; lever x vec]: the body wrench of a force `vec` at `lever` from the COM (and,
-    read as a row, the map from a body twist to a point's velocity along `vec`)."""
-    out[0], out[1], out[2] = vec[0], vec[1], vec[2]
-    out[3] = lever[1] * vec[2] - lever[2] * vec[1]
-    out[4] = lever[2] * vec[0] - lever[0] * vec[2]
-    out[5] = lever[0] * vec[1] - lever[1] * vec[0]
-
-
-@njit(cache=True, inline='always')
-def _point_velocity(lever, twist, base):
-    """Velocity (3,) of a point at `lever` from the COM for the twist twist[base:base+6]."""
+def _point_velocity(lever, j, twist, base):
+    """Velocity (3,) of plate j at lever[:, j] from the COM for the twist twist[base:base+6]."""
     wx, wy, wz = twist[base + 3], twist[base + 4], twist[base + 5]
-    return (twist[base] + wy * lever[2] - wz * lever[1],
-            twist[base + 1] + wz * lever[0] - wx * lever[2],
-            twist[base + 2] + wx * lever[1] - wy * lever[0])
+    return (twist[base] + wy * lever[2, j] - wz * lever[1, j],
+            twist[base + 1] + wz * lever[0, j] - wx * lever[2, j],
+            twist[base + 2] + wx * lever[1, j] - wy * lever[0, j])
 
 
 @njit(cache=True, inline='always')
@@ -367,55 +397,95 @@ def _resting_block(k_rank, iso, out):
 
 
 @njit(cache=True, error_model='numpy')
-def implicit_plate_forces(k, out_slot, lever, force, direction, speed, across, states, xi_new,
-                          v_reg, out):
-    """Per-plate forces (N, world, on the body) that an implicit step applied, from the
-    plates' final sets, their across dampers and the end-of-step twists xi_new:
-    G - c w_perp if moving, a G - c w_perp if resting (frozen: with |v| in place of v_reg in
-    a), 0 if off (module docstring); the terms of the step's wrench."""
+def implicit_plate_forces(k, out_slot, table, force, work, flags, xi_new, v_reg, out):
+    """Per-plate forces (N, world, on the body; out[:, :k]) that an implicit step applied,
+    from the plates' final sets and across dampers (rows STATE of `flags`, ACROSS of `work`,
+    left by `implicit_wrenches`) and the end-of-step twists xi_new: G - c w_perp if moving,
+    a G - c w_perp if resting (frozen: with |v| in place of v_reg in a), 0 if off (module
+    docstring); the terms of the step's wrench."""
     inv_reg = 1.0 / v_reg
+    lever = table[LEVER:LEVER + 3]
     for j in range(k):
-        if states[j] == OFF:
+        state = flags[STATE, j]
+        if state == OFF:
             for a in range(3):
-                out[j, a] = 0.0
+                out[a, j] = 0.0
             continue
-        vx, vy, vz = _point_velocity(lever[j], xi_new, 6 * out_slot[j])
-        d = direction[j]
-        along = vx * d[0] + vy * d[1] + vz * d[2]
-        factor = 1.0 if states[j] == MOVING else along * _along_factor(
-            states[j], speed[j], inv_reg, v_reg)
-        px, py, pz = vx - along * d[0], vy - along * d[1], vz - along * d[2]
-        out[j, 0] = factor * force[j, 0] - across[j] * px
-        out[j, 1] = factor * force[j, 1] - across[j] * py
-        out[j, 2] = factor * force[j, 2] - across[j] * pz
+        vx, vy, vz = _point_velocity(lever, j, xi_new, 6 * out_slot[j])
+        dx, dy, dz = table[DIRECTION, j], table[DIRECTION + 1, j], table[DIRECTION + 2, j]
+        along = vx * dx + vy * dy + vz * dz
+        factor = 1.0 if state == MOVING else along * _along_factor(
+            state, table[SPEED, j], inv_reg, v_reg)
+        across = work[ACROSS, j]
+        out[0, j] = factor * force[0, j] - across * (vx - along * dx)
+        out[1, j] = factor * force[1, j] - across * (vy - along * dy)
+        out[2, j] = factor * force[2, j] - across * (vz - along * dz)
+
+
+@njit(cache=True, inline='always', fastmath=True)
+def _rank_rows(a, j0, j1, h, u, along, damper, out):
+    """Rows a, a+1, a+2 (a = 0 or 3) of sum (along h + damper u) u^T over plates j0..j1-1
+    into out (6, 6): one pass with 18 accumulators, few enough to stay in vector registers,
+    over slices indexed from 0 (no negative-index checks), so that it vectorises."""
+    h_a, h_b, h_c = h[a, j0:j1], h[a + 1, j0:j1], h[a + 2, j0:j1]
+    u0, u1, u2 = u[0, j0:j1], u[1, j0:j1], u[2, j0:j1]
+    u3, u4, u5 = u[3, j0:j1], u[4, j0:j1], u[5, j0:j1]
+    along, damper = along[j0:j1], damper[j0:j1]
+    a0 = a1 = a2 = a3 = a4 = a5 = b0 = b1 = b2 = b3 = b4 = b5 = 0.0
+    c0 = c1 = c2 = c3 = c4 = c5 = 0.0
+    for j in range(j1 - j0):
+        v0, v1, v2, v3, v4, v5 = u0[j], u1[j], u2[j], u3[j], u4[j], u5[j]
+        first = a == 0
+        w_a = along[j] * h_a[j] + damper[j] * (v0 if first else v3)
+        w_b = along[j] * h_b[j] + damper[j] * (v1 if first else v4)
+        w_c = along[j] * h_c[j] + damper[j] * (v2 if first else v5)
+        a0 += w_a * v0
+        a1 += w_a * v1
+        a2 += w_a * v2
+        a3 += w_a * v3
+        a4 += w_a * v4
+        a5 += w_a * v5
+        b0 += w_b * v0
+        b1 += w_b * v1
+        b2 += w_b * v2
+        b3 += w_b * v3
+        b4 += w_b * v4
+        b5 += w_b * v5
+        c0 += w_c * v0
+        c1 += w_c * v1
+        c2 += w_c * v2
+        c3 += w_c * v3
+        c4 += w_c * v4
+        c5 += w_c * v5
+    out[a, 0], out[a, 1], out[a, 2], out[a, 3], out[a, 4], out[a, 5] = a0, a1, a2, a3, a4, a5
+    out[a + 1, 0], out[a + 1, 1], out[a + 1, 2] = b0, b1, b2
+    out[a + 1, 3], out[a + 1, 4], out[a + 1, 5] = b3, b4, b5
+    out[a + 2, 0], out[a + 2, 1], out[a + 2, 2] = c0, c1, c2
+    out[a + 2, 3], out[a + 2, 4], out[a + 2, 5] = c3, c4, c5
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, weighted,
-                     w_moving, k_rank, k_iso):
-    """A slot's accumulators from its plates j0..j1-1 (module layout: h, u (6, K), arm (3, K),
-    per-plate set coefficients): w_moving = sum m h, k_rank = sum (a h + c u) u^T and the 10
-    moments of c (c, c r, c r r^T). Reductions over 1-d slices, which the compiler vectorises."""
-    moving, damper = coef_moving[j0:j1], coef_across[j0:j1]
-    along = coef_along[j0:j1]
-    for a in range(6):
-        h_a, u_a, weighted_a = h[a, j0:j1], u[a, j0:j1], weighted[a, j0:j1]
-        acc = 0.0
-        for j in range(j1 - j0):
-            weighted_a[j] = along[j] * h_a[j] + damper[j] * u_a[j]
-            acc += moving[j] * h_a[j]
-        w_moving[a] = acc
-    for a in range(6):
-        weighted_a = weighted[a, j0:j1]
-        for b in range(6):
-            u_b = u[b, j0:j1]
-            acc = 0.0
-            for j in range(j1 - j0):
-                acc += weighted_a[j] * u_b[j]
-            k_rank[a, b] = acc
+def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_moving,
+                     k_rank, k_iso):
+    """A slot's accumulators from its plates j0..j1-1 (h, u (6, K), arm (3, K), per-plate set
+    coefficients, as in `implicit_wrenches`): w_moving = sum m h, k_rank = sum (a h + c u) u^T
+    and the 10 moments of c (c, c r, c r r^T). Each pass keeps its sums in registers."""
+    _rank_rows(0, j0, j1, h, u, coef_along, coef_across, k_rank)
+    _rank_rows(3, j0, j1, h, u, coef_along, coef_across, k_rank)
+    h0, h1, h2 = h[0, j0:j1], h[1, j0:j1], h[2, j0:j1]
+    h3, h4, h5 = h[3, j0:j1], h[4, j0:j1], h[5, j0:j1]
     arm_x, arm_y, arm_z = arm[0, j0:j1], arm[1, j0:j1], arm[2, j0:j1]
+    moving, damper = coef_moving[j0:j1], coef_across[j0:j1]
+    m0 = m1 = m2 = m3 = m4 = m5 = 0.0
     g = g_x = g_y = g_z = g_xx = g_yy = g_zz = g_xy = g_yz = g_zx = 0.0
     for j in range(j1 - j0):
+        m = moving[j]
+        m0 += m * h0[j]
+        m1 += m * h1[j]
+        m2 += m * h2[j]
+        m3 += m * h3[j]
+        m4 += m * h4[j]
+        m5 += m * h5[j]
         c = damper[j]
         rx, ry, rz = arm_x[j], arm_y[j], arm_z[j]
         g += c
@@ -428,30 +498,34 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, we
         g_xy += c * rx * ry
         g_yz += c * ry * rz
         g_zx += c * rz * rx
+    w_moving[0], w_moving[1], w_moving[2] = m0, m1, m2
+    w_moving[3], w_moving[4], w_moving[5] = m3, m4, m5
     k_iso[0], k_iso[1], k_iso[2], k_iso[3] = g, g_x, g_y, g_z
     k_iso[4], k_iso[5], k_iso[6] = g_xx, g_yy, g_zz
     k_iso[7], k_iso[8], k_iso[9] = g_xy, g_yz, g_zx
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, speed, v_reg,
-                      jac, minv_rows, qvel, timestep, step, plate_state, plate_step,
-                      states, xi_new, across, wrench):
+def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, mass_h,
+                      qvel, timestep, step, plate_state, plate_step, work, flags, xi_new,
+                      wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
-    jac: (>= 6S, nv) slot Jacobians. minv_rows: (>= 6S+1, nv) rows Mh^-1 jac_r^T for the 6S
-    Jacobian rows, then Mh^-1 tau_free, where tau_free is every generalised force except
-    the sand's (passive + actuator + applied - bias) and Mh = M + dt D is the matrix MuJoCo's
-    step solves with (`solve_implicit_mass`). With each plate moving (force G), resting
-    (linear in v+) or off, the end-of-step joint velocities solve
-        (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving,   xi+ = J qvel+,
+    jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
+    except the sand's (passive + actuator + applied - bias; `prepare_solve`). mass_h: Mh =
+    M + dt D, the matrix MuJoCo's step solves with (`implicit_mass`). With each plate moving
+    (force G), resting (linear in v+) or off, the end-of-step joint velocities solve
+        (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving),   xi+ = J qvel+,
     K the plates' linear response, W_moving the moving plates' G; plates then change set
     until the solution is consistent (an active-set iteration; moving and off are
     neighbours of resting only, so a plate passes through resting between them).
     Each plate starts from its set of the previous step if it was in the sand then
     (`plate_state`/`plate_step`, indexed by plate, updated here) and not frozen, otherwise
-    as moving when faster than v_reg; so a step usually needs one solve. Writes states[:k],
-    across[:k] (across dampers, N s/m), xi_new[:6S] (end-of-step twists) and wrench[:S]
+    as moving when faster than v_reg; so a step usually needs one solve. Plates: columns
+    :k of the gathered table and force (`gather_plates`; force (6, >= k): this fills rows
+    3..5 with r x G, so that it holds h); work (WORK_ROWS, >= k) and flags
+    (FLAG_ROWS, >= k) are work space, of which rows STATE (final sets) and ACROSS (across
+    dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step twists) and wrench[:S]
     ([force; torque about COM], N, N m).
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
@@ -471,52 +545,50 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     n6 = 6 * slots
     nv = qvel.shape[0]
     inv_reg = 1.0 / v_reg
-    qvel_free = np.empty(nv)
-    for i in range(nv):
-        qvel_free[i] = qvel[i] + timestep * minv_rows[n6, i]
+    momentum = np.empty(nv)  # Mh qvel + dt tau_free
+    for r in range(nv):
+        acc = timestep * jac[n6, r]
+        for c in range(nv):
+            acc += mass_h[r, c] * qvel[c]
+        momentum[r] = acc
     # plates come slot by slot: slot s holds plates first[s] .. first[s + 1] - 1
     first = np.zeros(slots + 1, dtype=np.int64)
     for j in range(k):
         first[out_slot[j] + 1] += 1
     for s in range(slots):
         first[s + 1] += first[s]
-    # per plate, as structure of arrays (plates innermost, so the loops vectorise):
-    # h = [G; r x G], u = [d; r x d], lever arm r, |G|
-    h = np.empty((6, k))
-    u = np.empty((6, k))
-    arm = np.empty((3, k))
-    magnitude = np.empty(k)
-    h0, h1, h2, h3, h4, h5 = h[0], h[1], h[2], h[3], h[4], h[5]
-    u0, u1, u2, u3, u4, u5 = u[0], u[1], u[2], u[3], u[4], u[5]
-    arm_x, arm_y, arm_z = arm[0], arm[1], arm[2]
-    for j in range(k):
-        rx, ry, rz = lever[j, 0], lever[j, 1], lever[j, 2]
-        gx, gy, gz = force[j, 0], force[j, 1], force[j, 2]
-        dx, dy, dz = direction[j, 0], direction[j, 1], direction[j, 2]
-        arm_x[j], arm_y[j], arm_z[j] = rx, ry, rz
-        h0[j], h1[j], h2[j] = gx, gy, gz
-        h3[j], h4[j], h5[j] = ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx
-        u0[j], u1[j], u2[j] = dx, dy, dz
-        u3[j], u4[j], u5[j] = ry * dz - rz * dy, rz * dx - rx * dz, rx * dy - ry * dx
+    h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
+    magnitude, along = work[MAGNITUDE], work[ALONG]
+    across, coef_along, coef_across = work[ACROSS], work[COEF_ALONG], work[COEF_ACROSS]
+    coef_moving = work[COEF_MOVING]
+    states, visited = flags[STATE], flags[VISITED]  # visited: bit per set had this step
+    solved, wanted = flags[SOLVED], flags[WANTED]  # sets the last solve used; asks for
+    arm = table[LEVER:LEVER + 3]
+    speed = table[SPEED]
+    for j in range(k):  # torque rows of h, |G|
+        rx, ry, rz = arm[0, j], arm[1, j], arm[2, j]
+        gx, gy, gz = force[0, j], force[1, j], force[2, j]
+        force[3, j] = ry * gz - rz * gy
+        force[4, j] = rz * gx - rx * gz
+        force[5, j] = rx * gy - ry * gx
         magnitude[j] = np.sqrt(gx * gx + gy * gy + gz * gz)
     # Across dampers. Turn speed of a slot: the speed its sand could take out of it in one
     # step, dt x (sum of its plates' |G|) x its translational inverse effective mass
     # (diagonal of J Mh^-1 J^T, averaged).
+    factor = _cholesky(mass_h)
+    substitution = np.empty(nv)
     for s in range(slots):
         total = magnitude[first[s]:first[s + 1]].sum()
         inverse_mass = 0.0
         for row in range(6 * s, 6 * s + 3):
-            for i in range(nv):
-                inverse_mass += jac[row, i] * minv_rows[row, i]
+            inverse_mass += _inverse_quadratic(factor, jac[row], substitution)
         turn_speed = max(total * timestep * inverse_mass / 3.0, v_reg)
-        for j in range(first[s], first[s + 1]):
-            across[j] = across_damper(magnitude[j], speed[j], v_reg, turn_speed)
+        magnitude_s, speed_s = magnitude[first[s]:first[s + 1]], speed[first[s]:first[s + 1]]
+        across_s = across[first[s]:first[s + 1]]
+        for j in range(first[s + 1] - first[s]):
+            across_s[j] = across_damper(magnitude_s[j], speed_s[j], v_reg, turn_speed)
     # initial sets and each plate's coefficients for its set: along factor, across damper,
     # moving (0/1)
-    visited = np.zeros(k, dtype=np.int8)  # bit per set a plate has been in this step
-    coef_along = np.empty(k)
-    coef_across = np.empty(k)
-    coef_moving = np.empty(k)
     for j in range(k):
         p = out_plate[j]
         previous = plate_state[p]
@@ -530,11 +602,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
     w_moving = np.zeros((slots, 6))
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
-    weighted = np.empty((6, k))
     dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
-    solved = np.empty(k, dtype=np.int8)  # sets the last solve used
-    wanted = np.empty(k, dtype=np.int8)
-    along = np.empty(k)  # plate velocity along d at the end of the step, u . xi+ (m/s)
     # the dofs each slot's Jacobian reaches (its kinematic chain)
     chain = np.empty((slots, nv), dtype=np.int64)
     chain_count = np.zeros(slots, dtype=np.int64)
@@ -547,9 +615,9 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
                 chain[s, chain_count[s]] = c
                 chain_count[s] += 1
     block = np.zeros((6, 6))
-    system = np.zeros((nv, nv))
-    system_t = np.zeros((nv, nv))
-    rhs = np.zeros(nv)
+    block_jac = np.zeros((6, nv))  # block J of a slot, its chain's columns
+    system = np.empty((nv, nv))
+    rhs = np.empty(nv)
     iterations = 0
     frozen = 0  # plates frozen this step
     converged = False
@@ -558,37 +626,32 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
         for s in range(slots):
             if dirty[s]:
                 _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
-                                 coef_moving, weighted, w_moving[s], k_rank[s], k_iso[s])
+                                 coef_moving, w_moving[s], k_rank[s], k_iso[s])
                 dirty[s] = False
-        # (I - dt Mh^-1 J^T K J) qvel+ = qvel_free + dt Mh^-1 J^T W_moving; xi+ = J qvel+.
-        # Assembled transposed, column c of the system (a contiguous row of system_t) from
-        # the slots whose Jacobian reaches dof c only, so the inner loops run over
-        # contiguous rows and skip the dofs outside a slot's kinematic chain.
-        for r in range(nv):
-            for c in range(nv):
-                system_t[r, c] = 1.0 if r == c else 0.0
-            rhs[r] = qvel_free[r]
+        # (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving), slot by slot
+        # over the dofs its Jacobian reaches (its kinematic chain) only.
+        system[:, :] = mass_h
+        rhs[:] = momentum
         for s in range(slots):
             _resting_block(k_rank[s], k_iso[s], block)
-            for a in range(6):
-                minv_row = minv_rows[6 * s + a]
-                weight = timestep * w_moving[s, a]
-                for r in range(nv):
-                    rhs[r] += weight * minv_row[r]
-            for q in range(chain_count[s]):
+            count = chain_count[s]
+            for q in range(count):
                 c = chain[s, q]
-                column = system_t[c]
+                acc = 0.0
                 for a in range(6):
+                    acc += jac[6 * s + a, c] * w_moving[s, a]
                     coefficient = 0.0
                     for b in range(6):
                         coefficient += block[a, b] * jac[6 * s + b, c]
-                    coefficient *= timestep
-                    minv_row = minv_rows[6 * s + a]
-                    for r in range(nv):
-                        column[r] -= coefficient * minv_row[r]
-        for r in range(nv):
-            for c in range(nv):
-                system[r, c] = system_t[c, r]
+                    block_jac[a, q] = coefficient
+                rhs[c] += timestep * acc
+            for q in range(count):
+                c = chain[s, q]
+                for p in range(count):
+                    acc = 0.0
+                    for a in range(6):
+                        acc += jac[6 * s + a, c] * block_jac[a, p]
+                    system[c, chain[s, p]] -= timestep * acc
         solution = _solve(system, rhs)
         for j in range(k):
             solved[j] = states[j]
@@ -636,7 +699,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
                 coef_across[j] = 0.0 if solved[j] == OFF else across[j]
                 coef_moving[j] = 1.0 if solved[j] == MOVING else 0.0
             _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
-                             coef_moving, weighted, w_moving[s], k_rank[s], k_iso[s])
+                             coef_moving, w_moving[s], k_rank[s], k_iso[s])
         _resting_block(k_rank[s], k_iso[s], block)
         for a in range(6):
             acc = w_moving[s, a]
@@ -650,25 +713,60 @@ def implicit_wrenches(k, slots, out_plate, out_slot, lever, force, direction, sp
 
 
 @njit(cache=True, error_model='numpy')
-def smoothed_wrenches(k, slots, out_plate, out_slot, lever, force, alpha, step,
+def implicit_step(k, slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
+                  body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
+                  qfrc_actuator, qfrc_applied, qfrc_bias, damper, actuators, dof_damping,
+                  trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm,
+                  biastype, biasprm, forcelimited, forcerange, ctrl, act, actadr,
+                  actuator_force, damping, mass, timestep, jac, out_plate, out_slot, table,
+                  force, v_reg, qvel, step, plate_state, plate_step, work, flags, xi_new,
+                  wrench, body_wrenches, xfrc_applied):
+    """One step's implicit sand wrenches, in one call from Python: `prepare_solve` (into
+    jac, (>= 6S+1, nv) work space), `implicit_damping`, `implicit_mass` (mass: the dense M
+    of this state, made Mh in place), `implicit_wrenches` over the `k` gathered plates in
+    `slots` slots, then `scatter_wrenches` into xfrc_applied. Arguments as in those
+    functions; returns implicit_wrenches' solve count."""
+    rows = jac[:6 * slots + 1]
+    prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
+                  body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
+                  qfrc_actuator, qfrc_applied, qfrc_bias, rows)
+    implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_type,
+                     jnt_dofadr, dyntype, gaintype, gainprm, biastype, biasprm, forcelimited,
+                     forcerange, ctrl, act, actadr, actuator_force, damping)
+    implicit_mass(mass, damping, timestep)
+    iterations = implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, rows,
+                                   mass, qvel, timestep, step, plate_state, plate_step, work,
+                                   flags, xi_new, wrench)
+    scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
+    return iterations
+
+
+@njit(cache=True, error_model='numpy')
+def smoothed_wrenches(k, slots, out_plate, out_slot, table, force, alpha, step,
                       ema_force, ema_step, applied, wrench):
     """Explicit RFT with the paper's per-plate exponential moving average (RFT-SiM eq. 6):
     F_s = alpha F + (1 - alpha) F_s(previous step) for a plate that was in the sand on the
     previous step, F_s = F otherwise (its history is dropped when it leaves the sand).
-    alpha = 1 applies the raw RFT force. Writes applied[:k] = F_s (N, world, on the body).
+    alpha = 1 applies the raw RFT force. Plates: columns :k of the gathered table and force
+    (`gather_plates`). Writes applied[:, :k] = F_s (N, world, on the body).
     ema_force (N, 3), ema_step (N,) hold each plate's last smoothed force and the step index
     it was computed at. Writes wrench[:S] as in `implicit_wrenches`.
     """
-    h = np.zeros(6)
     wrench[:slots, :] = 0.0
     for j in range(k):
         p = out_plate[j]
         for a in range(3):
-            applied[j, a] = force[j, a]
+            applied[a, j] = force[a, j]
             if ema_step[p] == step - 1:
-                applied[j, a] = alpha * force[j, a] + (1.0 - alpha) * ema_force[p, a]
-            ema_force[p, a] = applied[j, a]
+                applied[a, j] = alpha * force[a, j] + (1.0 - alpha) * ema_force[p, a]
+            ema_force[p, a] = applied[a, j]
         ema_step[p] = step
-        _wrench_row(lever[j], applied[j], h)
-        for a in range(6):
-            wrench[out_slot[j], a] += h[a]
+        fx, fy, fz = applied[0, j], applied[1, j], applied[2, j]
+        rx, ry, rz = table[LEVER, j], table[LEVER + 1, j], table[LEVER + 2, j]
+        s = out_slot[j]
+        wrench[s, 0] += fx
+        wrench[s, 1] += fy
+        wrench[s, 2] += fz
+        wrench[s, 3] += ry * fz - rz * fy
+        wrench[s, 4] += rz * fx - rx * fz
+        wrench[s, 5] += rx * fy - ry * fx

@@ -86,24 +86,21 @@ class SandEngine:
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
+        # the plates in the sand this step, one per column (coupling.gather_plates)
         self._plate = np.zeros(n, dtype=np.int64)
         self._slot = np.zeros(n, dtype=np.int64)
-        self._lever = np.zeros((n, 3))
-        self._force = np.zeros((n, 3))
-        self._dir = np.zeros((n, 3))
-        self._speed = np.zeros(n)
-        self._applied = np.zeros((n, 3))
-        self._law_work = (np.empty((9, n)), np.empty(n, dtype=np.int64), np.empty((3, n)),
-                          np.empty((6, n)))
-        self._states = np.zeros(n, dtype=np.int8)
-        self._across = np.zeros(n)
+        self._table = np.zeros((coupling.PLATE_ROWS, n))
+        self._motion = np.zeros((6, n))  # velocity and lever arm, m/s and m, world
+        self._force = np.zeros((6, n))  # G, then r x G (coupling.implicit_wrenches)
+        self._applied = np.zeros((3, n))
+        self._work = np.zeros((coupling.WORK_ROWS, n))
+        self._flags = np.zeros((coupling.FLAG_ROWS, n), dtype=np.int8)
         self._plate_state = np.zeros(n, dtype=np.int8)
         self._plate_step = np.full(n, -2, dtype=np.int64)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_wrench = np.zeros((nb, 6))
-        self._rhs = np.zeros((6 * nb + 1, model.nv))
-        self._minv = np.zeros((6 * nb + 1, model.nv))
+        self._jac = np.zeros((6 * nb + 1, model.nv))  # slot Jacobians and tau_free
         self._ema_force = np.zeros((n, 3))
         self._ema_step = np.full(n, -2, dtype=np.int64)
         self._step = 0
@@ -136,6 +133,9 @@ class SandEngine:
         joined = Plates.concatenate(parts)
         self.local_pos = np.ascontiguousarray(joined.centroids)
         self.local_normal = np.ascontiguousarray(joined.normals)
+        # per plate, body frame: position, normal, position x normal (coupling.gather_plates)
+        self._local = np.ascontiguousarray(np.hstack(
+            [self.local_pos, self.local_normal, np.cross(self.local_pos, self.local_normal)]))
         self.areas = np.ascontiguousarray(joined.areas)
         counts = np.array([len(p) for p in plates], dtype=np.int64)
         self.plate_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -196,56 +196,48 @@ class SandEngine:
         into xfrc_applied of the sand bodies."""
         self._step += 1
         k, self.plates_active, slots = self._gather()
-        if slots:
-            self._wrenches(k, slots)
-            coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench,
-                                      self.body_ids, self.body_wrenches, self._xfrc)
+        if slots and self.low_velocity.method == 'implicit':
+            iterations = self._implicit(k, slots)
+            self.solves += abs(iterations)
+            self.unsettled_steps += iterations < 0
+        elif slots:
+            alpha = self.low_velocity.ema_alpha if self.low_velocity.method == 'ema' else 1.0
+            coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._table,
+                                       self._force, alpha, self._step, self._ema_force,
+                                       self._ema_step, self._applied, self._slot_wrench)
+            self._scatter(slots)
         elif self._slots:  # the last bodies left the sand
-            coupling.scatter_wrenches(0, self._slot_body, self._slot_wrench, self.body_ids,
-                                      self.body_wrenches, self._xfrc)
+            self._scatter(0)
         self._k, self._slots = k, slots
+
+    def _scatter(self, slots):
+        """Write the wrenches of the first `slots` slots (zero for the other sand bodies)."""
+        coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
+                                  self.body_wrenches, self._xfrc)
 
     def _gather(self):
         """The plates in the sand and their RFT forces (coupling.gather_plates)."""
         return coupling.gather_plates(
             self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
-            self._cluster_center, self._cluster_radius, self.local_pos, self.local_normal,
-            self.areas, self._xpos, self._xmat, self._xipos, self._cvel, self._subtree_com,
-            self._model_arrays[0], self.surface_height, self._zeta_si, self._inv_a4,
-            self._inv_b4, self._dyn, self.low_velocity.method == 'ema', self._plate,
-            self._slot, self._lever, self._force, self._dir, self._speed, self._slot_body,
-            *self._law_work)
-
-    def _wrenches(self, k, slots):
-        """Slot wrenches of the gathered plates by the low-velocity method."""
-        method = self.low_velocity.method
-        if method == 'implicit':
-            iterations = self._implicit(k, slots)
-            self.solves += abs(iterations)
-            self.unsettled_steps += iterations < 0
-        else:
-            alpha = self.low_velocity.ema_alpha if method == 'ema' else 1.0
-            coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._lever,
-                                       self._force, alpha, self._step, self._ema_force,
-                                       self._ema_step, self._applied, self._slot_wrench)
+            self._cluster_center, self._cluster_radius, self._local, self.areas, self._xpos,
+            self._xmat, self._xipos, self._cvel, self._subtree_com, self._model_arrays[0],
+            self.surface_height, self._zeta_si, self._inv_a4, self._inv_b4, self._dyn,
+            self.low_velocity.method == 'ema', self._plate, self._slot, self._slot_body,
+            self._table, self._motion, self._force)
 
     def _implicit(self, k, slots):
-        """Implicit slot wrenches (coupling.implicit_wrenches); returns its solve count."""
+        """Implicit sand wrenches, written to xfrc_applied (coupling.implicit_step, after
+        MuJoCo's actuator forces and dense inertia of this state); returns its solve count."""
         m, d = self.model, self.data
         mujoco.mj_fwdActuation(m, d)
-        rows = self._rhs[:6 * slots + 1]
-        coupling.prepare_solve(slots, self._slot_body, self.body_ids, self._xipos,
-                               self._subtree_com, self._cdof, *self._model_arrays,
-                               *self._qfrc, rows)
-        coupling.implicit_damping(*self._damping_arrays, *self._damping_state)
         self._full_inertia(*self._full_inertia_args)
-        minv = self._minv[:6 * slots + 1]
-        coupling.solve_implicit_mass(self._mass, self._damping, m.opt.timestep, rows, minv)
-        return coupling.implicit_wrenches(
-            k, slots, self._plate, self._slot, self._lever, self._force, self._dir, self._speed,
-            self.low_velocity.rest_speed, rows, minv, self._qvel, m.opt.timestep, self._step,
-            self._plate_state, self._plate_step, self._states, self._xi, self._across,
-            self._slot_wrench)
+        return coupling.implicit_step(
+            k, slots, self._slot_body, self.body_ids, self._xipos, self._subtree_com,
+            self._cdof, *self._model_arrays, *self._qfrc, *self._damping_arrays,
+            *self._damping_state, self._mass, m.opt.timestep, self._jac, self._plate,
+            self._slot, self._table, self._force, self.low_velocity.rest_speed, self._qvel,
+            self._step, self._plate_state, self._plate_step, self._work, self._flags, self._xi,
+            self._slot_wrench, self.body_wrenches, self._xfrc)
 
     def _load_kernels(self):
         """Run every compiled kernel once on no plates (their outputs are scratch), so that
@@ -255,21 +247,25 @@ class SandEngine:
         self._gather()
         if self.low_velocity.method == 'implicit':
             self._implicit(0, 0)
-            coupling.implicit_plate_forces(0, self._slot, self._lever, self._force, self._dir,
-                                           self._speed, self._across, self._states, self._xi,
-                                           self.low_velocity.rest_speed, self._applied)
+            self._implicit_plate_forces(0)
         else:
-            self._wrenches(0, 0)
-        coupling.scatter_wrenches(0, self._slot_body, self._slot_wrench, self.body_ids,
-                                  self.body_wrenches, self._xfrc)
+            coupling.smoothed_wrenches(0, 0, self._plate, self._slot, self._table, self._force,
+                                       1.0, self._step, self._ema_force, self._ema_step,
+                                       self._applied, self._slot_wrench)
+            self._scatter(0)
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
         (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
         k = self._k
         if self.low_velocity.method == 'implicit':
-            coupling.implicit_plate_forces(k, self._slot, self._lever, self._force, self._dir,
-                                           self._speed, self._across, self._states, self._xi,
-                                           self.low_velocity.rest_speed, self._applied)
+            self._implicit_plate_forces(k)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
-        return self._lever[:k] + com, self._applied[:k].copy(), self.areas[self._plate[:k]]
+        lever = self._table[coupling.LEVER:coupling.LEVER + 3, :k].T
+        return lever + com, self._applied[:, :k].T.copy(), self.areas[self._plate[:k]]
+
+    def _implicit_plate_forces(self, k):
+        """Per-plate forces of the last implicit step into _applied[:, :k] (N, world)."""
+        coupling.implicit_plate_forces(k, self._slot, self._table, self._force, self._work,
+                                       self._flags, self._xi, self.low_velocity.rest_speed,
+                                       self._applied)
