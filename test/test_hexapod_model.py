@@ -8,6 +8,8 @@ import pytest
 
 from rft_sim_ros.sim import hexapod
 from rft_sim_ros.sim.gaits import make_gait
+from rft_sim_ros.sim.scene import load_scene
+from rft_sim_ros.sim.simulation import Simulation, can_collide
 
 MODELS = Path(__file__).resolve().parent.parent / 'models'
 ROBOT = MODELS / hexapod.MODEL_FILE
@@ -159,6 +161,16 @@ def test_robot_collides_with_nothing_but_a_rigid_floor_does():
     mujoco.mj_forward(floor, data)
     touching = sorted(floor.geom(c.geom2).name for c in data.contact[:data.ncon])
     assert touching == sorted(f'{leg}_dactyl' for leg in hexapod.LEG_NAMES)
+
+
+def test_collision_is_skipped_only_where_no_rigid_contact_can_happen():
+    assert not can_collide(mujoco.MjModel.from_xml_path(str(ROBOT)))
+    assert can_collide(mujoco.MjModel.from_xml_path(str(FLOOR)))
+    spec = mujoco.MjSpec.from_file(str(ROBOT))
+    spec.add_pair(geomname1='L1_dactyl', geomname2='R1_dactyl')
+    assert can_collide(spec.compile())
+    sand = Simulation(load_scene('plate_press', {}))
+    assert sand.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
 
 
 def test_stands_on_six_dactyls_after_a_drop_on_the_rigid_floor():

@@ -124,14 +124,13 @@ def leading_forces(count, table, inv_a4, inv_b4, dyn_lam_rho, fx, fy, fz):
         u_e2 = ux * e2x + uy * e2y  # = v23 . e2
         vt = min(abs(u_e1), 1.0)
         vn = np.sqrt(u_e2 * u_e2 + uz * uz)
-        # beta = atan2(nz, n.e2) + pi/2  ->  sin(beta) = c0, cos(beta) = -s0; for a plate
-        # that is not flat, (n.e2, nz) is already a unit vector.
+        # beta = atan2(nz, n.e2) + pi/2, so cos(2 beta) = (nz^2 - n.e2^2) / rho^2 and
+        # sin(2 beta) = -2 n.e2 nz / rho^2 with rho^2 = nz^2 + n.e2^2, which is 1 for a plate
+        # that is not flat.
         n_e2 = nx * e2x + ny * e2y
-        inv_rho = 1.0 / np.sqrt(nz * nz + n_e2 * n_e2) if flat else 1.0
-        c0 = n_e2 * inv_rho
-        s0 = nz * inv_rho
-        cos2b = s0 * s0 - c0 * c0
-        sin2b = -2.0 * c0 * s0
+        inv_rho2 = 1.0 / (nz * nz + n_e2 * n_e2) if flat else 1.0
+        cos2b = (nz * nz - n_e2 * n_e2) * inv_rho2
+        sin2b = -2.0 * n_e2 * nz * inv_rho2
         # gamma = -atan2(v23_z, v23.e2).
         moving = vn > 0.0
         inv_vn = 1.0 / (vn if moving else 1.0)

@@ -92,6 +92,11 @@ class _Rejected(Exception):
         self.reason = reason
 
 
+#: `_Spline.cubic` of a single held knot (shared, read-only).
+_CUBIC_KNOT = np.array([True])
+_CUBIC_KNOT.flags.writeable = False
+
+
 class _Spline:
     """Piecewise linear / cubic Hermite target path through knots (times strictly increasing).
 
@@ -107,8 +112,9 @@ class _Spline:
 
     @classmethod
     def hold(cls, time, positions):
-        p = np.array(positions, dtype=float)[None, :]
-        return cls([time], p, np.zeros_like(p), np.array([True]))
+        """Hold `positions` (a float array, taken over) from `time` on."""
+        p = positions.reshape(1, -1)
+        return cls([time], p, np.zeros_like(p), _CUBIC_KNOT)
 
     def sample(self, t):
         times = self.times

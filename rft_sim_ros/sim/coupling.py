@@ -76,10 +76,10 @@ PLATE_ROWS = LAW_ROWS + 7
 
 
 @njit(cache=True, error_model='numpy')
-def gather_plates(body_ids, radii, body_cluster_start, cluster_plate_start, cluster_center,
+def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
+                  body_ids, radii, body_cluster_start, cluster_plate_start, cluster_center,
                   cluster_radius, local, areas, xpos, xmat, xipos, cvel, subtree_com,
-                  body_rootid, surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho,
-                  include_trailing, out_plate, out_slot, slot_body, table, motion, force):
+                  body_rootid, out_plate, out_slot, slot_body, table, motion, force):
     """Find the plates in the sand and their RFT force for the current direction of motion.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
@@ -275,16 +275,33 @@ def _cholesky(matrix):
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _inverse_quadratic(factor, row, work):
-    """row Mh^-1 row^T for Mh = L L^T (factor L): |L^-1 row^T|^2 by forward substitution."""
-    total = 0.0
-    for i in range(factor.shape[0]):
-        acc = row[i]
+def _translational_inverse_masses(mass_h, jac, slots, out):
+    """out[s] = sum over the 3 translational rows J_r of slot s of J_r Mh^-1 J_r^T
+    (1/kg): |L^-1 J_r^T|^2 with Mh = L L^T, all 3S rows forward-substituted at once (their
+    index innermost, so the loops vectorise)."""
+    n, count = mass_h.shape[0], 3 * slots
+    factor = _cholesky(mass_h)
+    work = np.empty((n, count))
+    for s in range(slots):
+        for a in range(3):
+            for i in range(n):
+                work[i, 3 * s + a] = jac[6 * s + a, i]
+    for i in range(n):
+        row = work[i]
         for m in range(i):
-            acc -= factor[i, m] * work[m]
-        work[i] = acc / factor[i, i]
-        total += work[i] * work[i]
-    return total
+            f = factor[i, m]
+            previous = work[m]
+            for r in range(count):
+                row[r] -= f * previous[r]
+        inv = 1.0 / factor[i, i]
+        for r in range(count):
+            row[r] *= inv
+    for s in range(slots):
+        total = 0.0
+        for i in range(n):
+            for a in range(3):
+                total += work[i, 3 * s + a] * work[i, 3 * s + a]
+        out[s] = total
 
 
 @njit(cache=True, error_model='numpy')
@@ -575,14 +592,11 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
     # Across dampers. Turn speed of a slot: the speed its sand could take out of it in one
     # step, dt x (sum of its plates' |G|) x its translational inverse effective mass
     # (diagonal of J Mh^-1 J^T, averaged).
-    factor = _cholesky(mass_h)
-    substitution = np.empty(nv)
+    inverse_mass = np.empty(slots)
+    _translational_inverse_masses(mass_h, jac, slots, inverse_mass)
     for s in range(slots):
         total = magnitude[first[s]:first[s + 1]].sum()
-        inverse_mass = 0.0
-        for row in range(6 * s, 6 * s + 3):
-            inverse_mass += _inverse_quadratic(factor, jac[row], substitution)
-        turn_speed = max(total * timestep * inverse_mass / 3.0, v_reg)
+        turn_speed = max(total * timestep * inverse_mass[s] / 3.0, v_reg)
         magnitude_s, speed_s = magnitude[first[s]:first[s + 1]], speed[first[s]:first[s + 1]]
         across_s = across[first[s]:first[s + 1]]
         for j in range(first[s + 1] - first[s]):
@@ -592,30 +606,34 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
     for j in range(k):
         p = out_plate[j]
         previous = plate_state[p]
-        warm = plate_step[p] == step - 1 and previous != FROZEN
+        warm = (plate_step[p] == step - 1) & (previous != FROZEN)
         state = previous if warm else (MOVING if speed[j] > v_reg else RESTING)
         states[j] = state
         visited[j] = 1 << state
-        coef_along[j] = _along_factor(state, speed[j], inv_reg, v_reg)
+        coef_along[j] = inv_reg if state == RESTING else 0.0  # never frozen here
         coef_across[j] = 0.0 if state == OFF else across[j]
         coef_moving[j] = 1.0 if state == MOVING else 0.0
     w_moving = np.zeros((slots, 6))
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
     dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
-    # the dofs each slot's Jacobian reaches (its kinematic chain)
+    # the dofs each slot's Jacobian reaches (its kinematic chain), and the Jacobian on them
     chain = np.empty((slots, nv), dtype=np.int64)
     chain_count = np.zeros(slots, dtype=np.int64)
+    chain_jac = np.empty((slots, 6, nv))
     for s in range(slots):
         for c in range(nv):
             reaches = False
             for b in range(6):
                 reaches = reaches or jac[6 * s + b, c] != 0.0
             if reaches:
+                for b in range(6):
+                    chain_jac[s, b, chain_count[s]] = jac[6 * s + b, c]
                 chain[s, chain_count[s]] = c
                 chain_count[s] += 1
     block = np.zeros((6, 6))
-    block_jac = np.zeros((6, nv))  # block J of a slot, its chain's columns
+    block_jac = np.empty((6, nv))  # block J of a slot on its chain
+    chain_system = np.empty((nv, nv))  # J^T block J of a slot on its chain
     system = np.empty((nv, nv))
     rhs = np.empty(nv)
     iterations = 0
@@ -635,23 +653,30 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
         for s in range(slots):
             _resting_block(k_rank[s], k_iso[s], block)
             count = chain_count[s]
+            on_chain = chain_jac[s]
+            # rows of block J and of J^T (block J): loops over the chain, innermost
+            for a in range(6):
+                out = block_jac[a, :count]
+                out[:] = 0.0
+                for b in range(6):
+                    weight = block[a, b]
+                    row = on_chain[b, :count]
+                    for p in range(count):
+                        out[p] += weight * row[p]
             for q in range(count):
-                c = chain[s, q]
+                out = chain_system[q, :count]
+                out[:] = 0.0
                 acc = 0.0
                 for a in range(6):
-                    acc += jac[6 * s + a, c] * w_moving[s, a]
-                    coefficient = 0.0
-                    for b in range(6):
-                        coefficient += block[a, b] * jac[6 * s + b, c]
-                    block_jac[a, q] = coefficient
-                rhs[c] += timestep * acc
-            for q in range(count):
+                    weight = on_chain[a, q]
+                    acc += weight * w_moving[s, a]
+                    row = block_jac[a, :count]
+                    for p in range(count):
+                        out[p] += weight * row[p]
                 c = chain[s, q]
+                rhs[c] += timestep * acc
                 for p in range(count):
-                    acc = 0.0
-                    for a in range(6):
-                        acc += jac[6 * s + a, c] * block_jac[a, p]
-                    system[c, chain[s, p]] -= timestep * acc
+                    system[c, chain[s, p]] -= timestep * out[p]
         solution = _solve(system, rhs)
         for j in range(k):
             solved[j] = states[j]
@@ -713,14 +738,14 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
 
 
 @njit(cache=True, error_model='numpy')
-def implicit_step(k, slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
-                  body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                  qfrc_actuator, qfrc_applied, qfrc_bias, damper, actuators, dof_damping,
-                  trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm,
-                  biastype, biasprm, forcelimited, forcerange, ctrl, act, actadr,
-                  actuator_force, damping, mass, timestep, jac, out_plate, out_slot, table,
-                  force, v_reg, qvel, step, plate_state, plate_step, work, flags, xi_new,
-                  wrench, body_wrenches, xfrc_applied):
+def implicit_step(k, slots, step, timestep, v_reg, slot_body, body_ids, xipos, subtree_com,
+                  cdof, body_rootid, body_dofnum, body_dofadr, body_parentid, dof_parentid,
+                  qfrc_passive, qfrc_actuator, qfrc_applied, qfrc_bias, damper, actuators,
+                  dof_damping, trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype,
+                  gainprm, biastype, biasprm, forcelimited, forcerange, ctrl, act, actadr,
+                  actuator_force, damping, mass, jac, out_plate, out_slot, table, force, qvel,
+                  plate_state, plate_step, work, flags, xi_new, wrench, body_wrenches,
+                  xfrc_applied):
     """One step's implicit sand wrenches, in one call from Python: `prepare_solve` (into
     jac, (>= 6S+1, nv) work space), `implicit_damping`, `implicit_mass` (mass: the dense M
     of this state, made Mh in place), `implicit_wrenches` over the `k` gathered plates in

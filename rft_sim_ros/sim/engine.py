@@ -83,6 +83,7 @@ class SandEngine:
         self.dynamic = dynamic
         self._dyn = 0.0 if dynamic is None else dynamic.lam * dynamic.density
         self.low_velocity = low_velocity
+        self._include_trailing = low_velocity.method == 'ema'  # gathered for their history
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
@@ -147,28 +148,37 @@ class SandEngine:
         self._cluster_radius = np.array(radii, dtype=float)
 
     def _views(self):
-        """Cache the numpy views of mjModel/mjData arrays used every step."""
+        """Cache the argument tuples of the per-step kernels: numpy views of mjModel/mjData
+        and the engine's own arrays, which stay the same objects for the engine's life."""
         m, d = self.model, self.data
         integrator = m.opt.integrator
         damper = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
         if integrator == mujoco.mjtIntegrator.mjINT_EULER:
             damper = damper and not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
         actuators = integrator != mujoco.mjtIntegrator.mjINT_EULER
+        self._damping = np.zeros(m.nv)
+        self._mass = np.zeros((m.nv, m.nv))
+        self._full_inertia, self._full_inertia_args = full_inertia_call(m, d, self._mass)
+        self._xipos = d.xipos
+        self._xfrc = d.xfrc_applied
         self._damping_arrays = (
             bool(damper), bool(actuators), m.dof_damping, m.actuator_trntype, m.actuator_trnid,
             m.actuator_gear, m.jnt_type, m.jnt_dofadr, m.actuator_dyntype,
             m.actuator_gaintype, m.actuator_gainprm, m.actuator_biastype, m.actuator_biasprm,
-            m.actuator_forcelimited, m.actuator_forcerange)
-        self._damping = np.zeros(m.nv)
-        self._mass = np.zeros((m.nv, m.nv))
-        self._damping_state = (d.ctrl, d.act, m.actuator_actadr, d.actuator_force, self._damping)
-        self._full_inertia, self._full_inertia_args = full_inertia_call(m, d, self._mass)
-        self._xpos, self._xmat, self._xipos = d.xpos, d.xmat, d.xipos
-        self._cvel, self._subtree_com, self._cdof = d.cvel, d.subtree_com, d.cdof
-        self._qvel, self._xfrc = d.qvel, d.xfrc_applied
-        self._qfrc = (d.qfrc_passive, d.qfrc_actuator, d.qfrc_applied, d.qfrc_bias)
-        self._model_arrays = (m.body_rootid, m.body_dofnum, m.body_dofadr, m.body_parentid,
-                              m.dof_parentid)
+            m.actuator_forcelimited, m.actuator_forcerange, d.ctrl, d.act, m.actuator_actadr,
+            d.actuator_force, self._damping)
+        self._gather_arrays = (
+            self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
+            self._cluster_center, self._cluster_radius, self._local, self.areas, d.xpos, d.xmat,
+            d.xipos, d.cvel, d.subtree_com, m.body_rootid, self._plate, self._slot,
+            self._slot_body, self._table, self._motion, self._force)
+        self._implicit_arrays = (
+            self._slot_body, self.body_ids, d.xipos, d.subtree_com, d.cdof, m.body_rootid,
+            m.body_dofnum, m.body_dofadr, m.body_parentid, m.dof_parentid, d.qfrc_passive,
+            d.qfrc_actuator, d.qfrc_applied, d.qfrc_bias, *self._damping_arrays, self._mass,
+            self._jac, self._plate, self._slot, self._table, self._force, d.qvel,
+            self._plate_state, self._plate_step, self._work, self._flags, self._xi,
+            self._slot_wrench, self.body_wrenches, d.xfrc_applied)
 
     @property
     def zeta(self):
@@ -217,27 +227,18 @@ class SandEngine:
 
     def _gather(self):
         """The plates in the sand and their RFT forces (coupling.gather_plates)."""
-        return coupling.gather_plates(
-            self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
-            self._cluster_center, self._cluster_radius, self._local, self.areas, self._xpos,
-            self._xmat, self._xipos, self._cvel, self._subtree_com, self._model_arrays[0],
-            self.surface_height, self._zeta_si, self._inv_a4, self._inv_b4, self._dyn,
-            self.low_velocity.method == 'ema', self._plate, self._slot, self._slot_body,
-            self._table, self._motion, self._force)
+        return coupling.gather_plates(self.surface_height, self._zeta_si, self._inv_a4,
+                                      self._inv_b4, self._dyn, self._include_trailing,
+                                      *self._gather_arrays)
 
     def _implicit(self, k, slots):
         """Implicit sand wrenches, written to xfrc_applied (coupling.implicit_step, after
         MuJoCo's actuator forces and dense inertia of this state); returns its solve count."""
-        m, d = self.model, self.data
-        mujoco.mj_fwdActuation(m, d)
+        m = self.model
+        mujoco.mj_fwdActuation(m, self.data)
         self._full_inertia(*self._full_inertia_args)
-        return coupling.implicit_step(
-            k, slots, self._slot_body, self.body_ids, self._xipos, self._subtree_com,
-            self._cdof, *self._model_arrays, *self._qfrc, *self._damping_arrays,
-            *self._damping_state, self._mass, m.opt.timestep, self._jac, self._plate,
-            self._slot, self._table, self._force, self.low_velocity.rest_speed, self._qvel,
-            self._step, self._plate_state, self._plate_step, self._work, self._flags, self._xi,
-            self._slot_wrench, self.body_wrenches, self._xfrc)
+        return coupling.implicit_step(k, slots, self._step, m.opt.timestep,
+                                      self.low_velocity.rest_speed, *self._implicit_arrays)
 
     def _load_kernels(self):
         """Run every compiled kernel once on no plates (their outputs are scratch), so that

@@ -143,6 +143,10 @@ class TripodGait(StandGait):
         object.__setattr__(self, '_offsets', np.array(
             [float(self.phase_offsets[leg]) for leg in self.legs.names]))
         object.__setattr__(self, '_neutral', self.legs.neutral_feet())
+        legs = self.legs  # the arguments of _tripod_targets after the amplitude, once
+        object.__setattr__(self, '_path_and_legs', (
+            self.stance_fraction, self.step_length_m, self.step_height_m, self._neutral,
+            legs.knee_xyz, legs.mid_length, legs.dactyl_length, legs.dactyl_neutral_angle))
         self._check_workspace()
 
     def phases(self, t):
@@ -167,12 +171,8 @@ class TripodGait(StandGait):
 
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
-        legs = self.legs
         return _tripod_targets(self.frequency_hz * (t - self.start_time_s), self._offsets,
-                               self.amplitude(t), self.stance_fraction,
-                               self.step_length_m, self.step_height_m, self._neutral,
-                               legs.knee_xyz, legs.mid_length, legs.dactyl_length,
-                               legs.dactyl_neutral_angle)
+                               self.amplitude(t), *self._path_and_legs)
 
     def _path(self, phi, scale):
         """Foot offsets (dx, dz) in m at phases phi (any shape), stroke and lift times scale."""

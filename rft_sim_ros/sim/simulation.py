@@ -51,6 +51,15 @@ def position_servos(model):
     return servos
 
 
+def can_collide(model):
+    """Whether MuJoCo could ever make a rigid contact in `model`: an explicit <pair>, a flex,
+    or two geoms whose contype/conaffinity bits let them collide."""
+    if model.npair or model.nflex:
+        return True
+    return bool(np.bitwise_or.reduce(model.geom_contype, initial=0)
+                & np.bitwise_or.reduce(model.geom_conaffinity, initial=0))
+
+
 class SimulationDiverged(RuntimeError):
     """Raised by `step` when the state stops being finite/bounded; message = the reason."""
 
@@ -78,6 +87,8 @@ class Simulation:
         except Exception as error:
             raise SceneError(f'scene {scene.name}: model does not compile: {error}') from None
         self.model.opt.timestep = scene.timestep
+        if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
+            self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
         known = {self.model.body(i).name for i in range(self.model.nbody)}
         for body in (*scene.sand_bodies, scene.base_body):
