@@ -332,11 +332,13 @@ def _solve(matrix, rhs):
                 matrix[col, c], matrix[pivot, c] = matrix[pivot, c], matrix[col, c]
             rhs[col], rhs[pivot] = rhs[pivot], rhs[col]
         inv = 1.0 / matrix[col, col]
+        pivot_row = matrix[col]
         for row in range(col + 1, n):
             factor = matrix[row, col] * inv
-            if factor != 0.0:
-                for c in range(col, n):
-                    matrix[row, c] -= factor * matrix[col, c]
+            if factor != 0.0:  # whole rows (left of col: never read again), so it vectorises
+                target = matrix[row]
+                for c in range(n):
+                    target[c] -= factor * pivot_row[c]
                 rhs[row] -= factor * rhs[col]
     for row in range(n - 1, -1, -1):
         acc = rhs[row]
@@ -617,23 +619,19 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
     dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
-    # the dofs each slot's Jacobian reaches (its kinematic chain), and the Jacobian on them
+    # the dofs each slot's Jacobian reaches (its kinematic chain)
     chain = np.empty((slots, nv), dtype=np.int64)
     chain_count = np.zeros(slots, dtype=np.int64)
-    chain_jac = np.empty((slots, 6, nv))
     for s in range(slots):
         for c in range(nv):
             reaches = False
             for b in range(6):
                 reaches = reaches or jac[6 * s + b, c] != 0.0
             if reaches:
-                for b in range(6):
-                    chain_jac[s, b, chain_count[s]] = jac[6 * s + b, c]
                 chain[s, chain_count[s]] = c
                 chain_count[s] += 1
     block = np.zeros((6, 6))
-    block_jac = np.empty((6, nv))  # block J of a slot on its chain
-    chain_system = np.empty((nv, nv))  # J^T block J of a slot on its chain
+    block_jac = np.empty((6, nv))  # block J of a slot
     system = np.empty((nv, nv))
     rhs = np.empty(nv)
     iterations = 0
@@ -652,31 +650,24 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
         rhs[:] = momentum
         for s in range(slots):
             _resting_block(k_rank[s], k_iso[s], block)
-            count = chain_count[s]
-            on_chain = chain_jac[s]
-            # rows of block J and of J^T (block J): loops over the chain, innermost
-            for a in range(6):
-                out = block_jac[a, :count]
-                out[:] = 0.0
-                for b in range(6):
-                    weight = block[a, b]
-                    row = on_chain[b, :count]
-                    for p in range(count):
-                        out[p] += weight * row[p]
-            for q in range(count):
-                out = chain_system[q, :count]
-                out[:] = 0.0
+            slot_jac = jac[6 * s:6 * s + 6]
+            for a in range(6):  # block J, whole rows (zero off the chain): vectorises
+                for p in range(nv):
+                    acc = 0.0
+                    for b in range(6):
+                        acc += block[a, b] * slot_jac[b, p]
+                    block_jac[a, p] = acc
+            for q in range(chain_count[s]):  # rows of J^T block J on the chain
+                c = chain[s, q]
                 acc = 0.0
                 for a in range(6):
-                    weight = on_chain[a, q]
-                    acc += weight * w_moving[s, a]
-                    row = block_jac[a, :count]
-                    for p in range(count):
-                        out[p] += weight * row[p]
-                c = chain[s, q]
+                    acc += slot_jac[a, c] * w_moving[s, a]
                 rhs[c] += timestep * acc
-                for p in range(count):
-                    system[c, chain[s, p]] -= timestep * out[p]
+                for p in range(nv):
+                    acc = 0.0
+                    for a in range(6):
+                        acc += slot_jac[a, c] * block_jac[a, p]
+                    system[c, p] -= timestep * acc
         solution = _solve(system, rhs)
         for j in range(k):
             solved[j] = states[j]
