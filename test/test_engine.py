@@ -87,6 +87,34 @@ def test_explicit_engine_wrench_equals_the_reference_law(seed):
         assert np.allclose(data.xfrc_applied[body], engine.body_wrenches[i])
 
 
+BLADE = """
+<mujoco><option timestep="0.001"/>
+<worldbody><body name="blade"><freejoint/><geom type="box" size="0.03 0.01 0.002"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_plates_sliding_in_their_own_plane_never_lead(seed):
+    """A blade turning about its long axis, tilted at random: its end faces move in their own
+    plane (n . v = 0 up to rounding) and must feel nothing, whatever the rounding's sign."""
+    model = mujoco.MjModel.from_xml_string(BLADE)
+    data = mujoco.MjData(model)
+    engine = SandEngine(model, data, {'blade': body_plates(model, 1, count=400)}, zeta=2.0,
+                        low_velocity=LowVelocity(method='none'))
+    rng = np.random.default_rng(seed)
+    quat = rng.normal(size=4)
+    data.qpos[3:7] = quat / np.linalg.norm(quat)
+    data.qvel[3:6] = [2.0, 0.0, 0.0]  # rad/s about the blade's long axis (free joint: local)
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    end_faces = np.abs(engine.local_normal[engine._plate[:engine._k], 0]) > 0.999
+    assert engine.plates_active > 0 and not end_faces.any()
+    table = engine._table[:, :engine._k]
+    n_v = (table[coupling.NORMAL:coupling.NORMAL + 3]
+           * table[coupling.DIRECTION:coupling.DIRECTION + 3]).sum(axis=0)
+    assert (n_v > 1e-6).all()
+
+
 def test_bodies_above_the_sand_are_skipped_and_cost_nothing():
     model, data, engine = _arm()
     data.qpos[2] = 2.0

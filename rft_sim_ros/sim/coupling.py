@@ -68,6 +68,12 @@ def cluster_plates(centroids, size=32):
     return np.array(order, dtype=np.int64), np.array(starts, dtype=np.int64)
 
 
+#: A plate leads only if n . v exceeds this fraction of its body's speed scale (origin
+#: speed + radius x angular speed): a plate sliding in its own plane (n . v = 0, e.g. the
+#: end faces of a blade turning about its long axis) then stays trailing whatever the
+#: rounding of n . v, instead of flipping to a full RFT force on the rounding's sign.
+TANGENTIAL = 1e-12
+
 #: Rows of the gathered-plate table after the law's (`kernel.NORMAL` ... `kernel.DIRECTION`):
 MOMENT = LAW_ROWS      # r x d, m (3 rows): rows DIRECTION .. MOMENT + 2 are u = [d; r x d]
 LEVER = LAW_ROWS + 3   # lever arm r from the body's COM, m, world (3 rows)
@@ -86,8 +92,9 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
     whose bounding sphere, lies above the surface are skipped without touching their plates.
     local: (N, 9) body-frame plate position l, normal n_l and l x n_l. A plate below the
     surface first has n . v = n_l . V + (l x n_l) . W with the body-frame velocity V of the
-    body origin and angular velocity W (9 multiply-adds), so only leading plates (n . v > 0),
-    or all plates below the surface when `include_trailing`, are transformed to the world.
+    body origin and angular velocity W (9 multiply-adds), so only leading plates (n . v >
+    TANGENTIAL x the body's speed scale), or all plates below the surface when
+    `include_trailing`, are transformed to the world.
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
     SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
     index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world; inv_a4, inv_b4:
@@ -119,6 +126,8 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
                   r02 * vx0 + r12 * vy0 + r22 * vz0)
         body_w = (r00 * wx + r10 * wy + r20 * wz, r01 * wx + r11 * wy + r21 * wz,
                   r02 * wx + r12 * wy + r22 * wz)
+        tangential = TANGENTIAL * (np.sqrt(vx0 * vx0 + vy0 * vy0 + vz0 * vz0)
+                                   + radii[i] * np.sqrt(wx * wx + wy * wy + wz * wz))
         for c in range(body_cluster_start[i], body_cluster_start[i + 1]):
             if (oz + r20 * cluster_center[c, 0] + r21 * cluster_center[c, 1]
                     + r22 * cluster_center[c, 2] - cluster_radius[c] >= surface_height):
@@ -135,7 +144,7 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
                 n_v = (mx * body_v[0] + my * body_v[1] + mz * body_v[2]
                        + cluster[i_c, 6] * body_w[0] + cluster[i_c, 7] * body_w[1]
                        + cluster[i_c, 8] * body_w[2])
-                leading = n_v > 0.0
+                leading = n_v > tangential
                 if not (leading or include_trailing):
                     continue
                 px = ox + r00 * lx + r01 * ly + r02 * lz
