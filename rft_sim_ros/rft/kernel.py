@@ -96,7 +96,7 @@ def _log_bounded(y):
 @njit(cache=True, error_model='numpy')
 def leading_forces(count, table, inv_a4, inv_b4, dyn_lam_rho, fx, fy, fz):
     """RFT forces (N, world axes) on the first `count` plates of a plate table (rows above:
-    NORMAL ... AREA), written to fx, fy, fz. inv_a4, inv_b4: reciprocal normalisers;
+    NORMAL ... DIRECTION), written to fx, fy, fz. inv_a4, inv_b4: reciprocal normalisers;
     dyn_lam_rho = lambda * rho (kg/m^3) of the dynamic term, 0 for none. A plate with SCALE
     and AREA 0 feels exactly zero. One branch-free loop, which the compiler vectorises.
     """

@@ -387,6 +387,16 @@ def _along_factor(state, speed, inv_reg, v_reg):
     return 0.0
 
 
+@njit(cache=True, inline='always')
+def _set_coefficients(j, state, speed, across, inv_reg, v_reg, coef_along, coef_across,
+                      coef_moving):
+    """Plate j's accumulator coefficients for its set: along factor (`_along_factor`),
+    across damper (0 once off) and moving (1 or 0)."""
+    coef_along[j] = _along_factor(state, speed, inv_reg, v_reg)
+    coef_across[j] = 0.0 if state == OFF else across
+    coef_moving[j] = 1.0 if state == MOVING else 0.0
+
+
 @njit(cache=True, inline='always', fastmath=True)
 def _resting_block(k_rank, iso, out):
     """Slot twist response of its plates' linear parts: rank part minus sum c P^T P,
@@ -621,9 +631,8 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
         state = previous if warm else (MOVING if speed[j] > v_reg else RESTING)
         states[j] = state
         visited[j] = 1 << state
-        coef_along[j] = inv_reg if state == RESTING else 0.0  # never frozen here
-        coef_across[j] = 0.0 if state == OFF else across[j]
-        coef_moving[j] = 1.0 if state == MOVING else 0.0
+        _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
+                          coef_across, coef_moving)
     w_moving = np.zeros((slots, 6))
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
@@ -709,9 +718,8 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
                 new = FROZEN
             states[j] = new
             visited[j] |= 1 << new
-            coef_along[j] = _along_factor(new, speed[j], inv_reg, v_reg)
-            coef_across[j] = 0.0 if new == OFF else across[j]
-            coef_moving[j] = 1.0 if new == MOVING else 0.0
+            _set_coefficients(j, new, speed[j], across[j], inv_reg, v_reg, coef_along,
+                              coef_across, coef_moving)
             dirty[out_slot[j]] = True
             converged = False
     # The wrench the last solve assumed: moving plates' G plus every plate's linear response.
@@ -720,9 +728,8 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
     for s in range(slots):
         if dirty[s]:  # back to the coefficients of the last solve
             for j in range(first[s], first[s + 1]):
-                coef_along[j] = _along_factor(solved[j], speed[j], inv_reg, v_reg)
-                coef_across[j] = 0.0 if solved[j] == OFF else across[j]
-                coef_moving[j] = 1.0 if solved[j] == MOVING else 0.0
+                _set_coefficients(j, solved[j], speed[j], across[j], inv_reg, v_reg,
+                                  coef_along, coef_across, coef_moving)
             _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
                              coef_moving, w_moving[s], k_rank[s], k_iso[s])
         _resting_block(k_rank[s], k_iso[s], block)

@@ -83,7 +83,8 @@ class SandEngine:
         self.dynamic = dynamic
         self._dyn = 0.0 if dynamic is None else dynamic.lam * dynamic.density
         self.low_velocity = low_velocity
-        self._include_trailing = low_velocity.method == 'ema'  # gathered for their history
+        # the paper's EMA keeps a history for plates in the sand that trail, too
+        self._include_trailing = low_velocity.method == 'ema'
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
@@ -211,14 +212,19 @@ class SandEngine:
             self.solves += abs(iterations)
             self.unsettled_steps += iterations < 0
         elif slots:
-            alpha = self.low_velocity.ema_alpha if self.low_velocity.method == 'ema' else 1.0
-            coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._table,
-                                       self._force, alpha, self._step, self._ema_force,
-                                       self._ema_step, self._applied, self._slot_wrench)
-            self._scatter(slots)
+            self._explicit(k, slots)
         elif self._slots:  # the last bodies left the sand
             self._scatter(0)
         self._k, self._slots = k, slots
+
+    def _explicit(self, k, slots):
+        """Explicit sand wrenches ('ema' or 'none': coupling.smoothed_wrenches), written to
+        xfrc_applied."""
+        alpha = self.low_velocity.ema_alpha if self.low_velocity.method == 'ema' else 1.0
+        coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._table, self._force,
+                                   alpha, self._step, self._ema_force, self._ema_step,
+                                   self._applied, self._slot_wrench)
+        self._scatter(slots)
 
     def _scatter(self, slots):
         """Write the wrenches of the first `slots` slots (zero for the other sand bodies)."""
@@ -250,10 +256,7 @@ class SandEngine:
             self._implicit(0, 0)
             self._implicit_plate_forces(0)
         else:
-            coupling.smoothed_wrenches(0, 0, self._plate, self._slot, self._table, self._force,
-                                       1.0, self._step, self._ema_force, self._ema_step,
-                                       self._applied, self._slot_wrench)
-            self._scatter(0)
+            self._explicit(0, 0)
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
