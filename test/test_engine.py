@@ -66,6 +66,49 @@ def test_slot_jacobians_and_free_force_match_mujoco(seed):
         assert np.allclose(jac[6 * slot + 3:6 * slot + 6], jacr, atol=1e-12)
 
 
+TREE = """
+<mujoco><worldbody>
+  <body name="base" pos="0 0 0.3"><freejoint/><geom type="box" size="0.1 0.05 0.02" mass="2"/>
+    <body name="left" pos="0.1 0.05 0"><joint type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.1 0 -0.1" size="0.01" mass="0.2"/>
+      <body name="left_tip" pos="0.1 0 -0.1"><joint type="ball"/>
+        <geom type="sphere" size="0.02" pos="0 0.03 -0.05" mass="0.1"/></body></body>
+    <body name="right" pos="-0.1 -0.05 0"><joint type="hinge" axis="1 0 0"/>
+      <geom type="capsule" fromto="0 0 0 -0.1 0 -0.1" size="0.01" mass="0.3"/>
+      <body name="right_tip" pos="-0.1 0 -0.1"><joint type="slide" axis="0 0 1"/>
+        <geom type="sphere" size="0.02" mass="0.05"/></body></body>
+  </body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_translational_inverse_masses_match_a_dense_inverse(seed):
+    """The tree (no fill-in) factorisation of Mh = M + D on a branched robot: the slots'
+    translational inverse effective masses equal trace(J_t Mh^-1 J_t^T) from numpy."""
+    model = mujoco.MjModel.from_xml_string(TREE)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(seed)
+    data.qpos[7:] = rng.normal(size=model.nq - 7) * 0.5
+    data.qpos[10:14] /= np.linalg.norm(data.qpos[10:14])  # the ball joint's quaternion
+    mujoco.mj_forward(model, data)
+    mass = np.zeros((model.nv, model.nv))
+    full_inertia, arguments = engine_module.full_inertia_call(model, data, mass)
+    full_inertia(*arguments)
+    mass += np.diag(rng.uniform(0.0, 0.1, model.nv))
+    bodies = ['left', 'left_tip', 'right', 'right_tip', 'base']
+    jac = np.zeros((6 * len(bodies) + 1, model.nv))
+    for slot, name in enumerate(bodies):
+        body = model.body(name).id
+        mujoco.mj_jac(model, data, jac[6 * slot:6 * slot + 3], jac[6 * slot + 3:6 * slot + 6],
+                      data.xipos[body], body)
+    out = np.zeros(len(bodies))
+    coupling._translational_inverse_masses(mass, model.dof_parentid, jac, len(bodies), out)
+    inverse = np.linalg.inv(mass)
+    expected = [np.trace(jac[6 * s:6 * s + 3] @ inverse @ jac[6 * s:6 * s + 3].T)
+                for s in range(len(bodies))]
+    assert np.allclose(out, expected, rtol=1e-12, atol=0)
+
+
 @pytest.mark.parametrize('seed', range(3))
 def test_explicit_engine_wrench_equals_the_reference_law(seed):
     """Plate kinematics from MuJoCo's com-based velocities + compiled law == body_wrench."""
@@ -212,7 +255,14 @@ def test_predicted_end_velocity_matches_mujocos_step(integrator):
     mujoco.mj_fwdActuation(model, data)
     rows = np.zeros((1, model.nv))
     rows[0] = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
-    coupling.implicit_damping(*engine._damping_arrays)  # ends with engine._damping
+    m, d = model, data
+    damper, actuators = engine._implicit_scalars[1:]  # as the engine found them for this model
+    coupling.implicit_damping(damper, actuators, m.dof_damping, m.actuator_trntype,
+                              m.actuator_trnid, m.actuator_gear, m.jnt_type, m.jnt_dofadr,
+                              m.actuator_dyntype, m.actuator_gaintype, m.actuator_gainprm,
+                              m.actuator_biastype, m.actuator_biasprm, m.actuator_forcelimited,
+                              m.actuator_forcerange, d.ctrl, d.act, m.actuator_actadr,
+                              d.actuator_force, engine._damping)
     assert engine._damping.any()
     mass = np.zeros((model.nv, model.nv))
     function, args = engine_module.full_inertia_call(model, data, mass)

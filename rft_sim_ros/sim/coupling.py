@@ -32,6 +32,8 @@ from numba import njit
 
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
+from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
+                          int32_matrix, int32_vector, int_vector)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 
@@ -83,10 +85,14 @@ PLATE_ROWS = LAW_ROWS + 7
 
 @njit(cache=True, error_model='numpy')
 def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
-                  body_ids, radii, body_cluster_start, cluster_plate_start, cluster_center,
-                  cluster_radius, local, areas, xpos, xmat, xipos, cvel, subtree_com,
-                  body_rootid, out_plate, out_slot, slot_body, table, motion, force):
+                  arrays):
     """Find the plates in the sand and their RFT force for the current direction of motion.
+
+    arrays: an `ArrayTable` (its .table) of body_ids, radii, body_cluster_start,
+    cluster_plate_start, cluster_center, cluster_radius, local, areas (the engine's plates
+    and clusters), mjData's xpos, xmat, xipos, cvel, subtree_com, mjModel's body_rootid, and
+    the outputs out_plate, out_slot, slot_body, slot_start, table, motion, force, in this
+    order.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
     whose bounding sphere, lies above the surface are skipped without touching their plates.
@@ -98,9 +104,19 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
     SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
     index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world; inv_a4, inv_b4:
-    reciprocal normalisers). Returns (plates written, of those leading, slots S); slot_body[s] = the
-    slot's sand-body index.
+    reciprocal normalisers). Returns (plates written, of those leading, slots S); slot_body[s] is
+    the slot's sand-body index, and its plates are columns slot_start[s] .. slot_start[s+1]-1.
     """
+    body_ids, radii = int_vector(arrays, 0), float_vector(arrays, 1)
+    body_cluster_start, cluster_plate_start = int_vector(arrays, 2), int_vector(arrays, 3)
+    cluster_center, cluster_radius = float_matrix(arrays, 4), float_vector(arrays, 5)
+    local, areas = float_matrix(arrays, 6), float_vector(arrays, 7)
+    xpos, xmat, xipos = float_matrix(arrays, 8), float_matrix(arrays, 9), float_matrix(arrays, 10)
+    cvel, subtree_com = float_matrix(arrays, 11), float_matrix(arrays, 12)
+    body_rootid = int32_vector(arrays, 13)
+    out_plate, out_slot, slot_body = int_vector(arrays, 14), int_vector(arrays, 15), int_vector(arrays, 16)
+    slot_start = int_vector(arrays, 17)
+    table, motion, force = float_matrix(arrays, 18), float_matrix(arrays, 19), float_matrix(arrays, 20)
     k = 0
     leading_count = 0
     slots = 0
@@ -167,7 +183,9 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
                 k += 1
         if k > first:
             slot_body[slots] = i
+            slot_start[slots] = first
             slots += 1
+    slot_start[slots] = k
     _directions(k, motion, table)
     leading_forces(k, table, inv_a4, inv_b4, dyn_lam_rho, force[0], force[1], force[2])
     return k, leading_count, slots
@@ -266,50 +284,59 @@ def implicit_mass(mass, damping, timestep):
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _cholesky(matrix):
-    """Lower Cholesky factor L of the SPD matrix (L L^T = matrix), a new array."""
+def _tree_factor(matrix, dof_parentid):
+    """L^T D L factor of an SPD joint-space matrix with the sparsity of MuJoCo's inertia (entry
+    (i, j) nonzero only if one of dofs i, j is an ancestor of the other, as mj_fullM gives):
+    MuJoCo's own factorisation (mj_factorM), eliminating from the leaves, which fills nothing
+    in. Returns a new (nv, nv) array: D on the diagonal, the unit lower-triangular L below it
+    (nonzero only at (dof, ancestor dof)), zero above. Rows are updated whole (zeros off the
+    pattern stay zero), so the updates vectorise."""
     n = matrix.shape[0]
     factor = np.zeros((n, n))
-    for j in range(n):
-        acc = matrix[j, j]
-        for m in range(j):
-            acc -= factor[j, m] * factor[j, m]
-        factor[j, j] = np.sqrt(acc)
-        for i in range(j + 1, n):
-            acc = matrix[i, j]
-            for m in range(j):
-                acc -= factor[i, m] * factor[j, m]
-            factor[i, j] = acc / factor[j, j]
+    for i in range(n):
+        for j in range(i + 1):
+            factor[i, j] = matrix[i, j]
+    for k in range(n - 1, -1, -1):
+        inv = 1.0 / factor[k, k]
+        row_k = factor[k]
+        i = dof_parentid[k]
+        while i >= 0:
+            scale = row_k[i] * inv
+            target, source = factor[i, :i + 1], row_k[:i + 1]
+            for j in range(i + 1):
+                target[j] -= source[j] * scale
+            row_k[i] = scale
+            i = dof_parentid[i]
     return factor
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _translational_inverse_masses(mass_h, jac, slots, out):
+def _translational_inverse_masses(mass_h, dof_parentid, jac, slots, out):
     """out[s] = sum over the 3 translational rows J_r of slot s of J_r Mh^-1 J_r^T
-    (1/kg): |L^-1 J_r^T|^2 with Mh = L L^T, all 3S rows forward-substituted at once (their
-    index innermost, so the loops vectorise)."""
+    (1/kg) = |D^-1/2 L^-T J_r^T|^2 with Mh = L^T D L (`_tree_factor`), all 3S rows solved
+    at once (their index innermost, so the loops vectorise)."""
     n, count = mass_h.shape[0], 3 * slots
-    factor = _cholesky(mass_h)
+    factor = _tree_factor(mass_h, dof_parentid)
     work = np.empty((n, count))
     for s in range(slots):
         for a in range(3):
             for i in range(n):
                 work[i, 3 * s + a] = jac[6 * s + a, i]
-    for i in range(n):
+    for i in range(n - 1, -1, -1):  # L^T z = J^T, from the leaves
         row = work[i]
-        for m in range(i):
-            f = factor[i, m]
-            previous = work[m]
+        j = dof_parentid[i]
+        while j >= 0:
+            f = factor[i, j]
+            target = work[j]
             for r in range(count):
-                row[r] -= f * previous[r]
-        inv = 1.0 / factor[i, i]
-        for r in range(count):
-            row[r] *= inv
+                target[r] -= f * row[r]
+            j = dof_parentid[j]
     for s in range(slots):
         total = 0.0
         for i in range(n):
+            inv = 1.0 / factor[i, i]
             for a in range(3):
-                total += work[i, 3 * s + a] * work[i, 3 * s + a]
+                total += work[i, 3 * s + a] * work[i, 3 * s + a] * inv
         out[s] = total
 
 
@@ -544,15 +571,16 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, mass_h,
-                      qvel, timestep, step, plate_state, plate_step, work, flags, xi_new,
-                      wrench):
+def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v_reg, jac,
+                      mass_h, dof_parentid, qvel, timestep, step, plate_state, plate_step, work,
+                      flags, xi_new, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
     except the sand's (passive + actuator + applied - bias; `prepare_solve`). mass_h: Mh =
-    M + dt D, the matrix MuJoCo's step solves with (`implicit_mass`). With each plate moving
-    (force G), resting (linear in v+) or off, the end-of-step joint velocities solve
+    M + dt D, the matrix MuJoCo's step solves with (`implicit_mass`); dof_parentid: mjModel's.
+    With each plate moving (force G), resting (linear in v+) or off, the end-of-step joint
+    velocities solve
         (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving),   xi+ = J qvel+,
     K the plates' linear response, W_moving the moving plates' G; plates then change set
     until the solution is consistent (an active-set iteration; moving and off are
@@ -560,8 +588,8 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
     Each plate starts from its set of the previous step if it was in the sand then
     (`plate_state`/`plate_step`, indexed by plate, updated here) and not frozen, otherwise
     as moving when faster than v_reg; so a step usually needs one solve. Plates: columns
-    :k of the gathered table and force (`gather_plates`; force (6, >= k): this fills rows
-    3..5 with r x G, so that it holds h); work (WORK_ROWS, >= k) and flags
+    :k of the gathered table and force, slot by slot from slot_start (`gather_plates`;
+    force (6, >= k): this fills rows 3..5 with r x G, so that it holds h); work (WORK_ROWS, >= k) and flags
     (FLAG_ROWS, >= k) are work space, of which rows STATE (final sets) and ACROSS (across
     dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step twists) and wrench[:S]
     ([force; torque about COM], N, N m).
@@ -589,12 +617,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
         for c in range(nv):
             acc += mass_h[r, c] * qvel[c]
         momentum[r] = acc
-    # plates come slot by slot: slot s holds plates first[s] .. first[s + 1] - 1
-    first = np.zeros(slots + 1, dtype=np.int64)
-    for j in range(k):
-        first[out_slot[j] + 1] += 1
-    for s in range(slots):
-        first[s + 1] += first[s]
+    first = slot_start  # slot s holds plates first[s] .. first[s + 1] - 1
     h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
     magnitude, along = work[MAGNITUDE], work[ALONG]
     across, coef_along, coef_across = work[ACROSS], work[COEF_ALONG], work[COEF_ACROSS]
@@ -614,7 +637,7 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
     # step, dt x (sum of its plates' |G|) x its translational inverse effective mass
     # (diagonal of J Mh^-1 J^T, averaged).
     inverse_mass = np.empty(slots)
-    _translational_inverse_masses(mass_h, jac, slots, inverse_mass)
+    _translational_inverse_masses(mass_h, dof_parentid, jac, slots, inverse_mass)
     for s in range(slots):
         total = magnitude[first[s]:first[s + 1]].sum()
         turn_speed = max(total * timestep * inverse_mass[s] / 3.0, v_reg)
@@ -745,19 +768,39 @@ def implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, jac, m
 
 
 @njit(cache=True, error_model='numpy')
-def implicit_step(k, slots, step, timestep, v_reg, slot_body, body_ids, xipos, subtree_com,
-                  cdof, body_rootid, body_dofnum, body_dofadr, body_parentid, dof_parentid,
-                  qfrc_passive, qfrc_actuator, qfrc_applied, qfrc_bias, damper, actuators,
-                  dof_damping, trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype,
-                  gainprm, biastype, biasprm, forcelimited, forcerange, ctrl, act, actadr,
-                  actuator_force, damping, mass, jac, out_plate, out_slot, table, force, qvel,
-                  plate_state, plate_step, work, flags, xi_new, wrench, body_wrenches,
-                  xfrc_applied):
+def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     """One step's implicit sand wrenches, in one call from Python: `prepare_solve` (into
     jac, (>= 6S+1, nv) work space), `implicit_damping`, `implicit_mass` (mass: the dense M
     of this state, made Mh in place), `implicit_wrenches` over the `k` gathered plates in
     `slots` slots, then `scatter_wrenches` into xfrc_applied. Arguments as in those
-    functions; returns implicit_wrenches' solve count."""
+    functions, the arrays in an `ArrayTable` (its .table), in this order: slot_body,
+    body_ids, mjData's xipos, subtree_com, cdof, mjModel's body_rootid, body_dofnum,
+    body_dofadr, body_parentid, dof_parentid, mjData's qfrc_passive, qfrc_actuator,
+    qfrc_applied, qfrc_bias, then implicit_damping's dof_damping ... out (here `damping`),
+    mass, jac, out_plate, out_slot, table, force, qvel, plate_state, plate_step, work, flags,
+    xi_new, wrench, body_wrenches, xfrc_applied, slot_start. Returns implicit_wrenches' solve
+    count."""
+    slot_body, body_ids = int_vector(arrays, 0), int_vector(arrays, 1)
+    xipos, subtree_com, cdof = float_matrix(arrays, 2), float_matrix(arrays, 3), float_matrix(arrays, 4)
+    body_rootid, body_dofnum = int32_vector(arrays, 5), int32_vector(arrays, 6)
+    body_dofadr, body_parentid = int32_vector(arrays, 7), int32_vector(arrays, 8)
+    dof_parentid = int32_vector(arrays, 9)
+    qfrc_passive, qfrc_actuator = float_vector(arrays, 10), float_vector(arrays, 11)
+    qfrc_applied, qfrc_bias = float_vector(arrays, 12), float_vector(arrays, 13)
+    dof_damping, trntype, trnid = float_vector(arrays, 14), int32_vector(arrays, 15), int32_matrix(arrays, 16)
+    gear, jnt_type, jnt_dofadr = float_matrix(arrays, 17), int32_vector(arrays, 18), int32_vector(arrays, 19)
+    dyntype, gaintype, gainprm = int32_vector(arrays, 20), int32_vector(arrays, 21), float_matrix(arrays, 22)
+    biastype, biasprm = int32_vector(arrays, 23), float_matrix(arrays, 24)
+    forcelimited, forcerange = byte_vector(arrays, 25), float_matrix(arrays, 26)
+    ctrl, act, actadr = float_vector(arrays, 27), float_vector(arrays, 28), int32_vector(arrays, 29)
+    actuator_force, damping = float_vector(arrays, 30), float_vector(arrays, 31)
+    mass, jac = float_matrix(arrays, 32), float_matrix(arrays, 33)
+    out_plate, out_slot = int_vector(arrays, 34), int_vector(arrays, 35)
+    table, force, qvel = float_matrix(arrays, 36), float_matrix(arrays, 37), float_vector(arrays, 38)
+    plate_state, plate_step = int8_vector(arrays, 39), int_vector(arrays, 40)
+    work, flags, xi_new = float_matrix(arrays, 41), int8_matrix(arrays, 42), float_vector(arrays, 43)
+    wrench, body_wrenches = float_matrix(arrays, 44), float_matrix(arrays, 45)
+    xfrc_applied, slot_start = float_matrix(arrays, 46), int_vector(arrays, 47)
     rows = jac[:6 * slots + 1]
     prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -766,9 +809,9 @@ def implicit_step(k, slots, step, timestep, v_reg, slot_body, body_ids, xipos, s
                      jnt_dofadr, dyntype, gaintype, gainprm, biastype, biasprm, forcelimited,
                      forcerange, ctrl, act, actadr, actuator_force, damping)
     implicit_mass(mass, damping, timestep)
-    iterations = implicit_wrenches(k, slots, out_plate, out_slot, table, force, v_reg, rows,
-                                   mass, qvel, timestep, step, plate_state, plate_step, work,
-                                   flags, xi_new, wrench)
+    iterations = implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force,
+                                   v_reg, rows, mass, dof_parentid, qvel, timestep, step,
+                                   plate_state, plate_step, work, flags, xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
     return iterations
 

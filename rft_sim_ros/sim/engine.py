@@ -19,6 +19,7 @@ from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import coupling
+from .array_table import ArrayTable
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
@@ -77,7 +78,7 @@ class SandEngine:
                                  dtype=np.int64)
         plates = [body_plates[name] for name in self.body_names]
         self._cluster(plates)
-        self.surface_height = float(surface_height)
+        self._surface_height = float(surface_height)
         norm = find_normalisation(normalisation)
         self._inv_a4, self._inv_b4 = 1.0 / norm.a4, 1.0 / norm.b4  # reciprocal normalisers
         self.dynamic = dynamic
@@ -85,6 +86,7 @@ class SandEngine:
         self.low_velocity = low_velocity
         # the paper's EMA keeps a history for plates in the sand that trail, too
         self._include_trailing = low_velocity.method == 'ema'
+        self._implicit_method = low_velocity.method == 'implicit'
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
@@ -101,6 +103,7 @@ class SandEngine:
         self._plate_step = np.full(n, -2, dtype=np.int64)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
+        self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
         self._slot_wrench = np.zeros((nb, 6))
         self._jac = np.zeros((6 * nb + 1, model.nv))  # slot Jacobians and tau_free
         self._ema_force = np.zeros((n, 3))
@@ -149,8 +152,9 @@ class SandEngine:
         self._cluster_radius = np.array(radii, dtype=float)
 
     def _views(self):
-        """Cache the argument tuples of the per-step kernels: numpy views of mjModel/mjData
-        and the engine's own arrays, which stay the same objects for the engine's life."""
+        """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
+        of mjModel/mjData and the engine's own arrays, which stay the same objects, at the same
+        addresses, for the engine's life."""
         m, d = self.model, self.data
         integrator = m.opt.integrator
         damper = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
@@ -162,24 +166,24 @@ class SandEngine:
         self._full_inertia, self._full_inertia_args = full_inertia_call(m, d, self._mass)
         self._xipos = d.xipos
         self._xfrc = d.xfrc_applied
-        self._damping_arrays = (
-            bool(damper), bool(actuators), m.dof_damping, m.actuator_trntype, m.actuator_trnid,
-            m.actuator_gear, m.jnt_type, m.jnt_dofadr, m.actuator_dyntype,
-            m.actuator_gaintype, m.actuator_gainprm, m.actuator_biastype, m.actuator_biasprm,
-            m.actuator_forcelimited, m.actuator_forcerange, d.ctrl, d.act, m.actuator_actadr,
-            d.actuator_force, self._damping)
-        self._gather_arrays = (
+        # the constant scalar arguments of coupling.implicit_step
+        self._implicit_scalars = (self.low_velocity.rest_speed, bool(damper), bool(actuators))
+        self._gather_arrays = ArrayTable(
             self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
             self._cluster_center, self._cluster_radius, self._local, self.areas, d.xpos, d.xmat,
             d.xipos, d.cvel, d.subtree_com, m.body_rootid, self._plate, self._slot,
-            self._slot_body, self._table, self._motion, self._force)
-        self._implicit_arrays = (
+            self._slot_body, self._slot_start, self._table, self._motion, self._force)
+        self._implicit_arrays = ArrayTable(
             self._slot_body, self.body_ids, d.xipos, d.subtree_com, d.cdof, m.body_rootid,
             m.body_dofnum, m.body_dofadr, m.body_parentid, m.dof_parentid, d.qfrc_passive,
-            d.qfrc_actuator, d.qfrc_applied, d.qfrc_bias, *self._damping_arrays, self._mass,
-            self._jac, self._plate, self._slot, self._table, self._force, d.qvel,
-            self._plate_state, self._plate_step, self._work, self._flags, self._xi,
-            self._slot_wrench, self.body_wrenches, d.xfrc_applied)
+            d.qfrc_actuator, d.qfrc_applied, d.qfrc_bias, m.dof_damping, m.actuator_trntype,
+            m.actuator_trnid, m.actuator_gear, m.jnt_type, m.jnt_dofadr, m.actuator_dyntype,
+            m.actuator_gaintype, m.actuator_gainprm, m.actuator_biastype, m.actuator_biasprm,
+            m.actuator_forcelimited, m.actuator_forcerange, d.ctrl, d.act, m.actuator_actadr,
+            d.actuator_force, self._damping, self._mass, self._jac, self._plate, self._slot,
+            self._table, self._force, d.qvel, self._plate_state, self._plate_step, self._work,
+            self._flags, self._xi, self._slot_wrench, self.body_wrenches, d.xfrc_applied,
+            self._slot_start)
 
     @property
     def zeta(self):
@@ -189,7 +193,14 @@ class SandEngine:
     @zeta.setter
     def zeta(self, value):
         self._zeta = validated_zeta(value)
-        self._zeta_si = zeta_to_si(self._zeta)
+        # the scalar arguments of coupling.gather_plates
+        self._gather_scalars = (self._surface_height, zeta_to_si(self._zeta), self._inv_a4,
+                                self._inv_b4, self._dyn, self._include_trailing)
+
+    @property
+    def surface_height(self):
+        """z of the horizontal sand surface, m (world)."""
+        return self._surface_height
 
     @property
     def plates_total(self):
@@ -207,7 +218,7 @@ class SandEngine:
         into xfrc_applied of the sand bodies."""
         self._step += 1
         k, self.plates_active, slots = self._gather()
-        if slots and self.low_velocity.method == 'implicit':
+        if slots and self._implicit_method:
             iterations = self._implicit(k, slots)
             self.solves += abs(iterations)
             self.unsettled_steps += iterations < 0
@@ -233,9 +244,7 @@ class SandEngine:
 
     def _gather(self):
         """The plates in the sand and their RFT forces (coupling.gather_plates)."""
-        return coupling.gather_plates(self.surface_height, self._zeta_si, self._inv_a4,
-                                      self._inv_b4, self._dyn, self._include_trailing,
-                                      *self._gather_arrays)
+        return coupling.gather_plates(*self._gather_scalars, self._gather_arrays.table)
 
     def _implicit(self, k, slots):
         """Implicit sand wrenches, written to xfrc_applied (coupling.implicit_step, after
@@ -244,7 +253,7 @@ class SandEngine:
         mujoco.mj_fwdActuation(m, self.data)
         self._full_inertia(*self._full_inertia_args)
         return coupling.implicit_step(k, slots, self._step, m.opt.timestep,
-                                      self.low_velocity.rest_speed, *self._implicit_arrays)
+                                      *self._implicit_scalars, self._implicit_arrays.table)
 
     def _load_kernels(self):
         """Run every compiled kernel once on no plates (their outputs are scratch), so that

@@ -1,0 +1,87 @@
+"""Many arrays as one argument of a compiled kernel: their addresses in an int64 table.
+
+Numba unboxes every array argument of a compiled function on each call from Python (about
+50 ns per array on our CI machine). The engine's per-step kernels read some fifty arrays
+(views of mjModel/mjData and the engine's own work space), which made argument passing a
+tenth of the step. The arrays stay the same objects, at the same addresses, for the life of
+an engine (MuJoCo allocates mjModel and mjData once), so an `ArrayTable` records each
+array's address, dtype and shape once, and a kernel takes the table as one argument and reads
+the arrays back with the accessors below, which check the dtype and rank each entry was
+recorded with, so that a table built in another order raises instead of reading garbage.
+
+The table holds references to its arrays, so they stay alive while it does; an array must
+never be replaced by a new object while a table of it is in use.
+"""
+import numpy as np
+from numba import carray, njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+#: Element types a table records, by code. MuJoCo's mjtByte arrays are numpy bool in
+#: MuJoCo 4 and uint8 in MuJoCo 3: both are read as uint8 (0 or 1).
+_CODES = {np.dtype(np.float64): 0, np.dtype(np.int64): 1, np.dtype(np.int32): 2,
+          np.dtype(np.int8): 3, np.dtype(np.uint8): 4, np.dtype(np.bool_): 4}
+ADDRESS, CODE, RANK, ROWS, COLUMNS = range(5)  # the table's columns
+
+
+class ArrayTable:
+    """Addresses, element codes, ranks and shapes of C-contiguous 1-D or 2-D arrays, one row
+    per array in the order given (`table`, int64, (n, 5)); keeps the arrays alive."""
+
+    def __init__(self, *arrays):
+        rows = []
+        for index, array in enumerate(arrays):
+            if not isinstance(array, np.ndarray) or array.ndim not in (1, 2):
+                raise TypeError(f'array table entry {index}: a 1-D or 2-D numpy array is '
+                                f'needed, got {type(array).__name__}')
+            if not array.flags.c_contiguous:
+                raise ValueError(f'array table entry {index} is not C-contiguous')
+            if array.dtype not in _CODES:
+                raise TypeError(f'array table entry {index} has dtype {array.dtype}; '
+                                f'supported: {sorted({str(d) for d in _CODES})}')
+            shape = array.shape + (1,) * (2 - array.ndim)
+            rows.append((array.ctypes.data, _CODES[array.dtype], array.ndim, *shape))
+        self.arrays = arrays
+        self.table = np.array(rows, dtype=np.int64).reshape(-1, 5)
+
+
+@intrinsic
+def _pointer(typingctx, address):
+    """The integer `address` as a void pointer."""
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], cgutils.voidptr_t)
+    return types.voidptr(types.int64), codegen
+
+
+@njit(inline='always')
+def _check(table, i, code, rank):
+    if table[i, CODE] != code or table[i, RANK] != rank:
+        raise TypeError('array table entry read with another dtype or rank than recorded')
+
+
+def _vector_reader(dtype):
+    code = _CODES[np.dtype(dtype)]
+
+    @njit(inline='always')
+    def read(table, i):
+        _check(table, i, code, 1)
+        return carray(_pointer(table[i, ADDRESS]), table[i, ROWS], dtype)
+    return read
+
+
+def _matrix_reader(dtype):
+    code = _CODES[np.dtype(dtype)]
+
+    @njit(inline='always')
+    def read(table, i):
+        _check(table, i, code, 2)
+        return carray(_pointer(table[i, ADDRESS]), (table[i, ROWS], table[i, COLUMNS]), dtype)
+    return read
+
+
+#: Compiled accessors: entry i of a table as an array (no copy), by element type and rank.
+float_vector, float_matrix = _vector_reader(np.float64), _matrix_reader(np.float64)
+int_vector, int_matrix = _vector_reader(np.int64), _matrix_reader(np.int64)
+int32_vector, int32_matrix = _vector_reader(np.int32), _matrix_reader(np.int32)
+int8_vector, int8_matrix = _vector_reader(np.int8), _matrix_reader(np.int8)
+byte_vector = _vector_reader(np.uint8)
