@@ -33,8 +33,9 @@ def hexapod_step_cost(chunks=9, chunk_steps=1000, overrides=None, settle_steps=2
     sim.step(settle_steps)  # dropped, settled, walking
     model, data = _rigid_hexapod(dt)
     gait = make_gait('tripod')
-    actuators = [model.actuator(name).id for name in gait.joint_names]
-    servo = sim._servo_ctrl  # the same joints, in the scene's servo order
+    actuators = np.array([model.actuator(name).id for name in gait.joint_names])
+    servo = sim._servo_ctrl  # the same joints, in the scene's servo order (index arrays in
+    # both loops, so that writing the controls costs the same in both)
     order = [gait.joint_names.index(name) for name in sim.servo_joint_names]
 
     def targets_from(t0):  # gait targets for the coming chunk, computed outside the timing
@@ -49,15 +50,17 @@ def hexapod_step_cost(chunks=9, chunk_steps=1000, overrides=None, settle_steps=2
         sim.step(chunk_steps)
         full.append((time.perf_counter() - start) / chunk_steps)
         table = targets_from(sim.time)[:, order]
+        ctrl, engine_step = sim.data.ctrl, sim.engine.step
         start = time.perf_counter()
         for i in range(chunk_steps):
-            sim.data.ctrl[servo] = table[i]
-            sim.engine.step()
+            ctrl[servo] = table[i]
+            engine_step()
         engine_only.append((time.perf_counter() - start) / chunk_steps)
         table = targets_from(data.time)
+        ctrl = data.ctrl
         start = time.perf_counter()
         for i in range(chunk_steps):
-            data.ctrl[actuators] = table[i]
+            ctrl[actuators] = table[i]
             mujoco.mj_step(model, data)
         rigid.append((time.perf_counter() - start) / chunk_steps)
     full, engine_only, rigid = map(np.array, (full, engine_only, rigid))

@@ -407,11 +407,8 @@ def across_damper(magnitude, speed, v_reg, turn_speed):
 def _along_factor(state, speed, inv_reg, v_reg):
     """Coefficient of a plate's linear along response G (d.w) x factor, 1/(m/s), by set:
     1/v_reg resting, 1/max(|v|, v_reg) frozen (a secant through its current speed), else 0."""
-    if state == RESTING:
-        return inv_reg
-    if state == FROZEN:
-        return 1.0 / max(speed, v_reg)
-    return 0.0
+    secant = 1.0 / max(speed, v_reg)  # selects, no branches: the callers' loops vectorise
+    return inv_reg if state == RESTING else (secant if state == FROZEN else 0.0)
 
 
 @njit(cache=True, inline='always')
@@ -647,11 +644,13 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
             across_s[j] = across_damper(magnitude_s[j], speed_s[j], v_reg, turn_speed)
     # initial sets and each plate's coefficients for its set: along factor, across damper,
     # moving (0/1)
-    for j in range(k):
+    for j in range(k):  # the previous step's set, or -1 (gathers by plate: a loop of its own)
         p = out_plate[j]
         previous = plate_state[p]
         warm = (plate_step[p] == step - 1) & (previous != FROZEN)
-        state = previous if warm else (MOVING if speed[j] > v_reg else RESTING)
+        states[j] = previous if warm else -1
+    for j in range(k):
+        state = states[j] if states[j] >= 0 else (MOVING if speed[j] > v_reg else RESTING)
         states[j] = state
         visited[j] = 1 << state
         _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
@@ -772,7 +771,8 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     """One step's implicit sand wrenches, in one call from Python: `prepare_solve` (into
     jac, (>= 6S+1, nv) work space), `implicit_damping`, `implicit_mass` (mass: the dense M
     of this state, made Mh in place), `implicit_wrenches` over the `k` gathered plates in
-    `slots` slots, then `scatter_wrenches` into xfrc_applied. Arguments as in those
+    `slots` slots, then `scatter_wrenches` into xfrc_applied (zero wrenches only, with no
+    slot). Arguments as in those
     functions, the arrays in an `ArrayTable` (its .table), in this order: slot_body,
     body_ids, mjData's xipos, subtree_com, cdof, mjModel's body_rootid, body_dofnum,
     body_dofadr, body_parentid, dof_parentid, mjData's qfrc_passive, qfrc_actuator,
@@ -801,6 +801,9 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     work, flags, xi_new = float_matrix(arrays, 41), int8_matrix(arrays, 42), float_vector(arrays, 43)
     wrench, body_wrenches = float_matrix(arrays, 44), float_matrix(arrays, 45)
     xfrc_applied, slot_start = float_matrix(arrays, 46), int_vector(arrays, 47)
+    if slots == 0:  # no plate in the sand
+        scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
+        return 0
     rows = jac[:6 * slots + 1]
     prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -814,6 +817,21 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
                                    plate_state, plate_step, work, flags, xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
     return iterations
+
+
+@njit(cache=True, error_model='numpy')
+def implicit_sand_step(step, timestep, surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho,
+                       include_trailing, v_reg, damper, actuators, gather_arrays,
+                       implicit_arrays):
+    """A whole step's sand wrenches by the implicit law, in one call from Python (after
+    mj_step1, MuJoCo's actuator forces and the dense inertia of this state): `gather_plates`,
+    then `implicit_step`. Arguments as there; returns (plates gathered, of those leading,
+    slots, solve count)."""
+    k, leading, slots = gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho,
+                                      include_trailing, gather_arrays)
+    iterations = implicit_step(k, slots, step, timestep, v_reg, damper, actuators,
+                               implicit_arrays)
+    return k, leading, slots, iterations
 
 
 @njit(cache=True, error_model='numpy')

@@ -156,6 +156,7 @@ class SandEngine:
         of mjModel/mjData and the engine's own arrays, which stay the same objects, at the same
         addresses, for the engine's life."""
         m, d = self.model, self.data
+        self._options = m.opt  # a live view: the timestep is read every step
         integrator = m.opt.integrator
         damper = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
         if integrator == mujoco.mjtIntegrator.mjINT_EULER:
@@ -209,23 +210,25 @@ class SandEngine:
 
     def step(self):
         """Advance the model one timestep with sand forces."""
-        mujoco.mj_step1(self.model, self.data)
+        model, data = self.model, self.data
+        mujoco.mj_step1(model, data)
         self.apply()
-        mujoco.mj_step2(self.model, self.data)
+        mujoco.mj_step2(model, data)
 
     def apply(self):
         """Compute the sand wrenches from the current state (after mj_step1) and write them
         into xfrc_applied of the sand bodies."""
         self._step += 1
-        k, self.plates_active, slots = self._gather()
-        if slots and self._implicit_method:
-            iterations = self._implicit(k, slots)
+        if self._implicit_method:
+            k, self.plates_active, slots, iterations = self._implicit(self._gather_scalars)
             self.solves += abs(iterations)
             self.unsettled_steps += iterations < 0
-        elif slots:
-            self._explicit(k, slots)
-        elif self._slots:  # the last bodies left the sand
-            self._scatter(0)
+        else:
+            k, self.plates_active, slots = self._gather(self._gather_scalars)
+            if slots:
+                self._explicit(k, slots)
+            elif self._slots:  # the last bodies left the sand
+                self._scatter(0)
         self._k, self._slots = k, slots
 
     def _explicit(self, k, slots):
@@ -242,29 +245,31 @@ class SandEngine:
         coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
                                   self.body_wrenches, self._xfrc)
 
-    def _gather(self):
+    def _gather(self, gather_scalars):
         """The plates in the sand and their RFT forces (coupling.gather_plates)."""
-        return coupling.gather_plates(*self._gather_scalars, self._gather_arrays.table)
+        return coupling.gather_plates(*gather_scalars, self._gather_arrays.table)
 
-    def _implicit(self, k, slots):
-        """Implicit sand wrenches, written to xfrc_applied (coupling.implicit_step, after
-        MuJoCo's actuator forces and dense inertia of this state); returns its solve count."""
-        m = self.model
-        mujoco.mj_fwdActuation(m, self.data)
+    def _implicit(self, gather_scalars):
+        """The plates in the sand and their implicit wrenches, written to xfrc_applied
+        (coupling.implicit_sand_step, after MuJoCo's actuator forces and dense inertia of this
+        state). Returns (plates gathered, of those leading, slots, solve count)."""
+        mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
-        return coupling.implicit_step(k, slots, self._step, m.opt.timestep,
-                                      *self._implicit_scalars, self._implicit_arrays.table)
+        return coupling.implicit_sand_step(
+            self._step, self._options.timestep, *gather_scalars, *self._implicit_scalars,
+            self._gather_arrays.table, self._implicit_arrays.table)
 
     def _load_kernels(self):
         """Run every compiled kernel once on no plates (their outputs are scratch), so that
         numba loads them from its cache (or compiles them) now, as part of start-up, and not
         at the first step in contact with sand, where it would stall a running simulation
         (a paced ROS node) for up to a few tenths of a second."""
-        self._gather()
-        if self.low_velocity.method == 'implicit':
-            self._implicit(0, 0)
+        no_sand = (-np.inf,) + self._gather_scalars[1:]  # a surface no plate is below
+        if self._implicit_method:
+            self._implicit(no_sand)
             self._implicit_plate_forces(0)
         else:
+            self._gather(no_sand)
             self._explicit(0, 0)
 
     def active_plates(self):
