@@ -1,7 +1,7 @@
 """`rft-sim bench`: speed of the sand simulation, against plain MuJoCo and against error.
 
 run_bench(out, quick) measures, in one process: the hexapod step against a rigid-floor
-MuJoCo step of the same robot and a full hexapod trial's real-time factor (`step_cost`),
+MuJoCo step of the same robot and full hexapod trials' real-time factor (`step_cost`),
 start-up cold and warm (`startup`), cost against plates in and above the sand (`scaling`),
 and speed against error for every scene (`pareto`); it writes JSON, markdown and PNG.
 """
@@ -18,12 +18,16 @@ def run_bench(out, quick=False, log=print):
     results['step_cost'] = step_cost.hexapod_step_cost(
         chunks=3 if quick else 9, chunk_steps=300 if quick else 1000,
         settle_steps=500 if quick else 2500)
-    log('full hexapod trial')
-    trial, walk = step_cost.hexapod_trial({'cycles': 1} if quick else None)
+    log('full hexapod trials')
+    trials = sorted((step_cost.hexapod_trial({'cycles': 1} if quick else None)
+                     for _ in range(1 if quick else 3)),
+                    key=lambda run: run[1]['real_time_factor'])
+    trial, walk = trials[len(trials) // 2]  # the run with the median walk
     results['trial'] = {k: trial[k] for k in ('sim_time_s', 'wall_time_s', 'real_time_factor',
                                               'startup_time_s', 'plates_total',
                                               'plates_active_mean')}
     results['trial']['walk'] = walk
+    results['trial']['walk_real_time_factors'] = [run[1]['real_time_factor'] for run in trials]
     log('start-up, cold and warm')
     results['startup'] = startup.startup_times(warm_runs=1 if quick else 3)
     log('cost against plates')
