@@ -83,7 +83,7 @@ SPEED = LAW_ROWS + 6   # |v|, m/s
 PLATE_ROWS = LAW_ROWS + 7
 
 
-@njit(cache=True, error_model='numpy')
+@njit(cache=True, error_model='numpy', fastmath={'contract'})
 def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
                   arrays):
     """Find the plates in the sand and their RFT force for the current direction of motion.
