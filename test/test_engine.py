@@ -53,10 +53,13 @@ def test_slot_jacobians_and_free_force_match_mujoco(seed):
     mujoco.mj_forward(model, data)
     bodies = np.arange(len(engine.body_ids))
     jac = np.zeros((6 * len(bodies) + 1, model.nv))
+    chain = np.zeros((len(bodies), model.nv), dtype=np.int64)
+    chain_count = np.zeros(len(bodies), dtype=np.int64)
     coupling.prepare_solve(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
                            data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
                            model.body_parentid, model.dof_parentid, data.qfrc_passive,
-                           data.qfrc_actuator, data.qfrc_applied, data.qfrc_bias, jac)
+                           data.qfrc_actuator, data.qfrc_applied, data.qfrc_bias, jac, chain,
+                           chain_count)
     free_force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
     assert np.allclose(jac[-1], free_force)
     for slot, body in enumerate(engine.body_ids):
@@ -64,6 +67,8 @@ def test_slot_jacobians_and_free_force_match_mujoco(seed):
         mujoco.mj_jac(model, data, jacp, jacr, data.xipos[body], body)
         assert np.allclose(jac[6 * slot:6 * slot + 3], jacp, atol=1e-12)
         assert np.allclose(jac[6 * slot + 3:6 * slot + 6], jacr, atol=1e-12)
+        reached = np.flatnonzero(np.any(np.vstack([jacp, jacr]) != 0.0, axis=0))
+        assert sorted(chain[slot, :chain_count[slot]]) == list(reached)  # the kinematic chain
 
 
 TREE = """

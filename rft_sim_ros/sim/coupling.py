@@ -213,12 +213,14 @@ def _directions(k, motion, table):
 @njit(cache=True, error_model='numpy')
 def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                  qfrc_actuator, qfrc_applied, qfrc_bias, rows):
+                  qfrc_actuator, qfrc_applied, qfrc_bias, rows, chain, chain_count):
     """Right-hand sides of the implicit solve: rows 6s..6s+5 of `rows` ((6S+1) x nv) become
     d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
-    tau_free = passive + actuator + applied - bias (N or N m per dof)."""
+    tau_free = passive + actuator + applied - bias (N or N m per dof). chain[s, :chain_count[s]]
+    (S x nv, S) become the dofs slot s's rows reach: its kinematic chain, leaf to root."""
     rows[:6 * slots + 1, :] = 0.0
+    chain_count[:slots] = 0
     for s in range(slots):
         b = body_ids[slot_body[s]]
         root = body_rootid[b]
@@ -239,6 +241,8 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
             rows[6 * s + 3, i] = ax
             rows[6 * s + 4, i] = ay
             rows[6 * s + 5, i] = az
+            chain[s, chain_count[s]] = i
+            chain_count[s] += 1
             i = dof_parentid[i]
     for i in range(qfrc_bias.shape[0]):
         rows[6 * slots, i] = qfrc_passive[i] + qfrc_actuator[i] + qfrc_applied[i] - qfrc_bias[i]
@@ -569,12 +573,13 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v_reg, jac,
-                      mass_h, dof_parentid, qvel, timestep, step, plate_state, plate_step, work,
-                      flags, xi_new, wrench):
+                      chain, chain_count, mass_h, dof_parentid, qvel, timestep, step,
+                      plate_state, plate_step, work, flags, xi_new, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
-    except the sand's (passive + actuator + applied - bias; `prepare_solve`). mass_h: Mh =
+    except the sand's (passive + actuator + applied - bias), and chain, chain_count the dofs
+    each slot's rows reach (`prepare_solve`). mass_h: Mh =
     M + dt D, the matrix MuJoCo's step solves with (`implicit_mass`); dof_parentid: mjModel's.
     With each plate moving (force G), resting (linear in v+) or off, the end-of-step joint
     velocities solve
@@ -659,17 +664,6 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     k_rank = np.zeros((slots, 6, 6))
     k_iso = np.zeros((slots, 10))
     dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
-    # the dofs each slot's Jacobian reaches (its kinematic chain)
-    chain = np.empty((slots, nv), dtype=np.int64)
-    chain_count = np.zeros(slots, dtype=np.int64)
-    for s in range(slots):
-        for c in range(nv):
-            reaches = False
-            for b in range(6):
-                reaches = reaches or jac[6 * s + b, c] != 0.0
-            if reaches:
-                chain[s, chain_count[s]] = c
-                chain_count[s] += 1
     block = np.zeros((6, 6))
     block_jac = np.empty((6, nv))  # block J of a slot
     system = np.empty((nv, nv))
@@ -805,16 +799,19 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
         scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
         return 0
     rows = jac[:6 * slots + 1]
+    chain = np.empty((slots, qvel.shape[0]), dtype=np.int64)
+    chain_count = np.empty(slots, dtype=np.int64)
     prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                  qfrc_actuator, qfrc_applied, qfrc_bias, rows)
+                  qfrc_actuator, qfrc_applied, qfrc_bias, rows, chain, chain_count)
     implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_type,
                      jnt_dofadr, dyntype, gaintype, gainprm, biastype, biasprm, forcelimited,
                      forcerange, ctrl, act, actadr, actuator_force, damping)
     implicit_mass(mass, damping, timestep)
     iterations = implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force,
-                                   v_reg, rows, mass, dof_parentid, qvel, timestep, step,
-                                   plate_state, plate_step, work, flags, xi_new, wrench)
+                                   v_reg, rows, chain, chain_count, mass, dof_parentid, qvel,
+                                   timestep, step, plate_state, plate_step, work, flags,
+                                   xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
     return iterations
 
