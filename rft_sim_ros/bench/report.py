@@ -43,14 +43,14 @@ def markdown(results):
     trial = results.get('trial')
     if trial:
         walk = trial['walk']
-        factors = ', '.join(f'{f:.1f}' for f in trial.get('walk_real_time_factors', []))
+        factors = trial['walk_real_time_factors']
         lines += [f'Full `hexapod` run ({trial["sim_time_s"]:g} s of sim time: 1 s drop and '
                   f'settle, then the walk): {trial["wall_time_s"]:.2f} s wall, real-time factor '
                   f'**{trial["real_time_factor"]:.1f}**. Its walk alone ({walk["sim_time_s"]:g} '
                   f's, the paper\'s trial): {walk["wall_time_s"]:.2f} s wall, real-time factor '
-                  f'**{walk["real_time_factor"]:.1f}** (the paper: 0.04). Of '
-                  f'{len(trial.get("walk_real_time_factors", [])) or 1} runs, the one with the '
-                  f'median walk (their walks\' real-time factors: {factors}).', '']
+                  f'**{walk["real_time_factor"]:.1f}** (the paper: 0.04). Of {len(factors)} '
+                  f'runs, the one with the median walk (their walks\' real-time factors: '
+                  f'{", ".join(f"{f:.1f}" for f in factors)}).', '']
     start = results.get('startup')
     if start:
         lines += ['## Start-up (import + model + plates + kernels)', '',

@@ -27,6 +27,8 @@ The law is continuous at a = 1, so the implicit solve settles in one or two pass
 that would return to a set it already had in the step is frozen (see `implicit_wrenches`).
 A loaded body at rest creeps at most ~v_reg * load / capacity.
 """
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -82,17 +84,43 @@ LEVER = LAW_ROWS + 3   # lever arm r from the body's COM, m, world (3 rows)
 SPEED = LAW_ROWS + 6   # |v|, m/s
 PLATE_ROWS = LAW_ROWS + 7
 
+#: The arrays of `gather_plates`, in the order of its `ArrayTable`; GATHER holds each
+#: field's row of the table. The engine builds the table from a GatherArrays by name, so
+#: the order lives here only.
+GatherArrays = namedtuple('GatherArrays', [
+    # the engine's plates and clusters
+    'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start', 'cluster_center',
+    'cluster_radius', 'local', 'areas',
+    # mjData, mjModel
+    'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
+    # outputs
+    'out_plate', 'out_slot', 'slot_body', 'slot_start', 'table', 'motion', 'force'])
+GATHER = GatherArrays(*range(len(GatherArrays._fields)))
+
+#: The arrays of `implicit_step`, likewise (IMPLICIT: their rows).
+ImplicitArrays = namedtuple('ImplicitArrays', [
+    # the gathered plates (`gather_plates`)
+    'slot_body', 'slot_start', 'out_plate', 'out_slot', 'table', 'force',
+    # the sand bodies, mjModel, mjData
+    'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
+    'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
+    'qfrc_bias',
+    # implicit_damping's model and data arrays
+    'dof_damping', 'trntype', 'trnid', 'gear', 'jnt_type', 'jnt_dofadr', 'dyntype',
+    'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
+    'actadr', 'actuator_force',
+    # work space and results
+    'damping', 'mass', 'jac', 'plate_state', 'plate_step', 'work', 'flags', 'xi_new',
+    'wrench', 'body_wrenches', 'xfrc_applied'])
+IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
+
 
 @njit(cache=True, error_model='numpy', fastmath={'contract'})
 def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
                   arrays):
     """Find the plates in the sand and their RFT force for the current direction of motion.
 
-    arrays: an `ArrayTable` (its .table) of body_ids, radii, body_cluster_start,
-    cluster_plate_start, cluster_center, cluster_radius, local, areas (the engine's plates
-    and clusters), mjData's xpos, xmat, xipos, cvel, subtree_com, mjModel's body_rootid, and
-    the outputs out_plate, out_slot, slot_body, slot_start, table, motion, force, in this
-    order.
+    arrays: the table of an `ArrayTable` of `GatherArrays`.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
     whose bounding sphere, lies above the surface are skipped without touching their plates.
@@ -107,16 +135,21 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
     reciprocal normalisers). Returns (plates written, of those leading, slots S); slot_body[s] is
     the slot's sand-body index, and its plates are columns slot_start[s] .. slot_start[s+1]-1.
     """
-    body_ids, radii = int_vector(arrays, 0), float_vector(arrays, 1)
-    body_cluster_start, cluster_plate_start = int_vector(arrays, 2), int_vector(arrays, 3)
-    cluster_center, cluster_radius = float_matrix(arrays, 4), float_vector(arrays, 5)
-    local, areas = float_matrix(arrays, 6), float_vector(arrays, 7)
-    xpos, xmat, xipos = float_matrix(arrays, 8), float_matrix(arrays, 9), float_matrix(arrays, 10)
-    cvel, subtree_com = float_matrix(arrays, 11), float_matrix(arrays, 12)
-    body_rootid = int32_vector(arrays, 13)
-    out_plate, out_slot, slot_body = int_vector(arrays, 14), int_vector(arrays, 15), int_vector(arrays, 16)
-    slot_start = int_vector(arrays, 17)
-    table, motion, force = float_matrix(arrays, 18), float_matrix(arrays, 19), float_matrix(arrays, 20)
+    a = GATHER
+    body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
+    body_cluster_start = int_vector(arrays, a.body_cluster_start)
+    cluster_plate_start = int_vector(arrays, a.cluster_plate_start)
+    cluster_center = float_matrix(arrays, a.cluster_center)
+    cluster_radius = float_vector(arrays, a.cluster_radius)
+    local, areas = float_matrix(arrays, a.local), float_vector(arrays, a.areas)
+    xpos, xmat = float_matrix(arrays, a.xpos), float_matrix(arrays, a.xmat)
+    xipos, cvel = float_matrix(arrays, a.xipos), float_matrix(arrays, a.cvel)
+    subtree_com = float_matrix(arrays, a.subtree_com)
+    body_rootid = int32_vector(arrays, a.body_rootid)
+    out_plate, out_slot = int_vector(arrays, a.out_plate), int_vector(arrays, a.out_slot)
+    slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
+    table, motion = float_matrix(arrays, a.table), float_matrix(arrays, a.motion)
+    force = float_matrix(arrays, a.force)
     k = 0
     leading_count = 0
     slots = 0
@@ -579,10 +612,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
     except the sand's (passive + actuator + applied - bias), and chain, chain_count the dofs
-    each slot's rows reach (`prepare_solve`). mass_h: Mh =
-    M + dt D, the matrix MuJoCo's step solves with (`implicit_mass`); dof_parentid: mjModel's.
-    With each plate moving (force G), resting (linear in v+) or off, the end-of-step joint
-    velocities solve
+    each slot's rows reach (`prepare_solve`). mass_h: Mh = M + dt D, the matrix MuJoCo's
+    step solves with (`implicit_mass`); dof_parentid: mjModel's. With each plate moving
+    (force G), resting (linear in v+) or off, the end-of-step joint velocities solve
         (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving),   xi+ = J qvel+,
     K the plates' linear response, W_moving the moving plates' G; plates then change set
     until the solution is consistent (an active-set iteration; moving and off are
@@ -591,10 +623,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     (`plate_state`/`plate_step`, indexed by plate, updated here) and not frozen, otherwise
     as moving when faster than v_reg; so a step usually needs one solve. Plates: columns
     :k of the gathered table and force, slot by slot from slot_start (`gather_plates`;
-    force (6, >= k): this fills rows 3..5 with r x G, so that it holds h); work (WORK_ROWS, >= k) and flags
-    (FLAG_ROWS, >= k) are work space, of which rows STATE (final sets) and ACROSS (across
-    dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step twists) and wrench[:S]
-    ([force; torque about COM], N, N m).
+    force (6, >= k): this fills rows 3..5 with r x G, so that it holds h); work
+    (WORK_ROWS, >= k) and flags (FLAG_ROWS, >= k) are work space, of which rows STATE (final
+    sets) and ACROSS (across dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step
+    twists) and wrench[:S] ([force; torque about COM], N, N m).
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -766,35 +798,38 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     jac, (>= 6S+1, nv) work space), `implicit_damping`, `implicit_mass` (mass: the dense M
     of this state, made Mh in place), `implicit_wrenches` over the `k` gathered plates in
     `slots` slots, then `scatter_wrenches` into xfrc_applied (zero wrenches only, with no
-    slot). Arguments as in those
-    functions, the arrays in an `ArrayTable` (its .table), in this order: slot_body,
-    body_ids, mjData's xipos, subtree_com, cdof, mjModel's body_rootid, body_dofnum,
-    body_dofadr, body_parentid, dof_parentid, mjData's qfrc_passive, qfrc_actuator,
-    qfrc_applied, qfrc_bias, then implicit_damping's dof_damping ... out (here `damping`),
-    mass, jac, out_plate, out_slot, table, force, qvel, plate_state, plate_step, work, flags,
-    xi_new, wrench, body_wrenches, xfrc_applied, slot_start. Returns implicit_wrenches' solve
-    count."""
-    slot_body, body_ids = int_vector(arrays, 0), int_vector(arrays, 1)
-    xipos, subtree_com, cdof = float_matrix(arrays, 2), float_matrix(arrays, 3), float_matrix(arrays, 4)
-    body_rootid, body_dofnum = int32_vector(arrays, 5), int32_vector(arrays, 6)
-    body_dofadr, body_parentid = int32_vector(arrays, 7), int32_vector(arrays, 8)
-    dof_parentid = int32_vector(arrays, 9)
-    qfrc_passive, qfrc_actuator = float_vector(arrays, 10), float_vector(arrays, 11)
-    qfrc_applied, qfrc_bias = float_vector(arrays, 12), float_vector(arrays, 13)
-    dof_damping, trntype, trnid = float_vector(arrays, 14), int32_vector(arrays, 15), int32_matrix(arrays, 16)
-    gear, jnt_type, jnt_dofadr = float_matrix(arrays, 17), int32_vector(arrays, 18), int32_vector(arrays, 19)
-    dyntype, gaintype, gainprm = int32_vector(arrays, 20), int32_vector(arrays, 21), float_matrix(arrays, 22)
-    biastype, biasprm = int32_vector(arrays, 23), float_matrix(arrays, 24)
-    forcelimited, forcerange = byte_vector(arrays, 25), float_matrix(arrays, 26)
-    ctrl, act, actadr = float_vector(arrays, 27), float_vector(arrays, 28), int32_vector(arrays, 29)
-    actuator_force, damping = float_vector(arrays, 30), float_vector(arrays, 31)
-    mass, jac = float_matrix(arrays, 32), float_matrix(arrays, 33)
-    out_plate, out_slot = int_vector(arrays, 34), int_vector(arrays, 35)
-    table, force, qvel = float_matrix(arrays, 36), float_matrix(arrays, 37), float_vector(arrays, 38)
-    plate_state, plate_step = int8_vector(arrays, 39), int_vector(arrays, 40)
-    work, flags, xi_new = float_matrix(arrays, 41), int8_matrix(arrays, 42), float_vector(arrays, 43)
-    wrench, body_wrenches = float_matrix(arrays, 44), float_matrix(arrays, 45)
-    xfrc_applied, slot_start = float_matrix(arrays, 46), int_vector(arrays, 47)
+    slot). Arguments as in those functions; arrays: the table of an `ArrayTable` of
+    `ImplicitArrays`. Returns implicit_wrenches' solve count."""
+    a = IMPLICIT
+    slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
+    out_plate, out_slot = int_vector(arrays, a.out_plate), int_vector(arrays, a.out_slot)
+    table, force = float_matrix(arrays, a.table), float_matrix(arrays, a.force)
+    body_ids, body_rootid = int_vector(arrays, a.body_ids), int32_vector(arrays, a.body_rootid)
+    body_dofnum = int32_vector(arrays, a.body_dofnum)
+    body_dofadr = int32_vector(arrays, a.body_dofadr)
+    body_parentid = int32_vector(arrays, a.body_parentid)
+    dof_parentid = int32_vector(arrays, a.dof_parentid)
+    xipos, subtree_com = float_matrix(arrays, a.xipos), float_matrix(arrays, a.subtree_com)
+    cdof, qvel = float_matrix(arrays, a.cdof), float_vector(arrays, a.qvel)
+    qfrc_passive = float_vector(arrays, a.qfrc_passive)
+    qfrc_actuator = float_vector(arrays, a.qfrc_actuator)
+    qfrc_applied = float_vector(arrays, a.qfrc_applied)
+    qfrc_bias = float_vector(arrays, a.qfrc_bias)
+    dof_damping, trntype = float_vector(arrays, a.dof_damping), int32_vector(arrays, a.trntype)
+    trnid, gear = int32_matrix(arrays, a.trnid), float_matrix(arrays, a.gear)
+    jnt_type, jnt_dofadr = int32_vector(arrays, a.jnt_type), int32_vector(arrays, a.jnt_dofadr)
+    dyntype, gaintype = int32_vector(arrays, a.dyntype), int32_vector(arrays, a.gaintype)
+    gainprm, biastype = float_matrix(arrays, a.gainprm), int32_vector(arrays, a.biastype)
+    biasprm, forcelimited = float_matrix(arrays, a.biasprm), byte_vector(arrays, a.forcelimited)
+    forcerange, ctrl = float_matrix(arrays, a.forcerange), float_vector(arrays, a.ctrl)
+    act, actadr = float_vector(arrays, a.act), int32_vector(arrays, a.actadr)
+    actuator_force = float_vector(arrays, a.actuator_force)
+    damping, mass = float_vector(arrays, a.damping), float_matrix(arrays, a.mass)
+    jac, plate_state = float_matrix(arrays, a.jac), int8_vector(arrays, a.plate_state)
+    plate_step, work = int_vector(arrays, a.plate_step), float_matrix(arrays, a.work)
+    flags, xi_new = int8_matrix(arrays, a.flags), float_vector(arrays, a.xi_new)
+    wrench, body_wrenches = float_matrix(arrays, a.wrench), float_matrix(arrays, a.body_wrenches)
+    xfrc_applied = float_matrix(arrays, a.xfrc_applied)
     if slots == 0:  # no plate in the sand
         scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
         return 0

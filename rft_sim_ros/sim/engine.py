@@ -169,22 +169,33 @@ class SandEngine:
         self._xfrc = d.xfrc_applied
         # the constant scalar arguments of coupling.implicit_step
         self._implicit_scalars = (self.low_velocity.rest_speed, bool(damper), bool(actuators))
-        self._gather_arrays = ArrayTable(
-            self.body_ids, self.radii, self._body_cluster_start, self._cluster_plate_start,
-            self._cluster_center, self._cluster_radius, self._local, self.areas, d.xpos, d.xmat,
-            d.xipos, d.cvel, d.subtree_com, m.body_rootid, self._plate, self._slot,
-            self._slot_body, self._slot_start, self._table, self._motion, self._force)
-        self._implicit_arrays = ArrayTable(
-            self._slot_body, self.body_ids, d.xipos, d.subtree_com, d.cdof, m.body_rootid,
-            m.body_dofnum, m.body_dofadr, m.body_parentid, m.dof_parentid, d.qfrc_passive,
-            d.qfrc_actuator, d.qfrc_applied, d.qfrc_bias, m.dof_damping, m.actuator_trntype,
-            m.actuator_trnid, m.actuator_gear, m.jnt_type, m.jnt_dofadr, m.actuator_dyntype,
-            m.actuator_gaintype, m.actuator_gainprm, m.actuator_biastype, m.actuator_biasprm,
-            m.actuator_forcelimited, m.actuator_forcerange, d.ctrl, d.act, m.actuator_actadr,
-            d.actuator_force, self._damping, self._mass, self._jac, self._plate, self._slot,
-            self._table, self._force, d.qvel, self._plate_state, self._plate_step, self._work,
-            self._flags, self._xi, self._slot_wrench, self.body_wrenches, d.xfrc_applied,
-            self._slot_start)
+        self._gather_arrays = ArrayTable(*coupling.GatherArrays(
+            body_ids=self.body_ids, radii=self.radii,
+            body_cluster_start=self._body_cluster_start,
+            cluster_plate_start=self._cluster_plate_start, cluster_center=self._cluster_center,
+            cluster_radius=self._cluster_radius, local=self._local, areas=self.areas,
+            xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
+            body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
+            slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
+            motion=self._motion, force=self._force))
+        self._implicit_arrays = ArrayTable(*coupling.ImplicitArrays(
+            slot_body=self._slot_body, slot_start=self._slot_start, out_plate=self._plate,
+            out_slot=self._slot, table=self._table, force=self._force, body_ids=self.body_ids,
+            body_rootid=m.body_rootid, body_dofnum=m.body_dofnum, body_dofadr=m.body_dofadr,
+            body_parentid=m.body_parentid, dof_parentid=m.dof_parentid, xipos=d.xipos,
+            subtree_com=d.subtree_com, cdof=d.cdof, qvel=d.qvel, qfrc_passive=d.qfrc_passive,
+            qfrc_actuator=d.qfrc_actuator, qfrc_applied=d.qfrc_applied, qfrc_bias=d.qfrc_bias,
+            dof_damping=m.dof_damping, trntype=m.actuator_trntype, trnid=m.actuator_trnid,
+            gear=m.actuator_gear, jnt_type=m.jnt_type, jnt_dofadr=m.jnt_dofadr,
+            dyntype=m.actuator_dyntype, gaintype=m.actuator_gaintype,
+            gainprm=m.actuator_gainprm, biastype=m.actuator_biastype,
+            biasprm=m.actuator_biasprm, forcelimited=m.actuator_forcelimited,
+            forcerange=m.actuator_forcerange, ctrl=d.ctrl, act=d.act,
+            actadr=m.actuator_actadr, actuator_force=d.actuator_force, damping=self._damping,
+            mass=self._mass, jac=self._jac, plate_state=self._plate_state,
+            plate_step=self._plate_step, work=self._work, flags=self._flags, xi_new=self._xi,
+            wrench=self._slot_wrench, body_wrenches=self.body_wrenches,
+            xfrc_applied=d.xfrc_applied))
 
     @property
     def zeta(self):
