@@ -34,10 +34,12 @@ from numba import njit
 
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
-from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
-                          int32_matrix, int32_vector, int_vector)
+from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int32_matrix,
+                          int32_vector, int_vector)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
+#: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
+MEMORY_SHIFT = 2
 
 #: Solves per step at most (the active set settles in one or two almost always).
 MAX_ITERATIONS = 16
@@ -110,7 +112,7 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
     'actadr', 'actuator_force',
     # work space and results
-    'damping', 'mass', 'jac', 'plate_state', 'plate_step', 'work', 'flags', 'xi_new',
+    'damping', 'mass', 'jac', 'memory', 'work', 'flags', 'xi_new',
     'wrench', 'body_wrenches', 'xfrc_applied'])
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
@@ -421,6 +423,73 @@ def _solve(matrix, rhs):
     return rhs
 
 
+#: Smallest pivot of the unpivoted `_tree_solve`, relative to the largest entry of its row.
+PIVOT = 1e-9
+#: Largest componentwise backward error max_i |A x - b|_i / (|A| |x| + |b|)_i accepted from
+#: `_tree_solve` (a backward-stable solve gives about 1e-15).
+BACKWARD_ERROR = 1e-10
+
+
+@njit(cache=True, error_model='numpy', fastmath=True)
+def _tree_solve(matrix, rhs, dof_parentid):
+    """Solve matrix x = rhs for a square matrix with the sparsity of MuJoCo's inertia (entry
+    (i, j) nonzero only if one of dofs i, j is an ancestor of the other), by elimination from
+    the leaves, without pivoting: eliminating dof k touches only the rows of its ancestors,
+    at the columns of its ancestors, so nothing fills in. Overwrites both; returns True with
+    x in rhs, or False (both left partly eliminated) at a pivot below PIVOT times the largest
+    entry of its row, where the elimination would need pivoting. It can still lose accuracy
+    to growth: `_checked_solve` verifies its result. (Decided before any division: under
+    fastmath the compiler may assume no inf or NaN arises, so they cannot be tested after.)"""
+    n = rhs.shape[0]
+    for k in range(n - 1, -1, -1):
+        row = matrix[k]
+        largest = 0.0
+        for j in range(n):
+            largest = max(largest, abs(row[j]))
+        if not abs(row[k]) > PIVOT * largest:
+            return False
+        inv = 1.0 / row[k]
+        row_k = row[:k]
+        i = dof_parentid[k]
+        while i >= 0:
+            scale = matrix[i, k] * inv
+            target = matrix[i, :k]
+            for j in range(k):  # whole prefix (zeros off the ancestors stay zero): vectorises
+                target[j] -= scale * row_k[j]
+            rhs[i] -= scale * rhs[k]
+            i = dof_parentid[i]
+    for k in range(n):  # row k now holds its diagonal and its ancestors' columns only
+        acc = rhs[k]
+        row = matrix[k, :k]
+        for j in range(k):
+            acc -= row[j] * rhs[j]
+        rhs[k] = acc / matrix[k, k]
+    return True
+
+
+@njit(cache=True, error_model='numpy')
+def _checked_solve(matrix, rhs, dof_parentid, factored, solution):
+    """x of matrix x = rhs (matrix: tree sparsity as in `_tree_solve`; left unchanged) into
+    `solution` (factored: (n, n) work space): `_tree_solve`, kept if it met no small pivot
+    and its componentwise backward error is at most BACKWARD_ERROR, else the dense partially
+    pivoted `_solve`. Returns solution."""
+    factored[:, :] = matrix
+    solution[:] = rhs
+    accurate = _tree_solve(factored, solution, dof_parentid)
+    if accurate:
+        for i in range(rhs.shape[0]):
+            residual, scale = -rhs[i], abs(rhs[i])
+            for j in range(rhs.shape[0]):
+                residual += matrix[i, j] * solution[j]
+                scale += abs(matrix[i, j] * solution[j])
+            accurate &= abs(residual) <= BACKWARD_ERROR * scale
+    if not accurate:
+        factored[:, :] = matrix
+        solution[:] = rhs
+        _solve(factored, solution)
+    return solution
+
+
 @njit(cache=True, inline='always')
 def _point_velocity(lever, j, twist, base):
     """Velocity (3,) of plate j at lever[:, j] from the COM for the twist twist[base:base+6]."""
@@ -607,7 +676,7 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v_reg, jac,
                       chain, chain_count, mass_h, dof_parentid, qvel, timestep, step,
-                      plate_state, plate_step, work, flags, xi_new, wrench):
+                      memory, work, flags, xi_new, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -620,7 +689,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     until the solution is consistent (an active-set iteration; moving and off are
     neighbours of resting only, so a plate passes through resting between them).
     Each plate starts from its set of the previous step if it was in the sand then
-    (`plate_state`/`plate_step`, indexed by plate, updated here) and not frozen, otherwise
+    (`memory`, indexed by plate, updated here: step << MEMORY_SHIFT | its final set; -1 for
+    never) and not frozen, otherwise
     as moving when faster than v_reg; so a step usually needs one solve. Plates: columns
     :k of the gathered table and force, slot by slot from slot_start (`gather_plates`;
     force (6, >= k): this fills rows 3..5 with r x G, so that it holds h); work
@@ -681,13 +751,11 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
             across_s[j] = across_damper(magnitude_s[j], speed_s[j], v_reg, turn_speed)
     # initial sets and each plate's coefficients for its set: along factor, across damper,
     # moving (0/1)
-    for j in range(k):  # the previous step's set, or -1 (gathers by plate: a loop of its own)
-        p = out_plate[j]
-        previous = plate_state[p]
-        warm = (plate_step[p] == step - 1) & (previous != FROZEN)
-        states[j] = previous if warm else -1
+    last = (step - 1) << MEMORY_SHIFT  # memory of a plate in the sand on the last step
     for j in range(k):
-        state = states[j] if states[j] >= 0 else (MOVING if speed[j] > v_reg else RESTING)
+        previous = memory[out_plate[j]] - last  # its set then, if in 0 .. FROZEN - 1
+        warm = (previous >= 0) & (previous < FROZEN)
+        state = previous if warm else (MOVING if speed[j] > v_reg else RESTING)
         states[j] = state
         visited[j] = 1 << state
         _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
@@ -700,6 +768,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     block_jac = np.empty((6, nv))  # block J of a slot
     system = np.empty((nv, nv))
     rhs = np.empty(nv)
+    factored = np.empty((nv, nv))
+    solution = np.empty(nv)
     iterations = 0
     frozen = 0  # plates frozen this step
     converged = False
@@ -715,10 +785,13 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
         system[:, :] = mass_h
         rhs[:] = momentum
         for s in range(slots):
+            if chain_count[s] == 0:  # a body welded to the world: no dof to act on
+                continue
             _resting_block(k_rank[s], k_iso[s], block)
             slot_jac = jac[6 * s:6 * s + 6]
+            top = chain[s, 0] + 1  # the chain's leaf has its highest dof: zero beyond
             for a in range(6):  # block J, whole rows (zero off the chain): vectorises
-                for p in range(nv):
+                for p in range(top):
                     acc = 0.0
                     for b in range(6):
                         acc += block[a, b] * slot_jac[b, p]
@@ -729,19 +802,21 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
                 for a in range(6):
                     acc += slot_jac[a, c] * w_moving[s, a]
                 rhs[c] += timestep * acc
-                for p in range(nv):
+                for p in range(top):
                     acc = 0.0
                     for a in range(6):
                         acc += slot_jac[a, c] * block_jac[a, p]
                     system[c, p] -= timestep * acc
-        solution = _solve(system, rhs)
+        _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
-        for r in range(n6):
-            acc = 0.0
-            for i in range(nv):
-                acc += jac[r, i] * solution[i]
-            xi_new[r] = acc
+        for s in range(slots):  # xi+ = J qvel+, over each chain's dofs
+            top = chain[s, 0] + 1 if chain_count[s] > 0 else 0
+            for r in range(6 * s, 6 * s + 6):
+                acc = 0.0
+                for i in range(top):
+                    acc += jac[r, i] * solution[i]
+                xi_new[r] = acc
         for s in range(slots):
             x0, x1, x2 = xi_new[6 * s], xi_new[6 * s + 1], xi_new[6 * s + 2]
             x3, x4, x5 = xi_new[6 * s + 3], xi_new[6 * s + 4], xi_new[6 * s + 5]
@@ -787,8 +862,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
                 acc += block[a, b] * xi_new[6 * s + b]
             wrench[s, a] = acc
     for j in range(k):
-        plate_state[out_plate[j]] = states[j]
-        plate_step[out_plate[j]] = step
+        memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
     return iterations if converged and frozen == 0 else -iterations
 
 
@@ -825,8 +899,8 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     act, actadr = float_vector(arrays, a.act), int32_vector(arrays, a.actadr)
     actuator_force = float_vector(arrays, a.actuator_force)
     damping, mass = float_vector(arrays, a.damping), float_matrix(arrays, a.mass)
-    jac, plate_state = float_matrix(arrays, a.jac), int8_vector(arrays, a.plate_state)
-    plate_step, work = int_vector(arrays, a.plate_step), float_matrix(arrays, a.work)
+    jac, memory = float_matrix(arrays, a.jac), int_vector(arrays, a.memory)
+    work = float_matrix(arrays, a.work)
     flags, xi_new = int8_matrix(arrays, a.flags), float_vector(arrays, a.xi_new)
     wrench, body_wrenches = float_matrix(arrays, a.wrench), float_matrix(arrays, a.body_wrenches)
     xfrc_applied = float_matrix(arrays, a.xfrc_applied)
@@ -845,7 +919,7 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     implicit_mass(mass, damping, timestep)
     iterations = implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force,
                                    v_reg, rows, chain, chain_count, mass, dof_parentid, qvel,
-                                   timestep, step, plate_state, plate_step, work, flags,
+                                   timestep, step, memory, work, flags,
                                    xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
     return iterations

@@ -99,8 +99,8 @@ class SandEngine:
         self._applied = np.zeros((3, n))
         self._work = np.zeros((coupling.WORK_ROWS, n))
         self._flags = np.zeros((coupling.FLAG_ROWS, n), dtype=np.int8)
-        self._plate_state = np.zeros(n, dtype=np.int8)
-        self._plate_step = np.full(n, -2, dtype=np.int64)
+        # each plate's last step in the sand and its set then (coupling.implicit_wrenches)
+        self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -192,8 +192,8 @@ class SandEngine:
             biasprm=m.actuator_biasprm, forcelimited=m.actuator_forcelimited,
             forcerange=m.actuator_forcerange, ctrl=d.ctrl, act=d.act,
             actadr=m.actuator_actadr, actuator_force=d.actuator_force, damping=self._damping,
-            mass=self._mass, jac=self._jac, plate_state=self._plate_state,
-            plate_step=self._plate_step, work=self._work, flags=self._flags, xi_new=self._xi,
+            mass=self._mass, jac=self._jac, memory=self._plate_memory,
+            work=self._work, flags=self._flags, xi_new=self._xi,
             wrench=self._slot_wrench, body_wrenches=self.body_wrenches,
             xfrc_applied=d.xfrc_applied))
 
