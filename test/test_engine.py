@@ -226,9 +226,10 @@ def test_plates_sliding_in_their_own_plane_never_lead(seed):
     data.qvel[3:6] = [2.0, 0.0, 0.0]  # rad/s about the blade's long axis (free joint: local)
     mujoco.mj_step1(model, data)
     engine.apply()
-    end_faces = np.abs(engine.local_normal[engine._plate[:engine._k], 0]) > 0.999
+    gathered = engine._counters[coupling.GATHERED]
+    end_faces = np.abs(engine.local_normal[engine._plate[:gathered], 0]) > 0.999
     assert engine.plates_active > 0 and not end_faces.any()
-    table = engine._table[:, :engine._k]
+    table = engine._table[:, :gathered]
     n_v = (table[coupling.NORMAL:coupling.NORMAL + 3]
            * table[coupling.DIRECTION:coupling.DIRECTION + 3]).sum(axis=0)
     assert (n_v > 1e-6).all()
@@ -240,7 +241,7 @@ def test_bodies_above_the_sand_are_skipped_and_cost_nothing():
     data.qvel[:3] = [0.0, 0.0, -1.0]
     mujoco.mj_step1(model, data)
     engine.apply()
-    assert engine.plates_active == 0 and engine._slots == 0
+    assert engine.plates_active == 0 and engine._counters[coupling.SLOTS] == 0
     assert not data.xfrc_applied.any()
 
 
@@ -332,7 +333,8 @@ def test_predicted_end_velocity_matches_mujocos_step(integrator):
     rows = np.zeros((1, model.nv))
     rows[0] = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
     m, d = model, data
-    damper, actuators = engine._implicit_scalars[1:]  # as the engine found them for this model
+    settings = engine._settings  # as the engine found them for this model
+    damper, actuators = settings[coupling.DAMPER] != 0, settings[coupling.ACTUATORS] != 0
     coupling.implicit_damping(damper, actuators, m.dof_damping, m.actuator_trntype,
                               m.actuator_trnid, m.actuator_gear, m.jnt_type, m.jnt_dofadr,
                               m.actuator_dyntype, m.actuator_gaintype, m.actuator_gainprm,

@@ -86,13 +86,25 @@ LEVER = LAW_ROWS + 3   # lever arm r from the body's COM, m, world (3 rows)
 SPEED = LAW_ROWS + 6   # |v|, m/s
 PLATE_ROWS = LAW_ROWS + 7
 
+#: The engine's settings, one float64 vector in both tables, by index: sand surface height
+#: (m, world z), zeta (N/m^3), reciprocal normalisers 1/a4 and 1/b4, lambda x rho of the
+#: dynamic term (kg/m^3), whether trailing plates are gathered too (1/0), and the implicit
+#: law's rest speed v_reg (m/s), joint damping and actuator velocity gains (1/0) implicit.
+SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS = range(9)
+SETTING_COUNT = 9
+#: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
+#: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
+#: far in which a plate was frozen or the sets had not settled.
+STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED = range(6)
+COUNTER_COUNT = 6
+
 #: The arrays of `gather_plates`, in the order of its `ArrayTable`; GATHER holds each
 #: field's row of the table. The engine builds the table from a GatherArrays by name, so
 #: the order lives here only.
 GatherArrays = namedtuple('GatherArrays', [
-    # the engine's plates and clusters
-    'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start', 'cluster_center',
-    'cluster_radius', 'local', 'areas',
+    # the engine's settings and counters, plates and clusters
+    'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
+    'cluster_center', 'cluster_radius', 'local', 'areas',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -101,8 +113,8 @@ GATHER = GatherArrays(*range(len(GatherArrays._fields)))
 
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows).
 ImplicitArrays = namedtuple('ImplicitArrays', [
-    # the gathered plates (`gather_plates`)
-    'slot_body', 'slot_start', 'out_plate', 'out_slot', 'table', 'force',
+    # the engine's settings and counters, the gathered plates (`gather_plates`)
+    'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'out_slot', 'table', 'force',
     # the sand bodies, mjModel, mjData
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
@@ -118,26 +130,30 @@ IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
 
 @njit(cache=True, error_model='numpy', fastmath={'contract'})
-def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_trailing,
-                  arrays):
-    """Find the plates in the sand and their RFT force for the current direction of motion.
+def gather_plates(arrays):
+    """Find the plates in the sand and their RFT force for the current direction of motion:
+    one step (counted in the STEPS counter).
 
-    arrays: the table of an `ArrayTable` of `GatherArrays`.
+    arrays: the table of an `ArrayTable` of `GatherArrays`; settings SURFACE ... TRAILING.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
     whose bounding sphere, lies above the surface are skipped without touching their plates.
     local: (N, 9) body-frame plate position l, normal n_l and l x n_l. A plate below the
     surface first has n . v = n_l . V + (l x n_l) . W with the body-frame velocity V of the
     body origin and angular velocity W (9 multiply-adds), so only leading plates (n . v >
-    TANGENTIAL x the body's speed scale), or all plates below the surface when
-    `include_trailing`, are transformed to the world.
+    TANGENTIAL x the body's speed scale), or all plates below the surface with TRAILING,
+    are transformed to the world.
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
     SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
-    index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world; inv_a4, inv_b4:
-    reciprocal normalisers). Returns (plates written, of those leading, slots S); slot_body[s] is
-    the slot's sand-body index, and its plates are columns slot_start[s] .. slot_start[s+1]-1.
+    index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world). Counts the plates
+    written, of those leading, and the slots S (counters GATHERED, LEADING, SLOTS);
+    slot_body[s] is the slot's sand-body index, and its plates are columns slot_start[s] ..
+    slot_start[s+1]-1.
     """
     a = GATHER
+    settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
+    surface_height, zeta_si = settings[SURFACE], settings[ZETA]
+    include_trailing = settings[TRAILING] != 0.0
     body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
     body_cluster_start = int_vector(arrays, a.body_cluster_start)
     cluster_plate_start = int_vector(arrays, a.cluster_plate_start)
@@ -222,8 +238,10 @@ def gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho, include_
             slots += 1
     slot_start[slots] = k
     _directions(k, motion, table)
-    leading_forces(k, table, inv_a4, inv_b4, dyn_lam_rho, force[0], force[1], force[2])
-    return k, leading_count, slots
+    leading_forces(k, table, settings[INV_A4], settings[INV_B4], settings[DYNAMIC], force[0],
+                   force[1], force[2])
+    counters[STEPS] += 1
+    counters[GATHERED], counters[LEADING], counters[SLOTS] = k, leading_count, slots
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
@@ -867,14 +885,18 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
 
 
 @njit(cache=True, error_model='numpy')
-def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
-    """One step's implicit sand wrenches, in one call from Python: `prepare_solve` (into
-    jac, (>= 6S+1, nv) work space), `implicit_damping`, `implicit_mass` (mass: the dense M
-    of this state, made Mh in place), `implicit_wrenches` over the `k` gathered plates in
-    `slots` slots, then `scatter_wrenches` into xfrc_applied (zero wrenches only, with no
-    slot). Arguments as in those functions; arrays: the table of an `ArrayTable` of
-    `ImplicitArrays`. Returns implicit_wrenches' solve count."""
+def implicit_step(timestep, arrays):
+    """One step's implicit sand wrenches over the plates the step's `gather_plates` left, in
+    one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
+    `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
+    over the gathered plates, then `scatter_wrenches` into xfrc_applied (zero wrenches only,
+    with no slot). Arguments as in those functions (timestep: s); arrays: the table of an
+    `ArrayTable` of `ImplicitArrays`, settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves
+    to the SOLVES counter and counts the step in UNSETTLED where it did not settle."""
     a = IMPLICIT
+    settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
+    k, slots, step = counters[GATHERED], counters[SLOTS], counters[STEPS]
+    v_reg = settings[REST_SPEED]
     slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
     out_plate, out_slot = int_vector(arrays, a.out_plate), int_vector(arrays, a.out_slot)
     table, force = float_matrix(arrays, a.table), float_matrix(arrays, a.force)
@@ -906,38 +928,34 @@ def implicit_step(k, slots, step, timestep, v_reg, damper, actuators, arrays):
     xfrc_applied = float_matrix(arrays, a.xfrc_applied)
     if slots == 0:  # no plate in the sand
         scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
-        return 0
+        return
     rows = jac[:6 * slots + 1]
     chain = np.empty((slots, qvel.shape[0]), dtype=np.int64)
     chain_count = np.empty(slots, dtype=np.int64)
     prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
                   qfrc_actuator, qfrc_applied, qfrc_bias, rows, chain, chain_count)
-    implicit_damping(damper, actuators, dof_damping, trntype, trnid, gear, jnt_type,
-                     jnt_dofadr, dyntype, gaintype, gainprm, biastype, biasprm, forcelimited,
-                     forcerange, ctrl, act, actadr, actuator_force, damping)
+    implicit_damping(settings[DAMPER] != 0.0, settings[ACTUATORS] != 0.0, dof_damping, trntype,
+                     trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm, biastype,
+                     biasprm, forcelimited, forcerange, ctrl, act, actadr, actuator_force,
+                     damping)
     implicit_mass(mass, damping, timestep)
     iterations = implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force,
                                    v_reg, rows, chain, chain_count, mass, dof_parentid, qvel,
                                    timestep, step, memory, work, flags,
                                    xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
-    return iterations
+    counters[SOLVES] += abs(iterations)
+    counters[UNSETTLED] += iterations < 0
 
 
 @njit(cache=True, error_model='numpy')
-def implicit_sand_step(step, timestep, surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho,
-                       include_trailing, v_reg, damper, actuators, gather_arrays,
-                       implicit_arrays):
+def implicit_sand_step(timestep, gather_arrays, implicit_arrays):
     """A whole step's sand wrenches by the implicit law, in one call from Python (after
     mj_step1, MuJoCo's actuator forces and the dense inertia of this state): `gather_plates`,
-    then `implicit_step`. Arguments as there; returns (plates gathered, of those leading,
-    slots, solve count)."""
-    k, leading, slots = gather_plates(surface_height, zeta_si, inv_a4, inv_b4, dyn_lam_rho,
-                                      include_trailing, gather_arrays)
-    iterations = implicit_step(k, slots, step, timestep, v_reg, damper, actuators,
-                               implicit_arrays)
-    return k, leading, slots, iterations
+    then `implicit_step`. Arguments as there."""
+    gather_plates(gather_arrays)
+    implicit_step(timestep, implicit_arrays)
 
 
 @njit(cache=True, error_model='numpy')

@@ -78,15 +78,21 @@ class SandEngine:
                                  dtype=np.int64)
         plates = [body_plates[name] for name in self.body_names]
         self._cluster(plates)
-        self._surface_height = float(surface_height)
         norm = find_normalisation(normalisation)
-        self._inv_a4, self._inv_b4 = 1.0 / norm.a4, 1.0 / norm.b4  # reciprocal normalisers
         self.dynamic = dynamic
-        self._dyn = 0.0 if dynamic is None else dynamic.lam * dynamic.density
         self.low_velocity = low_velocity
-        # the paper's EMA keeps a history for plates in the sand that trail, too
-        self._include_trailing = low_velocity.method == 'ema'
         self._implicit_method = low_velocity.method == 'implicit'
+        # the kernels' settings and counters (coupling.SURFACE ..., coupling.STEPS ...)
+        self._settings = np.zeros(coupling.SETTING_COUNT)
+        self._counters = np.zeros(coupling.COUNTER_COUNT, dtype=np.int64)
+        self._settings[coupling.SURFACE] = surface_height
+        self._settings[coupling.INV_A4] = 1.0 / norm.a4
+        self._settings[coupling.INV_B4] = 1.0 / norm.b4
+        self._settings[coupling.DYNAMIC] = 0.0 if dynamic is None else (dynamic.lam
+                                                                         * dynamic.density)
+        # the paper's EMA keeps a history for plates in the sand that trail, too
+        self._settings[coupling.TRAILING] = low_velocity.method == 'ema'
+        self._settings[coupling.REST_SPEED] = low_velocity.rest_speed
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
@@ -108,11 +114,6 @@ class SandEngine:
         self._jac = np.zeros((6 * nb + 1, model.nv))  # slot Jacobians and tau_free
         self._ema_force = np.zeros((n, 3))
         self._ema_step = np.full(n, -2, dtype=np.int64)
-        self._step = 0
-        self._k = self._slots = self.plates_active = 0
-        self.solves = 0  # implicit solves so far (about one per step with sand contact)
-        # steps in which a plate was frozen (anti-cycling) or the sets had not settled
-        self.unsettled_steps = 0
         self.body_wrenches = np.zeros((nb, 6))
         self._views()
         self._load_kernels()
@@ -167,11 +168,11 @@ class SandEngine:
         self._full_inertia, self._full_inertia_args = full_inertia_call(m, d, self._mass)
         self._xipos = d.xipos
         self._xfrc = d.xfrc_applied
-        # the constant scalar arguments of coupling.implicit_step
-        self._implicit_scalars = (self.low_velocity.rest_speed, bool(damper), bool(actuators))
+        self._settings[coupling.DAMPER] = bool(damper)
+        self._settings[coupling.ACTUATORS] = bool(actuators)
         self._gather_arrays = ArrayTable(*coupling.GatherArrays(
-            body_ids=self.body_ids, radii=self.radii,
-            body_cluster_start=self._body_cluster_start,
+            settings=self._settings, counters=self._counters, body_ids=self.body_ids,
+            radii=self.radii, body_cluster_start=self._body_cluster_start,
             cluster_plate_start=self._cluster_plate_start, cluster_center=self._cluster_center,
             cluster_radius=self._cluster_radius, local=self._local, areas=self.areas,
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
@@ -179,8 +180,9 @@ class SandEngine:
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
             motion=self._motion, force=self._force))
         self._implicit_arrays = ArrayTable(*coupling.ImplicitArrays(
-            slot_body=self._slot_body, slot_start=self._slot_start, out_plate=self._plate,
-            out_slot=self._slot, table=self._table, force=self._force, body_ids=self.body_ids,
+            settings=self._settings, counters=self._counters, slot_body=self._slot_body,
+            slot_start=self._slot_start, out_plate=self._plate, out_slot=self._slot,
+            table=self._table, force=self._force, body_ids=self.body_ids,
             body_rootid=m.body_rootid, body_dofnum=m.body_dofnum, body_dofadr=m.body_dofadr,
             body_parentid=m.body_parentid, dof_parentid=m.dof_parentid, xipos=d.xipos,
             subtree_com=d.subtree_com, cdof=d.cdof, qvel=d.qvel, qfrc_passive=d.qfrc_passive,
@@ -192,10 +194,9 @@ class SandEngine:
             biasprm=m.actuator_biasprm, forcelimited=m.actuator_forcelimited,
             forcerange=m.actuator_forcerange, ctrl=d.ctrl, act=d.act,
             actadr=m.actuator_actadr, actuator_force=d.actuator_force, damping=self._damping,
-            mass=self._mass, jac=self._jac, memory=self._plate_memory,
-            work=self._work, flags=self._flags, xi_new=self._xi,
-            wrench=self._slot_wrench, body_wrenches=self.body_wrenches,
-            xfrc_applied=d.xfrc_applied))
+            mass=self._mass, jac=self._jac, memory=self._plate_memory, work=self._work,
+            flags=self._flags, xi_new=self._xi, wrench=self._slot_wrench,
+            body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied))
 
     @property
     def zeta(self):
@@ -205,14 +206,28 @@ class SandEngine:
     @zeta.setter
     def zeta(self, value):
         self._zeta = validated_zeta(value)
-        # the scalar arguments of coupling.gather_plates
-        self._gather_scalars = (self._surface_height, zeta_to_si(self._zeta), self._inv_a4,
-                                self._inv_b4, self._dyn, self._include_trailing)
+        self._settings[coupling.ZETA] = zeta_to_si(self._zeta)
 
     @property
     def surface_height(self):
         """z of the horizontal sand surface, m (world)."""
-        return self._surface_height
+        return float(self._settings[coupling.SURFACE])
+
+    @property
+    def plates_active(self):
+        """Plates in the sand and leading at the last step."""
+        return int(self._counters[coupling.LEADING])
+
+    @property
+    def solves(self):
+        """Implicit solves so far (about one per step with sand contact)."""
+        return int(self._counters[coupling.SOLVES])
+
+    @property
+    def unsettled_steps(self):
+        """Steps so far in which a plate was frozen (anti-cycling) or the sets had not
+        settled."""
+        return int(self._counters[coupling.UNSETTLED])
 
     @property
     def plates_total(self):
@@ -229,26 +244,24 @@ class SandEngine:
     def apply(self):
         """Compute the sand wrenches from the current state (after mj_step1) and write them
         into xfrc_applied of the sand bodies."""
-        self._step += 1
         if self._implicit_method:
-            k, self.plates_active, slots, iterations = self._implicit(self._gather_scalars)
-            self.solves += abs(iterations)
-            self.unsettled_steps += iterations < 0
+            self._implicit()
         else:
-            k, self.plates_active, slots = self._gather(self._gather_scalars)
-            if slots:
-                self._explicit(k, slots)
-            elif self._slots:  # the last bodies left the sand
-                self._scatter(0)
-        self._k, self._slots = k, slots
+            had_slots = self._counters[coupling.SLOTS]
+            coupling.gather_plates(self._gather_arrays.table)
+            if self._counters[coupling.SLOTS] or had_slots:  # (zeros once the last leave)
+                self._explicit()
 
-    def _explicit(self, k, slots):
-        """Explicit sand wrenches ('ema' or 'none': coupling.smoothed_wrenches), written to
-        xfrc_applied."""
+    def _explicit(self):
+        """Explicit sand wrenches ('ema' or 'none': coupling.smoothed_wrenches) of the plates
+        gathered this step, written to xfrc_applied."""
         alpha = self.low_velocity.ema_alpha if self.low_velocity.method == 'ema' else 1.0
-        coupling.smoothed_wrenches(k, slots, self._plate, self._slot, self._table, self._force,
-                                   alpha, self._step, self._ema_force, self._ema_step,
-                                   self._applied, self._slot_wrench)
+        counters = self._counters
+        slots = counters[coupling.SLOTS]
+        coupling.smoothed_wrenches(counters[coupling.GATHERED], slots, self._plate, self._slot,
+                                   self._table, self._force, alpha, counters[coupling.STEPS],
+                                   self._ema_force, self._ema_step, self._applied,
+                                   self._slot_wrench)
         self._scatter(slots)
 
     def _scatter(self, slots):
@@ -256,37 +269,35 @@ class SandEngine:
         coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
                                   self.body_wrenches, self._xfrc)
 
-    def _gather(self, gather_scalars):
-        """The plates in the sand and their RFT forces (coupling.gather_plates)."""
-        return coupling.gather_plates(*gather_scalars, self._gather_arrays.table)
-
-    def _implicit(self, gather_scalars):
+    def _implicit(self):
         """The plates in the sand and their implicit wrenches, written to xfrc_applied
         (coupling.implicit_sand_step, after MuJoCo's actuator forces and dense inertia of this
-        state). Returns (plates gathered, of those leading, slots, solve count)."""
+        state)."""
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
-        return coupling.implicit_sand_step(
-            self._step, self._options.timestep, *gather_scalars, *self._implicit_scalars,
-            self._gather_arrays.table, self._implicit_arrays.table)
+        coupling.implicit_sand_step(self._options.timestep, self._gather_arrays.table,
+                                    self._implicit_arrays.table)
 
     def _load_kernels(self):
         """Run every compiled kernel once on no plates (their outputs are scratch), so that
         numba loads them from its cache (or compiles them) now, as part of start-up, and not
         at the first step in contact with sand, where it would stall a running simulation
         (a paced ROS node) for up to a few tenths of a second."""
-        no_sand = (-np.inf,) + self._gather_scalars[1:]  # a surface no plate is below
+        surface = self._settings[coupling.SURFACE]
+        self._settings[coupling.SURFACE] = -np.inf  # a surface no plate is below
         if self._implicit_method:
-            self._implicit(no_sand)
+            self._implicit()
             self._implicit_plate_forces(0)
         else:
-            self._gather(no_sand)
-            self._explicit(0, 0)
+            coupling.gather_plates(self._gather_arrays.table)
+            self._explicit()
+        self._settings[coupling.SURFACE] = surface
+        self._counters[:] = 0
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
         (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
-        k = self._k
+        k = self._counters[coupling.GATHERED]
         if self.low_velocity.method == 'implicit':
             self._implicit_plate_forces(k)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
