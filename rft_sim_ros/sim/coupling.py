@@ -104,7 +104,7 @@ COUNTER_COUNT = 6
 GatherArrays = namedtuple('GatherArrays', [
     # the engine's settings and counters, plates and clusters
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
-    'cluster_center', 'cluster_radius', 'local', 'areas',
+    'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -138,9 +138,10 @@ def gather_plates(arrays):
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
     whose bounding sphere, lies above the surface are skipped without touching their plates.
-    local: (N, 9) body-frame plate position l, normal n_l and l x n_l. A plate below the
-    surface first has n . v = n_l . V + (l x n_l) . W with the body-frame velocity V of the
-    body origin and angular velocity W (9 multiply-adds), so only leading plates (n . v >
+    positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
+    that the depth test reads positions only). A plate below the surface first has
+    n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
+    velocity W (9 multiply-adds), so only leading plates (n . v >
     TANGENTIAL x the body's speed scale), or all plates below the surface with TRAILING,
     are transformed to the world.
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
@@ -159,7 +160,8 @@ def gather_plates(arrays):
     cluster_plate_start = int_vector(arrays, a.cluster_plate_start)
     cluster_center = float_matrix(arrays, a.cluster_center)
     cluster_radius = float_vector(arrays, a.cluster_radius)
-    local, areas = float_matrix(arrays, a.local), float_vector(arrays, a.areas)
+    positions, normals = float_matrix(arrays, a.positions), float_matrix(arrays, a.normals)
+    areas = float_vector(arrays, a.areas)
     xpos, xmat = float_matrix(arrays, a.xpos), float_matrix(arrays, a.xmat)
     xipos, cvel = float_matrix(arrays, a.xipos), float_matrix(arrays, a.cvel)
     subtree_com = float_matrix(arrays, a.subtree_com)
@@ -200,17 +202,19 @@ def gather_plates(arrays):
                     + r22 * cluster_center[c, 2] - cluster_radius[c] >= surface_height):
                 continue
             j0 = cluster_plate_start[c]
-            cluster = local[j0:cluster_plate_start[c + 1]]  # indexed from 0: no wraparound
+            j1 = cluster_plate_start[c + 1]
+            cluster, cluster_normals = positions[j0:j1], normals[j0:j1]  # (no wraparound)
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
                 depth = surface_height - pz
                 if depth <= 0.0:
                     continue
-                mx, my, mz = cluster[i_c, 3], cluster[i_c, 4], cluster[i_c, 5]
-                n_v = (mx * body_v[0] + my * body_v[1] + mz * body_v[2]
-                       + cluster[i_c, 6] * body_w[0] + cluster[i_c, 7] * body_w[1]
-                       + cluster[i_c, 8] * body_w[2])
+                mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
+                              cluster_normals[i_c, 2])
+                n_v = (mx * (body_v[0] + body_w[1] * lz - body_w[2] * ly)
+                       + my * (body_v[1] + body_w[2] * lx - body_w[0] * lz)
+                       + mz * (body_v[2] + body_w[0] * ly - body_w[1] * lx))
                 leading = n_v > tangential
                 if not (leading or include_trailing):
                     continue

@@ -137,11 +137,9 @@ class SandEngine:
             body_clusters.append(len(centers))
         plate_starts.append(offset)
         joined = Plates.concatenate(parts)
+        # per plate, body frame: position and normal (read by coupling.gather_plates)
         self.local_pos = np.ascontiguousarray(joined.centroids)
         self.local_normal = np.ascontiguousarray(joined.normals)
-        # per plate, body frame: position, normal, position x normal (coupling.gather_plates)
-        self._local = np.ascontiguousarray(np.hstack(
-            [self.local_pos, self.local_normal, np.cross(self.local_pos, self.local_normal)]))
         self.areas = np.ascontiguousarray(joined.areas)
         counts = np.array([len(p) for p in plates], dtype=np.int64)
         self.plate_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -174,7 +172,8 @@ class SandEngine:
             settings=self._settings, counters=self._counters, body_ids=self.body_ids,
             radii=self.radii, body_cluster_start=self._body_cluster_start,
             cluster_plate_start=self._cluster_plate_start, cluster_center=self._cluster_center,
-            cluster_radius=self._cluster_radius, local=self._local, areas=self.areas,
+            cluster_radius=self._cluster_radius, positions=self.local_pos,
+            normals=self.local_normal, areas=self.areas,
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
