@@ -550,6 +550,44 @@ def _set_coefficients(j, state, speed, across, inv_reg, v_reg, coef_along, coef_
 
 
 @njit(cache=True, inline='always', fastmath=True)
+def _add_slot(block, w_moving, slot_jac, dofs, timestep, work, system, rhs):
+    """A slot's terms of the implicit system: system -= dt J^T block J, rhs += dt J^T w_moving
+    (block (6, 6), w_moving (6,), slot_jac J (6, nv)), over the dofs of its chain (`dofs`),
+    where J is nonzero: on a compact copy of J's chain columns, with the dofs innermost and
+    the six-term sums unrolled (in pairs), so that the loops vectorise. work: (13, >= len
+    dofs) space: J's chain columns, block J on them, a row of the product."""
+    count = dofs.shape[0]
+    j0, j1, j2 = work[0, :count], work[1, :count], work[2, :count]
+    j3, j4, j5 = work[3, :count], work[4, :count], work[5, :count]
+    for q in range(count):
+        d = dofs[q]
+        j0[q], j1[q], j2[q] = slot_jac[0, d], slot_jac[1, d], slot_jac[2, d]
+        j3[q], j4[q], j5[q] = slot_jac[3, d], slot_jac[4, d], slot_jac[5, d]
+    for a in range(6):  # block J on the chain
+        b0, b1, b2 = block[a, 0], block[a, 1], block[a, 2]
+        b3, b4, b5 = block[a, 3], block[a, 4], block[a, 5]
+        out = work[6 + a, :count]
+        for q in range(count):
+            out[q] = ((b0 * j0[q] + b1 * j1[q]) + (b2 * j2[q] + b3 * j3[q])
+                      + (b4 * j4[q] + b5 * j5[q]))
+    c0, c1, c2 = work[6, :count], work[7, :count], work[8, :count]
+    c3, c4, c5 = work[9, :count], work[10, :count], work[11, :count]
+    product = work[12, :count]
+    w0, w1, w2 = w_moving[0], w_moving[1], w_moving[2]
+    w3, w4, w5 = w_moving[3], w_moving[4], w_moving[5]
+    for q in range(count):  # row q of J^T block J on the chain, scattered to the dofs
+        a0, a1, a2, a3, a4, a5 = j0[q], j1[q], j2[q], j3[q], j4[q], j5[q]
+        rhs[dofs[q]] += timestep * ((a0 * w0 + a1 * w1) + (a2 * w2 + a3 * w3)
+                                    + (a4 * w4 + a5 * w5))
+        for p in range(count):
+            product[p] = ((a0 * c0[p] + a1 * c1[p]) + (a2 * c2[p] + a3 * c3[p])
+                          + (a4 * c4[p] + a5 * c5[p]))
+        row = system[dofs[q]]
+        for p in range(count):
+            row[dofs[p]] -= timestep * product[p]
+
+
+@njit(cache=True, inline='always', fastmath=True)
 def _resting_block(k_rank, iso, out):
     """Slot twist response of its plates' linear parts: rank part minus sum c P^T P,
     P = [I, -[r]x] (plate velocity from the twist)."""
@@ -787,7 +825,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     k_iso = np.zeros((slots, 10))
     dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
     block = np.zeros((6, 6))
-    block_jac = np.empty((6, nv))  # block J of a slot
+    chain_work = np.empty((13, nv))  # `_add_slot`'s
     system = np.empty((nv, nv))
     rhs = np.empty(nv)
     factored = np.empty((nv, nv))
@@ -807,28 +845,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
         system[:, :] = mass_h
         rhs[:] = momentum
         for s in range(slots):
-            if chain_count[s] == 0:  # a body welded to the world: no dof to act on
-                continue
             _resting_block(k_rank[s], k_iso[s], block)
-            slot_jac = jac[6 * s:6 * s + 6]
-            top = chain[s, 0] + 1  # the chain's leaf has its highest dof: zero beyond
-            for a in range(6):  # block J, whole rows (zero off the chain): vectorises
-                for p in range(top):
-                    acc = 0.0
-                    for b in range(6):
-                        acc += block[a, b] * slot_jac[b, p]
-                    block_jac[a, p] = acc
-            for q in range(chain_count[s]):  # rows of J^T block J on the chain
-                c = chain[s, q]
-                acc = 0.0
-                for a in range(6):
-                    acc += slot_jac[a, c] * w_moving[s, a]
-                rhs[c] += timestep * acc
-                for p in range(top):
-                    acc = 0.0
-                    for a in range(6):
-                        acc += slot_jac[a, c] * block_jac[a, p]
-                    system[c, p] -= timestep * acc
+            _add_slot(block, w_moving[s], jac[6 * s:6 * s + 6], chain[s, :chain_count[s]],
+                      timestep, chain_work, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
