@@ -45,10 +45,9 @@ MEMORY_SHIFT = 2
 MAX_ITERATIONS = 16
 
 #: Rows of the implicit law's per-plate work space (`implicit_wrenches`), plates along the
-#: second axis: |G|, across damper c (N s/m), the set coefficients, end-of-step speed along
-#: d (m/s).
-MAGNITUDE, ACROSS, COEF_ALONG, COEF_ACROSS, COEF_MOVING, ALONG = 0, 1, 2, 3, 4, 5
-WORK_ROWS = 6
+#: second axis: |G|, across damper c (N s/m), the set coefficients.
+MAGNITUDE, ACROSS, COEF_ALONG, COEF_ACROSS, COEF_MOVING = 0, 1, 2, 3, 4
+WORK_ROWS = 5
 #: Rows of its per-plate flags (int8): final set, sets visited (bits), solved, wanted set.
 STATE, VISITED, SOLVED, WANTED = 0, 1, 2, 3
 FLAG_ROWS = 4
@@ -783,7 +782,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
         momentum[r] = acc
     first = slot_start  # slot s holds plates first[s] .. first[s + 1] - 1
     h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
-    magnitude, along = work[MAGNITUDE], work[ALONG]
+    magnitude = work[MAGNITUDE]
     across, coef_along, coef_across = work[ACROSS], work[COEF_ALONG], work[COEF_ACROSS]
     coef_moving = work[COEF_MOVING]
     states, visited = flags[STATE], flags[VISITED]  # visited: bit per set had this step
@@ -858,33 +857,37 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
                 for i in range(top):
                     acc += jac[r, i] * solution[i]
                 xi_new[r] = acc
-        for s in range(slots):
+        converged = True
+        for s in range(slots):  # the set each plate's end speed along d asks for
             x0, x1, x2 = xi_new[6 * s], xi_new[6 * s + 1], xi_new[6 * s + 2]
             x3, x4, x5 = xi_new[6 * s + 3], xi_new[6 * s + 4], xi_new[6 * s + 5]
             j0, j1 = first[s], first[s + 1]
             d0, d1, d2 = u[0, j0:j1], u[1, j0:j1], u[2, j0:j1]
             d3, d4, d5 = u[3, j0:j1], u[4, j0:j1], u[5, j0:j1]
-            along_s, wanted_s = along[j0:j1], wanted[j0:j1]
-            for j in range(j1 - j0):
+            wanted_s, states_s = wanted[j0:j1], states[j0:j1]
+            changes = 0
+            for j in range(j1 - j0):  # (vectorises)
                 value = (d0[j] * x0 + d1[j] * x1 + d2[j] * x2 + d3[j] * x3 + d4[j] * x4
                          + d5[j] * x5)
-                along_s[j] = value
-                wanted_s[j] = OFF if value < 0.0 else (MOVING if value >= v_reg else RESTING)
-        converged = True
-        for j in range(k):
-            old = states[j]
-            if wanted[j] == old or old == FROZEN:
+                want = OFF if value < 0.0 else (MOVING if value >= v_reg else RESTING)
+                wanted_s[j] = want
+                changes += (want != states_s[j]) & (states_s[j] != FROZEN)
+            if changes == 0:
                 continue
-            # moving and off are reached from resting only
-            new = wanted[j] if (old == RESTING or wanted[j] == RESTING) else RESTING
-            if visited[j] & (1 << new):  # back to a set it had: a cycle
-                frozen += 1
-                new = FROZEN
-            states[j] = new
-            visited[j] |= 1 << new
-            _set_coefficients(j, new, speed[j], across[j], inv_reg, v_reg, coef_along,
-                              coef_across, coef_moving)
-            dirty[out_slot[j]] = True
+            for j in range(j0, j1):
+                old = states[j]
+                if wanted[j] == old or old == FROZEN:
+                    continue
+                # moving and off are reached from resting only
+                new = wanted[j] if (old == RESTING or wanted[j] == RESTING) else RESTING
+                if visited[j] & (1 << new):  # back to a set it had: a cycle
+                    frozen += 1
+                    new = FROZEN
+                states[j] = new
+                visited[j] |= 1 << new
+                _set_coefficients(j, new, speed[j], across[j], inv_reg, v_reg, coef_along,
+                                  coef_across, coef_moving)
+            dirty[s] = True
             converged = False
     # The wrench the last solve assumed: moving plates' G plus every plate's linear response.
     for j in range(k):
