@@ -107,7 +107,7 @@ GatherArrays = namedtuple('GatherArrays', [
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
-    'out_plate', 'out_slot', 'slot_body', 'slot_start', 'table', 'motion', 'force'])
+    'out_plate', 'out_slot', 'slot_body', 'slot_start', 'table', 'force'])
 GATHER = GatherArrays(*range(len(GatherArrays._fields)))
 
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows).
@@ -167,7 +167,7 @@ def gather_plates(arrays):
     body_rootid = int32_vector(arrays, a.body_rootid)
     out_plate, out_slot = int_vector(arrays, a.out_plate), int_vector(arrays, a.out_slot)
     slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
-    table, motion = float_matrix(arrays, a.table), float_matrix(arrays, a.motion)
+    table = float_matrix(arrays, a.table)
     force = float_matrix(arrays, a.force)
     k = 0
     leading_count = 0
@@ -220,10 +220,11 @@ def gather_plates(arrays):
                 px = ox + r00 * lx + r01 * ly + r02 * lz
                 py = oy + r10 * lx + r11 * ly + r12 * lz
                 rx, ry, rz = px - cx, py - cy, pz - cz
-                motion[0, k] = vcx + wy * rz - wz * ry
-                motion[1, k] = vcy + wz * rx - wx * rz
-                motion[2, k] = vcz + wx * ry - wy * rx
-                motion[3, k], motion[4, k], motion[5, k] = px - comx, py - comy, pz - comz
+                table[DIRECTION, k] = vcx + wy * rz - wz * ry  # v, made d by _directions
+                table[DIRECTION + 1, k] = vcy + wz * rx - wx * rz
+                table[DIRECTION + 2, k] = vcz + wx * ry - wy * rx
+                table[LEVER, k], table[LEVER + 1, k] = px - comx, py - comy
+                table[LEVER + 2, k] = pz - comz
                 table[NORMAL, k] = r00 * mx + r01 * my + r02 * mz
                 table[NORMAL + 1, k] = r10 * mx + r11 * my + r12 * mz
                 table[NORMAL + 2, k] = r20 * mx + r21 * my + r22 * mz
@@ -240,7 +241,7 @@ def gather_plates(arrays):
             slot_start[slots] = first
             slots += 1
     slot_start[slots] = k
-    _directions(k, motion, table)
+    _directions(k, table)
     leading_forces(k, table, settings[INV_A4], settings[INV_B4], settings[DYNAMIC], force[0],
                    force[1], force[2])
     counters[STEPS] += 1
@@ -248,13 +249,13 @@ def gather_plates(arrays):
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _directions(k, motion, table):
-    """Rows DIRECTION, MOMENT, LEVER and SPEED of the plate table from the plates' world
-    velocity v and lever arm r (rows 0..2 and 3..5 of motion): d = v/|v| (0 at rest),
-    r x d, r, |v|. Reads and writes different arrays, so the loop vectorises."""
+def _directions(k, table):
+    """Rows DIRECTION, MOMENT and SPEED of the plate table from the plates' world velocity
+    v (in rows DIRECTION, replaced) and lever arm r (rows LEVER): d = v/|v| (0 at rest),
+    r x d, |v|. One vectorised pass."""
     for j in range(k):
-        vx, vy, vz = motion[0, j], motion[1, j], motion[2, j]
-        rx, ry, rz = motion[3, j], motion[4, j], motion[5, j]
+        vx, vy, vz = table[DIRECTION, j], table[DIRECTION + 1, j], table[DIRECTION + 2, j]
+        rx, ry, rz = table[LEVER, j], table[LEVER + 1, j], table[LEVER + 2, j]
         speed = np.sqrt(vx * vx + vy * vy + vz * vz)
         inv = 1.0 / speed if speed > 0.0 else 0.0
         dx, dy, dz = vx * inv, vy * inv, vz * inv
@@ -262,7 +263,6 @@ def _directions(k, motion, table):
         table[MOMENT, j] = ry * dz - rz * dy
         table[MOMENT + 1, j] = rz * dx - rx * dz
         table[MOMENT + 2, j] = rx * dy - ry * dx
-        table[LEVER, j], table[LEVER + 1, j], table[LEVER + 2, j] = rx, ry, rz
         table[SPEED, j] = speed
 
 

@@ -100,7 +100,6 @@ class SandEngine:
         self._plate = np.zeros(n, dtype=np.int64)
         self._slot = np.zeros(n, dtype=np.int64)
         self._table = np.zeros((coupling.PLATE_ROWS, n))
-        self._motion = np.zeros((6, n))  # velocity and lever arm, m/s and m, world
         self._force = np.zeros((6, n))  # G, then r x G (coupling.implicit_wrenches)
         self._applied = np.zeros((3, n))
         self._work = np.zeros((coupling.WORK_ROWS, n))
@@ -177,7 +176,7 @@ class SandEngine:
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
-            motion=self._motion, force=self._force))
+            force=self._force))
         self._implicit_arrays = ArrayTable(*coupling.ImplicitArrays(
             settings=self._settings, counters=self._counters, slot_body=self._slot_body,
             slot_start=self._slot_start, out_plate=self._plate, out_slot=self._slot,
