@@ -6,7 +6,7 @@ from numba import njit
 
 from rft_sim_ros.sim.array_table import (ArrayTable, byte_vector, float_matrix, float_vector,
                                          int8_matrix, int8_vector, int32_matrix, int32_vector,
-                                         int_vector)
+                                         int_matrix, int_vector)
 
 
 @njit
@@ -18,7 +18,8 @@ def _sums(table):
     return (float_vector(table, 0).sum(), matrix.sum(), int_vector(table, 2).sum(),
             int32_vector(table, 3).sum(), int32_matrix(table, 4).sum(),
             int8_vector(table, 5).sum(), int8_matrix(table, 6).sum(),
-            byte_vector(table, 7).sum(), matrix.shape[0], matrix.shape[1])
+            byte_vector(table, 7).sum(), int_matrix(table, 8).sum(), matrix.shape[0],
+            matrix.shape[1])
 
 
 @njit
@@ -30,10 +31,10 @@ def test_kernels_read_and_write_the_recorded_arrays_in_place():
     arrays = (np.arange(5.0), np.arange(12.0).reshape(3, 4), np.arange(4, dtype=np.int64),
               np.arange(3, dtype=np.int32), np.ones((2, 2), dtype=np.int32),
               np.array([1, -2], dtype=np.int8), np.ones((2, 3), dtype=np.int8),
-              np.array([True, False, True]))
+              np.array([True, False, True]), np.arange(6, dtype=np.int64).reshape(2, 3))
     table = ArrayTable(*arrays)
     sums = _sums(table.table)
-    assert sums == (10.0, 67.0, 6, 3, 4, -1, 6, 2, 3, 4)
+    assert sums == (10.0, 67.0, 6, 3, 4, -1, 6, 2, 15, 3, 4)
     assert arrays[1][0, 0] == 1.0  # written through the view: no copy
 
 

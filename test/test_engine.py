@@ -108,7 +108,8 @@ def test_translational_inverse_masses_match_a_dense_inverse(seed):
         mujoco.mj_jac(model, data, jac[6 * slot:6 * slot + 3], jac[6 * slot + 3:6 * slot + 6],
                       data.xipos[body], body)
     out = np.zeros(len(bodies))
-    coupling._translational_inverse_masses(mass, model.dof_parentid, jac, len(bodies), out)
+    coupling._translational_inverse_masses(mass, model.dof_parentid, jac, len(bodies),
+                                           np.empty_like(mass), np.empty((model.nv, 15)), out)
     inverse = np.linalg.inv(mass)
     expected = [np.trace(jac[6 * s:6 * s + 3] @ inverse @ jac[6 * s:6 * s + 3].T)
                 for s in range(len(bodies))]

@@ -113,7 +113,7 @@ def _matrix_reader(dtype):
 
 #: Compiled accessors: entry i of a table as an array (no copy), by element type and rank.
 float_vector, float_matrix = _vector_reader(np.float64), _matrix_reader(np.float64)
-int_vector = _vector_reader(np.int64)
+int_vector, int_matrix = _vector_reader(np.int64), _matrix_reader(np.int64)
 int32_vector, int32_matrix = _vector_reader(np.int32), _matrix_reader(np.int32)
 int8_vector, int8_matrix = _vector_reader(np.int8), _matrix_reader(np.int8)
 byte_vector = _vector_reader(np.uint8)

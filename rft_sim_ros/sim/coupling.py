@@ -34,8 +34,8 @@ from numba import njit
 
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
-from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int32_matrix,
-                          int32_vector, int_vector)
+from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
+                          int32_matrix, int32_vector, int_matrix, int_vector)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -110,7 +110,32 @@ GatherArrays = namedtuple('GatherArrays', [
     'out_plate', 'out_slot', 'slot_body', 'slot_start', 'table', 'force'])
 GATHER = GatherArrays(*range(len(GatherArrays._fields)))
 
-#: The arrays of `implicit_step`, likewise (IMPLICIT: their rows).
+#: The implicit solve's work space, allocated once by the engine (`solve_space`), so that a
+#: step allocates nothing: per slot (S <= sand bodies) its kinematic chain (dofs) and their
+#: count, its translational inverse effective mass, accumulators (w_moving, k_rank: S 6x6
+#: blocks stacked, k_iso) and a flag to sum them again; per dof the momentum Mh qvel +
+#: dt tau_free, the system and its right-hand side, a factored copy and the solution, the
+#: tree factor of Mh and its solve for the 3S translational Jacobian rows; and the 6x6 block
+#: and `_add_slot`'s rows of one slot.
+SolveSpace = namedtuple('SolveSpace', [
+    'chain', 'chain_count', 'inverse_mass', 'w_moving', 'k_rank', 'k_iso', 'dirty',
+    'momentum', 'system', 'rhs', 'factored', 'solution', 'factor', 'translational', 'block',
+    'chain_work'])
+
+
+def solve_space(nv, bodies):
+    """A SolveSpace for a model with nv dofs and `bodies` sand bodies."""
+    return SolveSpace(
+        chain=np.zeros((bodies, nv), dtype=np.int64), chain_count=np.zeros(bodies, np.int64),
+        inverse_mass=np.zeros(bodies), w_moving=np.zeros((bodies, 6)),
+        k_rank=np.zeros((6 * bodies, 6)), k_iso=np.zeros((bodies, 10)),
+        dirty=np.zeros(bodies, dtype=np.int8), momentum=np.zeros(nv),
+        system=np.zeros((nv, nv)), rhs=np.zeros(nv), factored=np.zeros((nv, nv)),
+        solution=np.zeros(nv), factor=np.zeros((nv, nv)), translational=np.zeros((nv, 3 * bodies)),
+        block=np.zeros((6, 6)), chain_work=np.zeros((13, nv)))
+
+
+#: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
 ImplicitArrays = namedtuple('ImplicitArrays', [
     # the engine's settings and counters, the gathered plates (`gather_plates`)
     'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'out_slot', 'table', 'force',
@@ -124,7 +149,7 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'actadr', 'actuator_force',
     # work space and results
     'damping', 'mass', 'jac', 'memory', 'work', 'flags', 'xi_new',
-    'wrench', 'body_wrenches', 'xfrc_applied'])
+    'wrench', 'body_wrenches', 'xfrc_applied', *SolveSpace._fields])
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
 
@@ -344,18 +369,17 @@ def implicit_mass(mass, damping, timestep):
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _tree_factor(matrix, dof_parentid):
+def _tree_factor(matrix, dof_parentid, factor):
     """L^T D L factor of an SPD joint-space matrix with the sparsity of MuJoCo's inertia (entry
     (i, j) nonzero only if one of dofs i, j is an ancestor of the other, as mj_fullM gives):
     MuJoCo's own factorisation (mj_factorM), eliminating from the leaves, which fills nothing
-    in. Returns a new (nv, nv) array: D on the diagonal, the unit lower-triangular L below it
+    in. Writes factor (nv, nv): D on the diagonal, the unit lower-triangular L below it
     (nonzero only at (dof, ancestor dof)), zero above. Rows are updated whole (zeros off the
     pattern stay zero), so the updates vectorise."""
     n = matrix.shape[0]
-    factor = np.zeros((n, n))
     for i in range(n):
-        for j in range(i + 1):
-            factor[i, j] = matrix[i, j]
+        for j in range(n):
+            factor[i, j] = matrix[i, j] if j <= i else 0.0
     for k in range(n - 1, -1, -1):
         inv = 1.0 / factor[k, k]
         row_k = factor[k]
@@ -367,17 +391,16 @@ def _tree_factor(matrix, dof_parentid):
                 target[j] -= source[j] * scale
             row_k[i] = scale
             i = dof_parentid[i]
-    return factor
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def _translational_inverse_masses(mass_h, dof_parentid, jac, slots, out):
+def _translational_inverse_masses(mass_h, dof_parentid, jac, slots, factor, work, out):
     """out[s] = sum over the 3 translational rows J_r of slot s of J_r Mh^-1 J_r^T
-    (1/kg) = |D^-1/2 L^-T J_r^T|^2 with Mh = L^T D L (`_tree_factor`), all 3S rows solved
-    at once (their index innermost, so the loops vectorise)."""
+    (1/kg) = |D^-1/2 L^-T J_r^T|^2 with Mh = L^T D L (`_tree_factor`, into factor (nv, nv)),
+    all 3S rows solved at once in work (nv, >= 3S) (their index innermost, so the loops
+    vectorise)."""
     n, count = mass_h.shape[0], 3 * slots
-    factor = _tree_factor(mass_h, dof_parentid)
-    work = np.empty((n, count))
+    _tree_factor(mass_h, dof_parentid, factor)
     for s in range(slots):
         for a in range(3):
             for i in range(n):
@@ -734,13 +757,14 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v_reg, jac,
-                      chain, chain_count, mass_h, dof_parentid, qvel, timestep, step,
-                      memory, work, flags, xi_new, wrench):
+                      space, mass_h, dof_parentid, qvel, timestep, step, memory, work, flags,
+                      xi_new, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
-    except the sand's (passive + actuator + applied - bias), and chain, chain_count the dofs
-    each slot's rows reach (`prepare_solve`). mass_h: Mh = M + dt D, the matrix MuJoCo's
+    except the sand's (passive + actuator + applied - bias); space: a SolveSpace, whose chain,
+    chain_count hold the dofs each slot's rows reach (`prepare_solve`), the rest work space.
+    mass_h: Mh = M + dt D, the matrix MuJoCo's
     step solves with (`implicit_mass`); dof_parentid: mjModel's. With each plate moving
     (force G), resting (linear in v+) or off, the end-of-step joint velocities solve
         (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving),   xi+ = J qvel+,
@@ -774,7 +798,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     n6 = 6 * slots
     nv = qvel.shape[0]
     inv_reg = 1.0 / v_reg
-    momentum = np.empty(nv)  # Mh qvel + dt tau_free
+    chain, chain_count = space.chain, space.chain_count
+    momentum = space.momentum  # Mh qvel + dt tau_free
     for r in range(nv):
         acc = timestep * jac[n6, r]
         for c in range(nv):
@@ -799,8 +824,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
     # Across dampers. Turn speed of a slot: the speed its sand could take out of it in one
     # step, dt x (sum of its plates' |G|) x its translational inverse effective mass
     # (diagonal of J Mh^-1 J^T, averaged).
-    inverse_mass = np.empty(slots)
-    _translational_inverse_masses(mass_h, dof_parentid, jac, slots, inverse_mass)
+    inverse_mass = space.inverse_mass
+    _translational_inverse_masses(mass_h, dof_parentid, jac, slots, space.factor,
+                                  space.translational, inverse_mass)
     for s in range(slots):
         total = magnitude[first[s]:first[s + 1]].sum()
         turn_speed = max(total * timestep * inverse_mass[s] / 3.0, v_reg)
@@ -819,16 +845,11 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
         visited[j] = 1 << state
         _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
                           coef_across, coef_moving)
-    w_moving = np.zeros((slots, 6))
-    k_rank = np.zeros((slots, 6, 6))
-    k_iso = np.zeros((slots, 10))
-    dirty = np.ones(slots, dtype=np.bool_)  # slots whose accumulators must be summed again
-    block = np.zeros((6, 6))
-    chain_work = np.empty((13, nv))  # `_add_slot`'s
-    system = np.empty((nv, nv))
-    rhs = np.empty(nv)
-    factored = np.empty((nv, nv))
-    solution = np.empty(nv)
+    w_moving, k_rank, k_iso = space.w_moving, space.k_rank, space.k_iso
+    dirty = space.dirty  # slots whose accumulators must be summed again
+    dirty[:slots] = True
+    block, chain_work = space.block, space.chain_work
+    system, rhs, factored, solution = space.system, space.rhs, space.factored, space.solution
     iterations = 0
     frozen = 0  # plates frozen this step
     converged = False
@@ -837,14 +858,14 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
         for s in range(slots):
             if dirty[s]:
                 _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
-                                 coef_moving, w_moving[s], k_rank[s], k_iso[s])
+                                 coef_moving, w_moving[s], k_rank[6 * s:6 * s + 6], k_iso[s])
                 dirty[s] = False
         # (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving), slot by slot
         # over the dofs its Jacobian reaches (its kinematic chain) only.
         system[:, :] = mass_h
         rhs[:] = momentum
         for s in range(slots):
-            _resting_block(k_rank[s], k_iso[s], block)
+            _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], block)
             _add_slot(block, w_moving[s], jac[6 * s:6 * s + 6], chain[s, :chain_count[s]],
                       timestep, chain_work, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
@@ -898,8 +919,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
                 _set_coefficients(j, solved[j], speed[j], across[j], inv_reg, v_reg,
                                   coef_along, coef_across, coef_moving)
             _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
-                             coef_moving, w_moving[s], k_rank[s], k_iso[s])
-        _resting_block(k_rank[s], k_iso[s], block)
+                             coef_moving, w_moving[s], k_rank[6 * s:6 * s + 6], k_iso[s])
+        _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], block)
         for a in range(6):
             acc = w_moving[s, a]
             for b in range(6):
@@ -952,24 +973,30 @@ def implicit_step(timestep, arrays):
     flags, xi_new = int8_matrix(arrays, a.flags), float_vector(arrays, a.xi_new)
     wrench, body_wrenches = float_matrix(arrays, a.wrench), float_matrix(arrays, a.body_wrenches)
     xfrc_applied = float_matrix(arrays, a.xfrc_applied)
+    space = SolveSpace(
+        int_matrix(arrays, a.chain), int_vector(arrays, a.chain_count),
+        float_vector(arrays, a.inverse_mass), float_matrix(arrays, a.w_moving),
+        float_matrix(arrays, a.k_rank), float_matrix(arrays, a.k_iso),
+        int8_vector(arrays, a.dirty), float_vector(arrays, a.momentum),
+        float_matrix(arrays, a.system), float_vector(arrays, a.rhs),
+        float_matrix(arrays, a.factored), float_vector(arrays, a.solution),
+        float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
+        float_matrix(arrays, a.block), float_matrix(arrays, a.chain_work))
     if slots == 0:  # no plate in the sand
         scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
         return
     rows = jac[:6 * slots + 1]
-    chain = np.empty((slots, qvel.shape[0]), dtype=np.int64)
-    chain_count = np.empty(slots, dtype=np.int64)
     prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                  qfrc_actuator, qfrc_applied, qfrc_bias, rows, chain, chain_count)
+                  qfrc_actuator, qfrc_applied, qfrc_bias, rows, space.chain, space.chain_count)
     implicit_damping(settings[DAMPER] != 0.0, settings[ACTUATORS] != 0.0, dof_damping, trntype,
                      trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm, biastype,
                      biasprm, forcelimited, forcerange, ctrl, act, actadr, actuator_force,
                      damping)
     implicit_mass(mass, damping, timestep)
     iterations = implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force,
-                                   v_reg, rows, chain, chain_count, mass, dof_parentid, qvel,
-                                   timestep, step, memory, work, flags,
-                                   xi_new, wrench)
+                                   v_reg, rows, space, mass, dof_parentid, qvel, timestep,
+                                   step, memory, work, flags, xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
     counters[SOLVES] += abs(iterations)
     counters[UNSETTLED] += iterations < 0

@@ -194,7 +194,8 @@ class SandEngine:
             actadr=m.actuator_actadr, actuator_force=d.actuator_force, damping=self._damping,
             mass=self._mass, jac=self._jac, memory=self._plate_memory, work=self._work,
             flags=self._flags, xi_new=self._xi, wrench=self._slot_wrench,
-            body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied))
+            body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied,
+            **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
 
     @property
     def zeta(self):
