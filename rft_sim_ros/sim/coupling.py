@@ -414,13 +414,13 @@ def _translational_inverse_masses(mass_h, dof_parentid, jac, slots, factor, work
             for r in range(count):
                 target[r] -= f * row[r]
             j = dof_parentid[j]
-    for s in range(slots):
-        total = 0.0
-        for i in range(n):
-            inv = 1.0 / factor[i, i]
-            for a in range(3):
-                total += work[i, 3 * s + a] * work[i, 3 * s + a] * inv
-        out[s] = total
+    out[:slots] = 0.0
+    for i in range(n):  # |D^-1/2 z|^2, each dof's 1/D once
+        inv = 1.0 / factor[i, i]
+        row = work[i]
+        for s in range(slots):
+            x, y, z = row[3 * s], row[3 * s + 1], row[3 * s + 2]
+            out[s] += (x * x + y * y + z * z) * inv
 
 
 @njit(cache=True, error_model='numpy')
