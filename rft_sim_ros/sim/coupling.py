@@ -138,7 +138,7 @@ def solve_space(nv, bodies):
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
 ImplicitArrays = namedtuple('ImplicitArrays', [
     # the engine's settings and counters, the gathered plates (`gather_plates`)
-    'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'out_slot', 'table', 'force',
+    'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'table', 'force',
     # the sand bodies, mjModel, mjData
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
@@ -165,9 +165,9 @@ def gather_plates(arrays):
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
     that the depth test reads positions only). A plate below the surface first has
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
-    velocity W (9 multiply-adds), so only leading plates (n . v >
-    TANGENTIAL x the body's speed scale), or all plates below the surface with TRAILING,
-    are transformed to the world.
+    velocity W (9 multiply-adds), so only leading plates (n . v > TANGENTIAL x the body's
+    speed scale), or all plates below the surface with TRAILING, are transformed to the
+    world.
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
     SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
     index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world). Counts the plates
@@ -756,9 +756,8 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
-def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v_reg, jac,
-                      space, mass_h, dof_parentid, qvel, timestep, step, memory, work, flags,
-                      xi_new, wrench):
+def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
+                      dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -872,10 +871,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force, v
         for j in range(k):
             solved[j] = states[j]
         for s in range(slots):  # xi+ = J qvel+, over each chain's dofs
-            top = chain[s, 0] + 1 if chain_count[s] > 0 else 0
+            top = chain[s, 0] + 1 if chain_count[s] > 0 else 0  # its leaf has the highest
             for r in range(6 * s, 6 * s + 6):
                 acc = 0.0
-                for i in range(top):
+                for i in range(top):  # (zero beyond the chain: a prefix vectorises)
                     acc += jac[r, i] * solution[i]
                 xi_new[r] = acc
         converged = True
@@ -945,7 +944,7 @@ def implicit_step(timestep, arrays):
     k, slots, step = counters[GATHERED], counters[SLOTS], counters[STEPS]
     v_reg = settings[REST_SPEED]
     slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
-    out_plate, out_slot = int_vector(arrays, a.out_plate), int_vector(arrays, a.out_slot)
+    out_plate = int_vector(arrays, a.out_plate)
     table, force = float_matrix(arrays, a.table), float_matrix(arrays, a.force)
     body_ids, body_rootid = int_vector(arrays, a.body_ids), int32_vector(arrays, a.body_rootid)
     body_dofnum = int32_vector(arrays, a.body_dofnum)
@@ -994,9 +993,9 @@ def implicit_step(timestep, arrays):
                      biasprm, forcelimited, forcerange, ctrl, act, actadr, actuator_force,
                      damping)
     implicit_mass(mass, damping, timestep)
-    iterations = implicit_wrenches(k, slots, slot_start, out_plate, out_slot, table, force,
-                                   v_reg, rows, space, mass, dof_parentid, qvel, timestep,
-                                   step, memory, work, flags, xi_new, wrench)
+    iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, rows,
+                                   space, mass, dof_parentid, qvel, timestep, step, memory,
+                                   work, flags, xi_new, wrench)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
     counters[SOLVES] += abs(iterations)
     counters[UNSETTLED] += iterations < 0

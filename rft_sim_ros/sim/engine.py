@@ -179,8 +179,8 @@ class SandEngine:
             force=self._force))
         self._implicit_arrays = ArrayTable(*coupling.ImplicitArrays(
             settings=self._settings, counters=self._counters, slot_body=self._slot_body,
-            slot_start=self._slot_start, out_plate=self._plate, out_slot=self._slot,
-            table=self._table, force=self._force, body_ids=self.body_ids,
+            slot_start=self._slot_start, out_plate=self._plate, table=self._table,
+            force=self._force, body_ids=self.body_ids,
             body_rootid=m.body_rootid, body_dofnum=m.body_dofnum, body_dofadr=m.body_dofadr,
             body_parentid=m.body_parentid, dof_parentid=m.dof_parentid, xipos=d.xipos,
             subtree_com=d.subtree_com, cdof=d.cdof, qvel=d.qvel, qfrc_passive=d.qfrc_passive,
@@ -297,7 +297,7 @@ class SandEngine:
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
         (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
         k = self._counters[coupling.GATHERED]
-        if self.low_velocity.method == 'implicit':
+        if self._implicit_method:
             self._implicit_plate_forces(k)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
         lever = self._table[coupling.LEVER:coupling.LEVER + 3, :k].T
