@@ -18,7 +18,7 @@ import json
 import sys
 from pathlib import Path
 
-from .sim.scene import SceneError, bundled_scenes, load_scene, parse_assignment
+from .scenes.config import SceneError, bundled_scenes, load_scene, parse_assignment
 from .units import validated_zeta
 
 #: Values `--set-at` may change during a run: name -> (check(value), apply(sim, value)).

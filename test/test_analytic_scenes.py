@@ -6,8 +6,8 @@ import pytest
 
 from rft_sim_ros.cli import main
 from rft_sim_ros.sim.runner import run_scene
-from rft_sim_ros.sim.scene import SceneError, load_scene
-from rft_sim_ros.sim.scenarios.plate_drop import expected_impact_depth
+from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.scenes.scenarios.plate_drop import expected_impact_depth
 
 SUMMARY_FIELDS = {'scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s',
                   'real_time_factor', 'steps', 'plates_total', 'plates_active_mean', 'stable',

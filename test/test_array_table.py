@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from rft_sim_ros.sim.array_table import (ArrayTable, byte_vector, float_matrix, float_vector,
+from rft_sim_ros.sand.array_table import (ArrayTable, byte_vector, float_matrix, float_vector,
                                          int8_matrix, int8_vector, int32_matrix, int32_vector,
                                          int_matrix, int_vector)
 

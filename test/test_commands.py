@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from rft_sim_ros.ros import inbound
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
-from rft_sim_ros.sim.commands import (CommandHandler, Reason, TrajectoryCommand,
+from rft_sim_ros.control.commands import (CommandHandler, Reason, TrajectoryCommand,
                                       TrajectoryPoint)
-from rft_sim_ros.sim.throttle import ThrottledLog
+from rft_sim_ros.control.throttle import ThrottledLog
 
 JOINTS = ('a', 'b', 'c')
 INITIAL = np.array([0.1, -0.2, 0.3])

@@ -5,10 +5,10 @@ import pytest
 from numba import njit
 
 from rft_sim_ros.rft import body_wrench
-from rft_sim_ros.sim import coupling
-from rft_sim_ros.sim import engine as engine_module
-from rft_sim_ros.sim.engine import LowVelocity, SandEngine
-from rft_sim_ros.sim.geoms import body_plates
+from rft_sim_ros.sand import coupling
+from rft_sim_ros.sand import engine as engine_module
+from rft_sim_ros.sand.engine import LowVelocity, SandEngine
+from rft_sim_ros.sand.geoms import body_plates
 
 ARM = """
 <mujoco><option timestep="0.001" integrator="implicitfast"/>

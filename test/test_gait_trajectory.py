@@ -8,9 +8,9 @@ import pytest
 from rft_sim_ros.ros import inbound, messages
 from rft_sim_ros.ros.factory import RosbagsFactory
 from rft_sim_ros.ros.gait_trajectory import GaitTrajectories
-from rft_sim_ros.sim.commands import CommandHandler, TrajectoryCommand, TrajectoryPoint
-from rft_sim_ros.sim.gaits import make_gait
-from rft_sim_ros.sim.hexapod import JOINT_NAMES
+from rft_sim_ros.control.commands import CommandHandler, TrajectoryCommand, TrajectoryPoint
+from rft_sim_ros.scenes.gaits import make_gait
+from rft_sim_ros.scenes.hexapod import JOINT_NAMES
 
 FACTORY = RosbagsFactory()
 
@@ -93,7 +93,7 @@ def test_the_hexapod_walks_on_gait_trajectories_sent_through_the_node_core():
     built-in gait off."""
     from rft_sim_ros.ros.runtime import SimRuntime
     from rft_sim_ros.sim.runner import run_scene
-    from rft_sim_ros.sim.scene import load_scene
+    from rft_sim_ros.scenes.config import load_scene
     from rft_sim_ros.sim.simulation import Simulation
     from ros_test_support import ListSink
 

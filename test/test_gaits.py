@@ -1,12 +1,12 @@
-"""Leg kinematics (rft_sim_ros.sim.leg_kinematics) and built-in gaits (rft_sim_ros.sim.gaits);
+"""Leg kinematics (rft_sim_ros.scenes.leg_kinematics) and built-in gaits (rft_sim_ros.scenes.gaits);
 pure numpy, no MuJoCo (test_hexapod_model.py checks both against the MJCF)."""
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rft_sim_ros.sim import hexapod
-from rft_sim_ros.sim.gaits import StandGait, TripodGait, make_gait
+from rft_sim_ros.scenes import hexapod
+from rft_sim_ros.scenes.gaits import StandGait, TripodGait, make_gait
 
 LEGS = hexapod.LEGS
 TRIPOD_A = ('R1', 'L2', 'R3')

@@ -1,14 +1,14 @@
 """The bundled hexapod MJCF (models/hexapod.xml) against the paper's robot and against
-rft_sim_ros.sim.hexapod, plus short plain-MuJoCo runs on the rigid floor."""
+rft_sim_ros.scenes.hexapod, plus short plain-MuJoCo runs on the rigid floor."""
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
-from rft_sim_ros.sim import hexapod
-from rft_sim_ros.sim.gaits import make_gait
-from rft_sim_ros.sim.scene import load_scene
+from rft_sim_ros.scenes import hexapod
+from rft_sim_ros.scenes.gaits import make_gait
+from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, can_collide
 
 MODELS = Path(__file__).resolve().parent.parent / 'models'

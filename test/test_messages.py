@@ -340,7 +340,7 @@ def test_fixed_size_array_checks_its_size():
 
 def test_message_code_imports_no_ros():
     code = ('import sys; import rft_sim_ros.ros.messages, rft_sim_ros.ros.bag, '
-            'rft_sim_ros.ros.inbound, rft_sim_ros.sim.commands; '
+            'rft_sim_ros.ros.inbound, rft_sim_ros.control.commands; '
             'bad = [m for m in sys.modules if m.split(".")[0] in '
             '("rclpy", "std_msgs", "sensor_msgs", "rosgraph_msgs")]; print(bad); '
             'sys.exit(1 if bad else 0)')

@@ -32,8 +32,8 @@ from rft_sim_ros.ros.gait_node import TripodGaitNode  # noqa: E402
 from rft_sim_ros.ros.gait_node import main as gait_main  # noqa: E402
 from rft_sim_ros.ros.node import SimNode  # noqa: E402
 from rft_sim_ros.ros.node import main as sim_main  # noqa: E402
-from rft_sim_ros.sim.hexapod import JOINT_NAMES as HEXAPOD_JOINTS  # noqa: E402
-from rft_sim_ros.sim.scene import SceneError  # noqa: E402
+from rft_sim_ros.scenes.hexapod import JOINT_NAMES as HEXAPOD_JOINTS  # noqa: E402
+from rft_sim_ros.scenes.config import SceneError  # noqa: E402
 from ros_test_support import SERVO_RIG  # noqa: E402
 
 pytestmark = pytest.mark.ros

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from rft_sim_ros.rft import Plates, body_wrench, refine
-from rft_sim_ros.sim.geoms import body_plates, body_plates_at_edge
+from rft_sim_ros.sand.geoms import body_plates, body_plates_at_edge
 
 GEOMS = """
 <mujoco><asset><mesh name="cone" vertex="{cone_vertices}" face="{cone_faces}"/></asset>

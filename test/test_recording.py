@@ -11,7 +11,7 @@ from rft_sim_ros.ros.bag import bag_topics, read_messages
 from rft_sim_ros.ros.recording import BagRecorder
 from rft_sim_ros.ros.stamps import seconds_to_ns
 from rft_sim_ros.sim.runner import run_scene
-from rft_sim_ros.sim.scene import load_scene
+from rft_sim_ros.scenes.config import load_scene
 from ros_test_support import SERVO_RIG
 
 DURATION = 0.3        # s

@@ -5,7 +5,7 @@ import pytest
 
 from rft_sim_ros.ros import parameters
 from rft_sim_ros.ros.parameters import parameter_problem
-from rft_sim_ros.sim.scene import SceneError
+from rft_sim_ros.scenes.config import SceneError
 
 
 @pytest.mark.parametrize('value, words', [

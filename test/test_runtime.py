@@ -13,8 +13,8 @@ from rft_sim_ros.ros.bag import bag_topics, read_messages
 from rft_sim_ros.ros.bag import BagWriter
 from rft_sim_ros.ros.factory import RosbagsFactory
 from rft_sim_ros.ros.runtime import SimRuntime, array_order
-from rft_sim_ros.sim.commands import TrajectoryCommand, TrajectoryPoint
-from rft_sim_ros.sim.scene import load_scene
+from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
+from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation
 from ros_test_support import SERVO_RIG, FakeClock, ListSink
 

@@ -5,9 +5,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rft_sim_ros.sim.scene import SceneError, load_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
-from rft_sim_ros.sim.stepping_leg import LegGeometry, SteppingPath
+from rft_sim_ros.scenes.stepping_leg import LegGeometry, SteppingPath
 
 LEG = LegGeometry()
 PATH = SteppingPath(stroke=0.15, reach=0.12, stance_z=-0.04, lift_z=0.01, abduction=0.03,

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from rft_sim_ros.sim import hexapod
+from rft_sim_ros.scenes import hexapod
 from rft_sim_ros.sim.runner import run_scene
-from rft_sim_ros.sim.scene import SceneError, load_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 #: Coarse and short: 120 plates per body, settle 0.4 s, two gait cycles.

@@ -7,9 +7,9 @@ import pytest
 import trimesh
 
 from rft_sim_ros.rft import plate_forces
-from rft_sim_ros.sim.intruders import arc_mesh
+from rft_sim_ros.scenes.intruders import arc_mesh
 from rft_sim_ros.sim.runner import run_scene
-from rft_sim_ros.sim.scene import SceneError, load_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 COARSE = {'rft.plates_per_body': 300}

@@ -4,7 +4,7 @@ the runs no other run beats on both wall time and error (the Pareto front)."""
 from dataclasses import dataclass
 
 from ..sim.runner import run_scene
-from ..sim.scene import load_scene
+from ..scenes.config import load_scene
 
 
 @dataclass(frozen=True)

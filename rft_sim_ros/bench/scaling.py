@@ -9,8 +9,8 @@ import time
 
 import numpy as np
 
-from ..sim.hexapod import LEG_NAMES
-from ..sim.scene import load_scene
+from ..scenes.hexapod import LEG_NAMES
+from ..scenes.config import load_scene
 from ..sim.simulation import Simulation
 
 

@@ -12,7 +12,7 @@ import tempfile
 _PROBE = r'''
 import json, sys, time
 started = time.perf_counter()
-from rft_sim_ros.sim.scene import load_scene
+from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation
 imported = time.perf_counter()
 sim = Simulation(load_scene(sys.argv[1]))

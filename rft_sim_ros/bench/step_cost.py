@@ -12,9 +12,9 @@ import mujoco
 import numpy as np
 
 from .. import resources
-from ..sim.gaits import make_gait
+from ..scenes.gaits import make_gait
 from ..sim.runner import run_scene
-from ..sim.scene import load_scene
+from ..scenes.config import load_scene
 from ..sim.simulation import Simulation
 
 

@@ -1,5 +1,5 @@
 """The `tripod_gait` node (`ros2 run rft_sim_ros tripod_gait`): drives the hexapod's
-alternating tripod gait (rft_sim_ros.sim.gaits) over /joint_trajectory_controller/joint_trajectory.
+alternating tripod gait (rft_sim_ros.scenes.gaits) over /joint_trajectory_controller/joint_trajectory.
 
 rclpy wiring around `GaitTrajectories`: on a sim-time timer (`rate` Hz) it publishes a short
 trajectory of future gait targets stamped in sim time, which the simulator (or a real
@@ -21,7 +21,7 @@ from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.gait_trajectory import GaitTrajectories
 from rft_sim_ros.ros.stamps import NS_PER_S
-from rft_sim_ros.sim.gaits import make_gait
+from rft_sim_ros.scenes.gaits import make_gait
 
 NODE_NAME = 'tripod_gait'
 QUEUE_DEPTH = 10

@@ -1,6 +1,6 @@
 """Short trajectories of future gait targets, for a gait publisher driving a robot over ROS.
 
-ROS-free. `GaitTrajectories.command(now)` samples a built-in gait (rft_sim_ros.sim.gaits)
+ROS-free. `GaitTrajectories.command(now)` samples a built-in gait (rft_sim_ros.scenes.gaits)
 from sim time `now` over a short horizon into a `TrajectoryCommand`: start time `now`
 (the JointTrajectory header stamp), waypoints every `spacing_s` with positions and
 velocities (central differences of the gait, so the receiver interpolates with cubic
@@ -13,7 +13,7 @@ held until then, and the gait's own ramp follows). Times in s of sim time.
 """
 import math
 
-from rft_sim_ros.sim.commands import TrajectoryCommand, TrajectoryPoint
+from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
 
 #: Half-width of the central difference that gives waypoint velocities, s.
 _DIFFERENCE_S = 1e-4

@@ -18,7 +18,7 @@ from rft_sim_ros.ros import messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
-from rft_sim_ros.sim.scene import SceneError, load_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 NODE_NAME = 'rft_sim'

@@ -8,7 +8,7 @@ joint_names) are taken from the loaded scene by the node.
 import math
 from dataclasses import dataclass
 
-from rft_sim_ros.sim.scene import SceneError, parse_assignment
+from rft_sim_ros.scenes.config import SceneError, parse_assignment
 from rft_sim_ros.units import zeta_problem
 
 

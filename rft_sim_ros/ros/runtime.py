@@ -28,9 +28,9 @@ from rft_sim_ros.ros import inbound, parameters, topics
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_key
 from rft_sim_ros.ros.messages import RunStatus
 from rft_sim_ros.ros.pacing import Pacer
-from rft_sim_ros.sim.commands import CommandResult, Reason
+from rft_sim_ros.control.commands import CommandResult, Reason
 from rft_sim_ros.sim.simulation import SimulationDiverged
-from rft_sim_ros.sim.throttle import ThrottledLog
+from rft_sim_ros.control.throttle import ThrottledLog
 
 
 @dataclass(frozen=True)

@@ -17,11 +17,11 @@ Hz of sim time.
 import mujoco
 import numpy as np
 
-from .commands import CommandHandler
-from .engine import LowVelocity, SandEngine
-from .geoms import body_plates
-from .scenarios import load_scenario
-from .scene import SceneError
+from ..control.commands import CommandHandler
+from ..sand.engine import LowVelocity, SandEngine
+from ..sand.geoms import body_plates
+from ..scenes.scenarios import load_scenario
+from ..scenes.config import SceneError
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
 

@@ -5,7 +5,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Optional
 
-from ..sim.scene import load_scene
+from ..scenes.config import load_scene
 from ..sim.simulation import Simulation, SimulationDiverged
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sim.scene import load_scene
+from ..scenes.config import load_scene
 from ..sim.simulation import Simulation, SimulationDiverged
 from ..units import zeta_to_si
 

@@ -5,7 +5,7 @@ horizontal rail `rail_height` m above the sand (slide joint 'rail' with Coulomb 
 `rail_friction` N and viscous `rail_damping` N s/m), carrying a velocity servo whose axle
 (along y) sits `length - max_depth` m above the sand, so that the intruder's tip (`length`
 m from the axle) reaches `max_depth` m deep when it points straight down. The intruder
-(`shape` flat or c, rft_sim_ros/sim/intruders.py) starts horizontal and turns 180 deg at
+(`shape` flat or c, rft_sim_ros/scenes/intruders.py) starts horizontal and turns 180 deg at
 `speed` rad/s; `direction` +1 starts it along +x and sweeps the tip down and back (-x)
 through the sand, driving the carriage towards +x; -1 is the same motion mirrored (starts
 along -x, drives the carriage towards -x). With shape c, +1 leads with the convex side
@@ -34,9 +34,9 @@ import math
 
 import numpy as np
 
-from ..commands import TrajectoryCommand, TrajectoryPoint
+from ...control.commands import TrajectoryCommand, TrajectoryPoint
 from ..intruders import SHAPES, add_intruder
-from ..scene import SceneError
+from ..config import SceneError
 from . import BaseScenario
 
 #: Rotation of one trial, rad.

@@ -1,13 +1,13 @@
 """Scenarios: the behaviour of each scene (model edits, initial state, control, metrics).
 
 A scene YAML names its scenario module (`scenario: plate_drop` -> module
-`rft_sim_ros.sim.scenarios.plate_drop`), which defines a class `Scenario` derived from
+`rft_sim_ros.scenes.scenarios.plate_drop`), which defines a class `Scenario` derived from
 `BaseScenario`. Adding a scene needs no registry: a YAML under config/ and a module here.
 """
 import importlib
 import math
 
-from ..scene import SceneError
+from ..config import SceneError
 
 
 class BaseScenario:

@@ -2,7 +2,7 @@
 
 RFT-SiM's third baseline (models/rail_leg.xml): the rail is `rail_height` m above the sand;
 a coxa-femur-tibia leg with three position servos traces a 3D stepping path
-(rft_sim_ros/sim/stepping_leg.py) with its scoop-like end effector (a half-cylinder shell,
+(rft_sim_ros/scenes/stepping_leg.py) with its scoop-like end effector (a half-cylinder shell,
 `scoop_diameter` x `scoop_height` x `scoop_thickness` m, hollow facing backward, -x): it
 plunges `depth` m into the sand at the front of a `stroke` m stroke, sweeps straight back
 `reach` m out from the coxa axis, lifts out to `clearance` m above the sand and returns with
@@ -22,9 +22,9 @@ Metrics (SI; x along the rail, +x = forward):
 import mujoco
 import numpy as np
 
-from ..commands import TrajectoryCommand, TrajectoryPoint
+from ...control.commands import TrajectoryCommand, TrajectoryPoint
 from ..intruders import add_arc_mesh
-from ..scene import SceneError
+from ..config import SceneError
 from ..stepping_leg import LegGeometry, SteppingPath
 from . import BaseScenario
 

@@ -3,7 +3,7 @@
 Model: models/hexapod.xml (4.04 kg, docs/hexapod.md) plus `payload` kg added to the
 electronics box through MjSpec. At t = 0 the robot is held in the neutral pose with its foot
 tips `drop_height` m above the sand and released; after `settle_time` s the gait starts
-(`gait`: 'tripod' = the alternating tripod of rft_sim_ros.sim.gaits with the scene's
+(`gait`: 'tripod' = the alternating tripod of rft_sim_ros.scenes.gaits with the scene's
 frequency / stance / step length / lift; 'none' = no built-in commands, the servos hold the
 neutral pose or whatever an external controller sends through `sim.commands`).
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from ..gaits import make_gait
 from ..hexapod import FOOT_SITES, LEG_NAMES, PAYLOAD_GEOM
-from ..scene import SceneError
+from ..config import SceneError
 from . import BaseScenario
 
 #: Height of base_link above the foot tips in the neutral pose, m (docs/hexapod.md).

@@ -8,7 +8,7 @@ to the steady value.
 """
 import numpy as np
 
-from ..commands import TrajectoryCommand, TrajectoryPoint
+from ...control.commands import TrajectoryCommand, TrajectoryPoint
 from . import BaseScenario
 
 #: s after the stop / restart excluded from "held" and counted as "restart".

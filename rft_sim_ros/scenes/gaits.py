@@ -2,7 +2,7 @@
 
 A gait maps sim time t (s) to position targets (rad) for the joints of a set of
 knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee, ankle, leg by leg;
-for the hexapod that is `rft_sim_ros.sim.hexapod.JOINT_NAMES`) or as a name -> value dict.
+for the hexapod that is `rft_sim_ros.scenes.hexapod.JOINT_NAMES`) or as a name -> value dict.
 Pure numpy: the leg geometry is passed in (defaults: the bundled hexapod).
 
 Gaits (`make_gait(name, ...)`):
@@ -16,8 +16,8 @@ from typing import Mapping
 import numpy as np
 from numba import njit
 
-from rft_sim_ros.sim import hexapod
-from rft_sim_ros.sim.leg_kinematics import LateralLegs, leg_inverse
+from rft_sim_ros.scenes import hexapod
+from rft_sim_ros.scenes.leg_kinematics import LateralLegs, leg_inverse
 
 
 def _joint_names(legs):

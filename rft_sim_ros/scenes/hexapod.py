@@ -5,7 +5,7 @@ Frames: base_link, +x forward, +y left, +z up, origin at the centre of the body 
 """
 import numpy as np
 
-from rft_sim_ros.sim.leg_kinematics import LateralLegs
+from rft_sim_ros.scenes.leg_kinematics import LateralLegs
 
 #: MJCF files, relative to the package's models/ folder.
 MODEL_FILE = 'hexapod.xml'

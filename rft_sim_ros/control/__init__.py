@@ -1,0 +1,1 @@
+"""The command path: servo/trajectory commands, validated and sampled in sim time."""

@@ -1,0 +1,1 @@
+"""The sand engine: plates from MuJoCo geoms, the compiled RFT coupling and the step."""

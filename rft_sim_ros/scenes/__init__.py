@@ -1,0 +1,1 @@
+"""Scenes: scene files (config), the paper's scenarios, robots, gaits and intruders."""
