@@ -1,6 +1,6 @@
 """`rft-sim`: run sand scenes headless, list them, benchmark and validate (no ROS needed).
 
-  rft-sim scenes
+  rft-sim scenes [SCENE [--set key=value ...]]
   rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
                     [--set key=value ...] [--set-at T:zeta=Z ...] [--out DIR]
                     [--no-bag] [--plates]
@@ -59,10 +59,32 @@ def parse_timed_assignment(text):
 
 
 def cmd_scenes(args):
-    for name, path in bundled_scenes().items():
-        scene = load_scene(path)
-        print(f'{name:20s} {scene.description.splitlines()[0] if scene.description else ""}')
+    if args.scene is None:
+        for name, path in bundled_scenes().items():
+            scene = load_scene(path)
+            print(f'{name:20s} {scene.description.splitlines()[0] if scene.description else ""}')
+        return 0
+    scene = load_scene(args.scene, dict(parse_assignment(text) for text in args.set or []))
+    print(f'scene {scene.name}: effective values (--set KEY=VALUE overrides any of them; '
+          'docs/scene-reference.md)')
+    for key, value in scene.values.items():
+        if key != 'params':
+            given = _given(scene.raw, key)
+            print(f'  {key} = {json.dumps(value, default=str)}{"" if given else "  (default)"}')
+    print('scene values (params; --set NAME=VALUE):')
+    for key, value in scene.params.items():
+        print(f'  {key} = {json.dumps(value, default=str)}')
     return 0
+
+
+def _given(raw, key):
+    """Whether dotted `key` is set in the scene mapping `raw` (not left to its default)."""
+    node = raw
+    for part in key.split('.'):
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
 
 
 def cmd_run(args):
@@ -85,7 +107,8 @@ def cmd_run(args):
                         recorders=recorders, schedule=schedule)
     keys = ('scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s', 'real_time_factor',
             'plates_total', 'plates_active_mean', 'stable', 'reason')
-    print(json.dumps({**{k: summary[k] for k in keys}, 'metrics': summary['metrics']}, indent=2))
+    print(json.dumps({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
+                      'generic_metrics': summary['generic_metrics']}, indent=2))
     print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag'),
           file=sys.stderr)
     return 0 if summary['stable'] else 1
@@ -125,7 +148,12 @@ def cmd_bench(args):
 def build_parser():
     parser = argparse.ArgumentParser(prog='rft-sim', description=__doc__.split('\n')[0])
     commands = parser.add_subparsers(dest='command', required=True)
-    commands.add_parser('scenes', help='list the bundled scenes').set_defaults(func=cmd_scenes)
+    scenes = commands.add_parser(
+        'scenes', help="list the bundled scenes, or print one scene's effective values")
+    scenes.add_argument('scene', nargs='?', help='bundled scene name or path to a scene YAML')
+    scenes.add_argument('--set', action='append', metavar='KEY=VALUE',
+                        help='override a scene value first (repeatable)')
+    scenes.set_defaults(func=cmd_scenes)
     run = commands.add_parser('run', help='run a scene headless and write its results')
     run.add_argument('scene', help='bundled scene name or path to a scene YAML')
     run.add_argument('--duration', type=float, help='sim time to run, s')

@@ -61,13 +61,13 @@ def test_explicit_rft_bounces_where_the_default_treatment_rests():
 
 @pytest.mark.parametrize('overrides, message', [
     ({'rft.bodies': ['plate', 'no_such_body']}, "body 'no_such_body' is not in the model"),
-    ({'model': 'missing.xml'}, "model file 'missing.xml' not found"),
-    ({'zeta': 0.0}, 'zeta must be > 0'),
-    ({'zeta': float('nan')}, 'zeta must be finite'),
-    ({'timestep': -0.001}, 'timestep must be > 0'),
+    ({'model': 'missing.xml'}, "--set model: file 'missing.xml' not found"),
+    ({'zeta': 0.0}, '--set zeta: must be > 0'),
+    ({'zeta': float('nan')}, '--set zeta: must be finite'),
+    ({'timestep': -0.001}, '--set timestep: must be > 0'),
     ({'mass': -1.0}, 'mass must be > 0'),
     ({'no_such_key': 1}, "unknown setting 'no_such_key'"),
-    ({'rft.low_velocity.method': 'magic'}, 'low_velocity.method must be one of'),
+    ({'rft.low_velocity.method': 'magic'}, '--set rft.low_velocity.method: must be one of'),
 ])
 def test_bad_scene_input_gives_one_clear_error(overrides, message, tmp_path, capsys):
     with pytest.raises(SceneError, match=message):

@@ -10,32 +10,18 @@ a key is either a name in `params` or a dotted path into the file (e.g. `rft.pla
 Units: SI throughout except zeta, in N/cm^3 (the paper's unit).
 """
 import copy
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
 from .. import resources
-from ..units import zeta_problem
+from .schema import BY_PATH, Locator, SceneError, check_scene, load_with_lines
 
 
 #: Settings that replace each other: overriding one removes the other.
 _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
                  'rft.plate_density_per_mm2': 'rft.plates_per_body'}
-
-#: Every setting the scene format knows (dotted paths); any may be overridden, set or not.
-SCHEMA_KEYS = frozenset({
-    'name', 'description', 'scenario', 'model', 'timestep', 'duration', 'zeta',
-    'sand', 'sand.surface_height', 'rft', 'rft.bodies', 'rft.plates_per_body',
-    'rft.plate_density_per_mm2', 'rft.plates', 'rft.normalisation', 'rft.low_velocity',
-    'rft.low_velocity.method', 'rft.low_velocity.rest_speed', 'rft.low_velocity.ema_alpha',
-    'rft.dynamic', 'rft.dynamic.lambda', 'rft.dynamic.density', 'legs', 'base_body',
-    'publish_rate', 'control_rate', 'servo_kp'})
-
-
-class SceneError(ValueError):
-    """A scene cannot be loaded or is invalid; the message says what to fix."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +49,7 @@ class SceneConfig:
     servo_kp: float
     params: dict
     raw: dict
+    values: dict  # every schema key's effective value, by dotted path (schema.check_scene)
 
 
 def bundled_scenes():
@@ -90,13 +77,15 @@ def load_scene(name_or_path, overrides=None):
                              f'of the bundled scenes ({", ".join(scenes)})')
         path = scenes[str(name_or_path)]
     try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as error:
-        raise SceneError(f'{path}: not valid YAML: {error}') from None
+        text = path.read_text()
+    except OSError as error:
+        raise SceneError(f'{path}: cannot read: {error.strerror}') from None
+    raw, lines = load_with_lines(text, path)
     if not isinstance(raw, dict):
         raise SceneError(f'{path}: a scene file must hold a mapping')
-    raw = apply_overrides(raw, overrides or {})
-    return _validate(raw, path)
+    overrides = overrides or {}
+    raw = apply_overrides(raw, overrides)
+    return _validate(raw, path, Locator(path, lines, overridden=overrides))
 
 
 def parse_assignment(text):
@@ -126,7 +115,7 @@ def apply_overrides(raw, overrides):
         if key in params:
             params[key] = value
             continue
-        known = key in SCHEMA_KEYS
+        known = key in BY_PATH
         node = raw
         parts = key.split('.')
         for part in parts[:-1]:
@@ -145,75 +134,70 @@ def apply_overrides(raw, overrides):
     return raw
 
 
-def _number(raw, key, where, positive=True, default=None):
-    value = raw.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise SceneError(f'{where}: {key} must be a finite number, got {value!r}')
-    if positive and value <= 0:
-        raise SceneError(f'{where}: {key} must be > 0, got {value!r}')
-    return float(value)
-
-
-def _validate(raw, path):
-    where = f'scene {raw.get("name", path.stem)}'
-    for key in ('scenario', 'model'):
-        if not isinstance(raw.get(key), str):
-            raise SceneError(f'{where}: missing {key!r}')
-    model_path = Path(raw['model'])
+def _validate(raw, path, locator):
+    """SceneConfig from the overridden scene mapping `raw` of file `path`: the schema's
+    checks (schema.check_scene) and those between keys."""
+    values = check_scene(raw, locator)
+    model_path = Path(values['model'])
     if not model_path.is_absolute():
         beside = path.parent / model_path
         model_path = beside if beside.is_file() else resources.models_dir() / model_path
     if not model_path.is_file():
-        raise SceneError(f'{where}: model file {raw["model"]!r} not found '
-                         f'(looked in {path.parent} and {resources.models_dir()})')
-    problem = zeta_problem(raw.get('zeta'))
-    if problem:
-        raise SceneError(f'{where}: {problem}')
-    sand = raw.get('sand') or {}
+        raise locator.error('model', f'file {values["model"]!r} not found (looked in '
+                            f'{path.parent} and {resources.models_dir()})')
     rft = raw.get('rft') or {}
-    bodies = rft.get('bodies')
-    if not bodies or not isinstance(bodies, list) or not all(isinstance(b, str) for b in bodies):
-        raise SceneError(f'{where}: rft.bodies must list the bodies that touch sand')
-    count, density = rft.get('plates_per_body'), rft.get('plate_density_per_mm2')
-    if (count is None) == (density is None):
-        raise SceneError(f'{where}: give exactly one of rft.plates_per_body and '
-                         'rft.plate_density_per_mm2')
-    if count is not None and (isinstance(count, bool) or not isinstance(count, int) or count < 1):
-        raise SceneError(f'{where}: rft.plates_per_body must be a positive integer, got {count!r}')
-    if density is not None:
-        density = _number(rft, 'plate_density_per_mm2', where)
-    by_body = rft.get('plates') or {}
-    if not isinstance(by_body, dict) or not all(
-            b in bodies and isinstance(n, int) and not isinstance(n, bool) and n >= 1
-            for b, n in by_body.items()):
-        raise SceneError(f'{where}: rft.plates must map sand bodies to positive plate counts, '
-                         f'got {by_body!r}')
-    legs = raw.get('legs') or {}
-    if not isinstance(legs, dict) or not all(
-            isinstance(v, list) and v and all(b in bodies for b in v) for v in legs.values()):
-        raise SceneError(f'{where}: legs must map each leg name to a list of its sand bodies')
+    if 'plates_per_body' in rft and 'plate_density_per_mm2' in rft:
+        raise locator.error('rft.plate_density_per_mm2', 'give one of rft.plates_per_body '
+                            'and rft.plate_density_per_mm2, not both')
+    density = values.get('rft.plate_density_per_mm2')
+    bodies = values['rft.bodies']
+    by_body = values['rft.plates']
+    for body in by_body:
+        if body not in bodies:
+            raise locator.error('rft.plates', f'{body!r} is not one of rft.bodies {bodies}')
+    legs = values['legs']
+    if legs != 'auto':
+        for leg, leg_bodies in legs.items():
+            for body in leg_bodies:
+                if body not in bodies:
+                    raise locator.error(f'legs.{leg}', f'{body!r} is not one of rft.bodies '
+                                        f'{bodies}')
+    dynamic = None
+    if 'rft.dynamic.lambda' in values:
+        dynamic = {'lambda': values['rft.dynamic.lambda'],
+                   'density': values['rft.dynamic.density']}
     return SceneConfig(
-        name=str(raw.get('name', path.stem)),
-        description=str(raw.get('description', '')).strip(),
-        scenario=raw['scenario'],
+        name=str(values['name'] or path.stem),
+        description=values['description'].strip(),
+        scenario=_scenario_reference(values['scenario'], path),
         model_path=model_path,
-        timestep=_number(raw, 'timestep', where),
-        duration=(None if raw.get('duration') == 'auto' else _number(raw, 'duration', where)),
-        zeta=float(raw['zeta']),
-        surface_height=_number(sand, 'surface_height', where, positive=False, default=0.0),
+        timestep=values['timestep'],
+        duration=None if values['duration'] == 'auto' else values['duration'],
+        zeta=values['zeta'],
+        surface_height=values['sand.surface_height'],
         sand_bodies=tuple(bodies),
-        plates_per_body=count,
+        plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
         plates_by_body=dict(by_body),
-        normalisation=str(rft.get('normalisation', 'treers')),
-        low_velocity=dict(rft.get('low_velocity') or {}),
-        dynamic=rft.get('dynamic'),
+        normalisation=values['rft.normalisation'],
+        low_velocity={'method': values['rft.low_velocity.method'],
+                      'rest_speed': values['rft.low_velocity.rest_speed'],
+                      'ema_alpha': values['rft.low_velocity.ema_alpha']},
+        dynamic=dynamic,
         legs={str(k): tuple(v) for k, v in legs.items()},
-        base_body=str(raw.get('base_body', bodies[0])),
-        publish_rate=_number(raw, 'publish_rate', where, default=100.0),
-        control_rate=_number(raw, 'control_rate', where, default=500.0),
-        servo_kp=(None if raw.get('servo_kp') is None
-                  else _number(raw, 'servo_kp', where)),
-        params=dict(raw.get('params') or {}),
+        base_body=values['base_body'],
+        publish_rate=values['publish_rate'],
+        control_rate=values['control_rate'],
+        servo_kp=values['servo_kp'],
+        params=dict(values['params']),
         raw=raw,
+        values=values,
     )
+
+
+def _scenario_reference(scenario, scene_path):
+    """A scenario given as a Python file, made absolute (relative to the scene file)."""
+    if scenario.endswith('.py'):
+        file = Path(scenario)
+        return str(file if file.is_absolute() else (scene_path.parent / file).resolve())
+    return scenario

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from .. import __version__
+from .metrics import GenericMetrics
 from .simulation import Simulation, SimulationDiverged
 
 
@@ -71,7 +72,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     time_s (rounded up to a whole step): after the state of that instant is recorded, before
     the next step (e.g. a zeta change, which then acts from that step on).
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
-    part of wall_time_s spent in the recorders).
+    part of wall_time_s spent in the recorders; generic_metrics: sim/metrics.py, those of
+    every scene, next to the scenario's own `metrics`).
     """
     bar = None
     loop_started = None
@@ -80,6 +82,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         started = time.perf_counter()
         sim = Simulation(scene)
         startup = time.perf_counter() - started
+        generic = GenericMetrics(sim)
         if duration is None:
             duration = scene.duration if scene.duration is not None else sim.scenario.duration()
         duration = float(duration)
@@ -97,6 +100,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         reason = None
         done = 0
         recording = 0.0
+        generic.observe(sim, sim.state())  # the initial state
         loop_started = time.perf_counter()
         _run_due(actions, done, sim)
         while done < steps:
@@ -109,6 +113,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
                 active_sum += sim.engine.plates_active
                 state = sim.state(with_plates=with_plates)
                 series.append(_series_row(state))
+                generic.observe(sim, state)
                 recording_started = time.perf_counter()
                 for recorder in recorders:
                     recorder.record(state)
@@ -150,6 +155,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         'stable': reason is None,
         'reason': reason,
         'metrics': _finite(metrics),
+        'generic_metrics': _finite(generic.result(stable=reason is None)),
         'scene_config': scene.raw,
         'machine': machine_info(),
     }

@@ -91,7 +91,9 @@ class Simulation:
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
         known = {self.model.body(i).name for i in range(self.model.nbody)}
-        for body in (*scene.sand_bodies, scene.base_body):
+        # the body /odom follows: the scene's, else the first body under the world
+        self.base_body = scene.base_body or self.model.body(min(1, self.model.nbody - 1)).name
+        for body in (*scene.sand_bodies, self.base_body):
             if body not in known:
                 raise SceneError(f'scene {scene.name}: body {body!r} is not in the model '
                                  f'{scene.model_path.name}')
@@ -109,7 +111,7 @@ class Simulation:
                                      low_velocity=LowVelocity(**scene.low_velocity))
         except (TypeError, ValueError) as error:
             raise SceneError(f'scene {scene.name}: rft: {error}') from None
-        self._base_id = self.model.body(scene.base_body).id
+        self._base_id = self.model.body(self.base_body).id
         self._joints = [j for j in range(self.model.njnt)
                         if mujoco.mjtJoint(int(self.model.jnt_type[j]))
                         in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]

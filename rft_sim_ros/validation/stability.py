@@ -78,7 +78,7 @@ def _low_points(sim):
 def trace(scene, overrides, duration, every=10):
     """Run scene `scene` with `overrides` for `duration` s, sampling every `every` steps."""
     sim = Simulation(load_scene(scene, overrides))
-    body = sim.model.body(sim.scene.base_body).id
+    body = sim.model.body(sim.base_body).id
     steps = int(round(duration / sim.timestep))
     times, bases, speeds, lows = [], [], [], []
     diverged = None

@@ -1,11 +1,15 @@
 """Scenarios: the behaviour of each scene (model edits, initial state, control, metrics).
 
-A scene YAML names its scenario module (`scenario: plate_drop` -> module
-`rft_sim_ros.scenes.scenarios.plate_drop`), which defines a class `Scenario` derived from
-`BaseScenario`. Adding a scene needs no registry: a YAML under config/ and a module here.
+A scene YAML names its scenario: a bundled module (`scenario: plate_drop` -> module
+`rft_sim_ros.scenes.scenarios.plate_drop`, its class `Scenario`), a Python file outside the
+package (`scenario: my_scenario.py`, relative to the scene file; its class `Scenario`) or an
+importable class (`scenario: my_package.module:MyScenario`). Each is a class derived from
+`BaseScenario`. Adding a scene needs no registry.
 """
 import importlib
+import importlib.util
 import math
+from pathlib import Path
 
 from ..config import SceneError
 
@@ -60,11 +64,30 @@ class BaseScenario:
 
 
 def load_scenario(scene):
-    """Instantiate the scenario that `scene` (a SceneConfig) names."""
-    try:
-        module = importlib.import_module(f'{__name__}.{scene.scenario}')
-    except ModuleNotFoundError as error:
-        if error.name and error.name.endswith(scene.scenario):
-            raise SceneError(f'scene {scene.name}: unknown scenario {scene.scenario!r}') from None
-        raise
-    return module.Scenario(scene)
+    """Instantiate the scenario that `scene` (a SceneConfig) names (see module docstring)."""
+    reference = scene.scenario
+    where = f'scene {scene.name}: scenario {reference!r}'
+    if reference.endswith('.py'):
+        path = Path(reference)
+        if not path.is_file():
+            raise SceneError(f'{where}: no such file')
+        spec = importlib.util.spec_from_file_location(f'rft_scenario_{path.stem}', path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        class_name = 'Scenario'
+    else:
+        module_name, _, class_name = reference.partition(':')
+        if not class_name:
+            module_name, class_name = f'{__name__}.{reference}', 'Scenario'
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as error:
+            if error.name and module_name.startswith(error.name):
+                raise SceneError(f'{where}: unknown scenario (not a bundled one, a .py file '
+                                 'or an importable module:Class)') from None
+            raise
+    scenario_class = getattr(module, class_name, None)
+    if not (isinstance(scenario_class, type) and issubclass(scenario_class, BaseScenario)):
+        raise SceneError(f'{where}: {module.__name__} has no class {class_name} derived from '
+                         'rft_sim_ros.scenes.scenarios.BaseScenario')
+    return scenario_class(scene)

@@ -80,7 +80,7 @@ class Scenario(BaseScenario):
         qpos[:3] = (0.0, 0.0,
                     self.scene.surface_height + self.drop_height + NEUTRAL_FOOT_DROP_M)
         qpos[3:] = (1.0, 0.0, 0.0, 0.0)
-        self._base = sim.model.body(self.scene.base_body).id
+        self._base = sim.model.body(sim.base_body).id
         self._feet = np.array([sim.model.site(name).id for name in FOOT_SITES])
         names = sim.engine.body_names
         self._leg_sum = np.zeros((len(LEG_NAMES), len(names)))  # sand body -> its leg

@@ -1,0 +1,356 @@
+"""The scene file schema: every key a scene YAML may hold, with its type, unit, default, whether
+it is required, and what it means. One table drives the validation (`check_scene`), the
+effective values (`effective_values`) and the reference (docs/scene-reference.md, written by
+`python -m rft_sim_ros.scenes.schema --write docs/scene-reference.md`; a test keeps it in
+step).
+
+Errors name the file, the line and the key (`scene.yaml:12: rft.plates_per_body: ...`); a
+value that came from an override names the override instead (`--set timestep: ...`). Lines
+come from PyYAML's node marks (`load_with_lines`).
+"""
+import difflib
+import math
+import sys
+from dataclasses import dataclass
+from typing import Callable
+
+import yaml
+
+from ..units import zeta_problem
+
+#: The default of a key that must be given.
+REQUIRED = object()
+
+
+class SceneError(ValueError):
+    """A scene cannot be loaded or is invalid; the message says what to fix."""
+
+
+def _number(value, positive=False, minimum=None, maximum=None):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f'must be a finite number, got {value!r}')
+    if positive and value <= 0:
+        raise ValueError(f'must be > 0, got {value!r}')
+    if minimum is not None and value < minimum:
+        raise ValueError(f'must be >= {minimum}, got {value!r}')
+    if maximum is not None and value > maximum:
+        raise ValueError(f'must be <= {maximum}, got {value!r}')
+    return float(value)
+
+
+def _positive(value):
+    return _number(value, positive=True)
+
+
+def _finite(value):
+    return _number(value)
+
+
+def _count(value):
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f'must be a positive integer, got {value!r}')
+    return value
+
+
+def _text(value):
+    if not isinstance(value, str):
+        raise ValueError(f'must be text, got {value!r}')
+    return value
+
+
+def _optional_text(value):
+    return None if value is None else _text(value)
+
+
+def _names(value):
+    """A list of names/patterns, or one name/pattern (-> a one-item list)."""
+    if isinstance(value, str):
+        return [value]
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise ValueError(f'must be a name or a list of names, got {value!r}')
+    return list(value)
+
+
+def _mapping(value):
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ValueError(f'must be a mapping, got {value!r}')
+    return dict(value)
+
+
+def _plates_by_body(value):
+    value = _mapping(value)
+    for body, count in value.items():
+        try:
+            _count(count)
+        except ValueError as error:
+            raise ValueError(f'{body}: {error}') from None
+    return value
+
+
+def _legs(value):
+    if value == 'auto':
+        return value
+    value = _mapping(value)
+    if not value or not all(isinstance(b, list) and b and all(isinstance(x, str) for x in b)
+                            for b in value.values()):
+        raise ValueError("must be 'auto' or map each leg name to a list of its sand bodies, "
+                         f'got {value!r}')
+    return {str(k): list(v) for k, v in value.items()}
+
+
+def _zeta(value):
+    problem = zeta_problem(value)
+    if problem:
+        raise ValueError(problem.replace('zeta ', '', 1))
+    return float(value)
+
+
+def _duration(value):
+    return value if value == 'auto' else _positive(value)
+
+
+def _choice(*options):
+    def check(value):
+        if value not in options:
+            raise ValueError(f'must be one of {", ".join(map(str, options))}, got {value!r}')
+        return value
+    return check
+
+
+def _section(value):
+    return _mapping(value)
+
+
+def _optional_section(value):
+    return None if value is None else _mapping(value)
+
+
+@dataclass(frozen=True)
+class Key:
+    """One scene key: dotted `path`, `type` and `unit` as the reference shows them,
+    `default` (REQUIRED: must be given; None: absent), `description`, and `check(value)`
+    that returns the value to use or raises ValueError with what is wrong."""
+    path: str
+    type: str
+    unit: str
+    default: object
+    description: str
+    check: Callable
+
+    @property
+    def required(self):
+        return self.default is REQUIRED
+
+    @property
+    def section(self):
+        """Whether the key is a mapping of further schema keys."""
+        return self.check in (_section, _optional_section)
+
+
+KEYS = (
+    Key('name', 'text', '', None, 'Scene name (default: the file name without .yaml).',
+        _optional_text),
+    Key('description', 'text', '', '', 'What the scene shows; its first line is listed by '
+        '`rft-sim scenes`.', _text),
+    Key('scenario', 'text', '', 'external', 'Behaviour of the scene: a bundled scenario '
+        '(module of rft_sim_ros.scenes.scenarios), a Python file `path/to/file.py` (relative '
+        'to the scene file; its class `Scenario`) or `module:Class` (importable). See '
+        'docs/scene-reference.md, "Own scenarios".', _text),
+    Key('model', 'text', '', REQUIRED, 'The robot: an MJCF file, relative to the scene file '
+        "or the package's models/ folder.", _text),
+    Key('timestep', 'number > 0', 's', 0.001, 'Integration timestep.', _positive),
+    Key('duration', "number > 0 or 'auto'", 's', 10.0, "Sim time `rft-sim run` runs; "
+        "'auto': as long as the scenario says.", _duration),
+    Key('zeta', 'number in (0, 100]', 'N/cm^3', 3.75, 'Sand stiffness (the RFT literature '
+        'unit; 3.75 = Quikrete play sand).', _zeta),
+    Key('sand', 'mapping', '', {}, 'The sand bed.', _section),
+    Key('sand.surface_height', 'number', 'm', 0.0, 'z of the horizontal sand surface.',
+        _finite),
+    Key('rft', 'mapping', '', {}, 'Which bodies feel sand and how they are discretised.',
+        _section),
+    Key('rft.bodies', 'list of names', '', REQUIRED, 'The bodies that touch sand (MuJoCo '
+        'body names).', _names),
+    Key('rft.plates_per_body', 'integer >= 1', 'plates', 500, 'Plates on each sand body '
+        '(ignored when rft.plate_density_per_mm2 is given).', _count),
+    Key('rft.plate_density_per_mm2', 'number > 0', 'plates/mm^2', None, 'Plates per mm^2 '
+        'of body surface instead of a count (replaces rft.plates_per_body).', _positive),
+    Key('rft.plates', 'mapping body -> integer', 'plates', {}, 'Per-body plate counts that '
+        'replace the default count.', _plates_by_body),
+    Key('rft.normalisation', "'treers' or 'rft_sim'", '', 'treers', 'Which normalisation of '
+        'the RFT coefficients (docs: README, "RFT conventions").', _choice('treers', 'rft_sim')),
+    Key('rft.low_velocity', 'mapping', '', {}, 'Treatment of RFT near rest (rft_sim_ros/sand/'
+        'engine.py, LowVelocity).', _section),
+    Key('rft.low_velocity.method', "'implicit', 'ema' or 'none'", '', 'implicit',
+        'Implicit rest-holding law, the paper\'s moving average, or raw explicit RFT.',
+        _choice('implicit', 'ema', 'none')),
+    Key('rft.low_velocity.rest_speed', 'number > 0', 'm/s', 1e-5, "The implicit law's "
+        'regularisation speed.', _positive),
+    Key('rft.low_velocity.ema_alpha', 'number in (0, 1]', '', 0.1, "The 'ema' method's "
+        'smoothing factor.', lambda v: _number(v, positive=True, maximum=1.0)),
+    Key('rft.dynamic', 'mapping or null', '', None, 'The dynamic (inertial) RFT term; null: '
+        'off.', _optional_section),
+    Key('rft.dynamic.lambda', 'number >= 0', '', 1.0, 'Scale of the dynamic term.',
+        lambda v: _number(v, minimum=0.0)),
+    Key('rft.dynamic.density', 'number > 0', 'kg/m^3', 1600.0, 'Sand bulk density of the '
+        'dynamic term.', _positive),
+    Key('legs', 'mapping leg -> list of sand bodies', '', REQUIRED, 'The legs whose summed '
+        'sand wrench is reported (/rft/leg/<leg>/wrench, per-leg metrics); the last body of '
+        "each list is the leg's reference point.", _legs),
+    Key('base_body', 'text', '', None, 'The body whose pose is /odom and the base metrics '
+        '(default: the first body under the world).', _optional_text),
+    Key('publish_rate', 'number > 0', 'Hz', 100.0, 'Sim-time rate of published and recorded '
+        'states.', _positive),
+    Key('control_rate', 'number > 0', 'Hz', 500.0, 'Sim-time rate at which the scenario and '
+        'the command targets are applied (held in between).', _positive),
+    Key('servo_kp', 'number > 0 or null', 'N m/rad or N/m', None, "Stiffness that replaces "
+        "every MuJoCo position actuator's kp.",
+        lambda v: None if v is None else _positive(v)),
+    Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
+        'each can be overridden with `--set NAME=VALUE`.', _mapping),
+)
+
+#: Schema keys by dotted path.
+BY_PATH = {key.path: key for key in KEYS}
+
+#: Mappings whose own keys are free (not schema keys).
+_FREE = ('params', 'legs', 'rft.plates')
+
+
+def load_with_lines(text, source='<scene>'):
+    """Parse YAML `text` -> (content, {dotted key: 1-based line}) from PyYAML's node marks.
+    Raises SceneError with the file and line of a syntax error."""
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        content = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, 'problem_mark', None)
+        where = f'{source}:{mark.line + 1}' if mark else source
+        problem = getattr(error, 'problem', None) or str(error)
+        raise SceneError(f'{where}: not valid YAML: {problem}') from None
+    lines = {}
+
+    def walk(node, prefix):
+        if not isinstance(node, yaml.MappingNode):
+            return
+        for key_node, value_node in node.value:
+            path = f'{prefix}{key_node.value}'
+            lines[path] = key_node.start_mark.line + 1
+            walk(value_node, path + '.')
+
+    walk(node, '')
+    return content, lines
+
+
+class Locator:
+    """Where a scene value came from, for error messages: file and line, or an override."""
+
+    def __init__(self, source, lines=None, overridden=()):
+        self.source, self.lines, self.overridden = str(source), lines or {}, set(overridden)
+
+    def where(self, path):
+        """'file:line: path' (or 'file: --set path' for an overridden value)."""
+        if path in self.overridden:
+            return f'{self.source}: --set {path}'
+        parts = path.split('.')
+        for end in range(len(parts), 0, -1):  # the key's own line, else its section's
+            line = self.lines.get('.'.join(parts[:end]))
+            if line is not None:
+                return f'{self.source}:{line}: {path}'
+        return f'{self.source}: {path}'
+
+    def error(self, path, message):
+        return SceneError(f'{self.where(path)}: {message}')
+
+
+def check_scene(raw, locator):
+    """Validate the scene mapping `raw` against the schema -> {dotted path: value} for every
+    leaf key (defaults filled in; sections whose value is null have no leaves). Raises
+    SceneError naming file, line and key."""
+    if not isinstance(raw, dict):
+        raise SceneError(f'{locator.source}: a scene file must hold a mapping')
+    values = {}
+    _check_section(raw, '', locator, values)
+    return values
+
+
+def _check_section(content, prefix, locator, values):
+    for name in content:
+        path = f'{prefix}{name}'
+        if path not in BY_PATH:
+            siblings = [k.path for k in KEYS if k.path.rsplit('.', 1)[0] == prefix.rstrip('.')
+                        or (not prefix and '.' not in k.path)]
+            close = difflib.get_close_matches(path, siblings, n=1)
+            hint = f' (did you mean {close[0]}?)' if close else ''
+            raise locator.error(path, f'unknown key{hint}; the scene keys are listed in '
+                                'docs/scene-reference.md')
+    for key in KEYS:
+        parent, _, leaf = key.path.rpartition('.')
+        if parent != prefix.rstrip('.') or '.' in key.path[len(prefix):]:
+            continue
+        if leaf not in content or (content[leaf] is None and key.section):
+            if key.required:
+                raise locator.error(key.path, 'missing (required)')
+            value = key.default
+            if key.section:
+                if value is None:
+                    continue
+                _check_section({}, key.path + '.', locator, values)
+                continue
+        else:
+            try:
+                value = key.check(content[leaf])
+            except ValueError as error:
+                raise locator.error(key.path, str(error)) from None
+            if key.section:
+                if value is not None:
+                    _check_section(value, key.path + '.', locator, values)
+                continue
+        values[key.path] = value
+
+
+def reference_table():
+    """The markdown table of every scene key (the generated part of docs/scene-reference.md)."""
+    rows = ['| key | type | unit | default | required | description |',
+            '|---|---|---|---|---|---|']
+    for key in KEYS:
+        default = '' if key.required or key.default is None else f'`{key.default!r}`'
+        if key.default == {}:
+            default = ''
+        rows.append(f'| `{key.path}` | {key.type} | {key.unit} | {default} | '
+                    f'{"yes" if key.required else "no"} | {key.description} |')
+    return '\n'.join(rows) + '\n'
+
+
+#: Markers around the generated table in docs/scene-reference.md.
+TABLE_BEGIN = '<!-- scene keys: generated by python -m rft_sim_ros.scenes.schema -->'
+TABLE_END = '<!-- end of scene keys -->'
+
+
+def with_reference_table(document):
+    """`document` (markdown) with the text between TABLE_BEGIN and TABLE_END replaced by the
+    current reference_table()."""
+    head, begin, rest = document.partition(TABLE_BEGIN)
+    _, end, tail = rest.partition(TABLE_END)
+    if not (begin and end):
+        raise ValueError(f'the document has no {TABLE_BEGIN} ... {TABLE_END} block')
+    return f'{head}{TABLE_BEGIN}\n{reference_table()}{TABLE_END}{tail}'
+
+
+def main(argv=None):
+    """`python -m rft_sim_ros.scenes.schema [--write DOC]`: print the key table, or rewrite
+    its block in DOC."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ['--write'] and len(argv) == 2:
+        with open(argv[1]) as f:
+            document = f.read()
+        with open(argv[1], 'w') as f:
+            f.write(with_reference_table(document))
+    else:
+        sys.stdout.write(reference_table())
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

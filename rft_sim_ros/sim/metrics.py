@@ -1,0 +1,77 @@
+"""Metrics every run reports, whatever its scenario: how the base moved, how deep each sand
+body went, how hard the sand pushed on each leg, and whether the run stayed stable.
+
+`GenericMetrics` is fed the SimState snapshots of a run (at the publish rate) and the
+Simulation they came from; `result()` gives (SI units, world frame = odom, z up):
+
+  base_displacement_m          |base position at the end - at the start| (3D);
+  base_displacement_xyz_m      the same as a vector;
+  base_mean_speed_mps          path length of the base positions sampled from the initial
+                               state on, / elapsed time;
+  final_speed_mps              |base linear velocity| at the last sample;
+  max_depth_m_<body>           deepest point of the sand body's plates below the surface;
+  mean_stance_depth_m_<body>   that depth averaged over the samples where it is > 0 (the
+                               body in the sand; 0 if it never was);
+  mean_force_z_N_<leg>, peak_force_z_N_<leg>
+                               vertical sand force on the leg, mean and largest;
+  stable                       the run ended without diverging (set by the runner).
+"""
+import numpy as np
+
+
+class GenericMetrics:
+    """Accumulates the generic metrics of one run (see module docstring)."""
+
+    def __init__(self, sim):
+        engine = sim.engine
+        self._surface = engine.surface_height
+        self._bodies = engine.body_names
+        self._owner = np.repeat(np.arange(len(engine.body_ids)), np.diff(engine.plate_start))
+        self._plate_body = engine.body_ids[self._owner]
+        self._local = engine.local_pos
+        self._legs = None
+        self._times, self._base, self._speed, self._depth, self._force_z = [], [], [], [], []
+
+    def depths(self, data):
+        """(bodies,) m: deepest plate of each sand body below the surface (0 if above)."""
+        rows_z = data.xmat[self._plate_body, 6:9]  # third row of each body's rotation
+        z = data.xpos[self._plate_body, 2] + np.einsum('pk,pk->p', rows_z, self._local)
+        lowest = np.full(len(self._bodies), np.inf)
+        np.minimum.at(lowest, self._owner, z)
+        return np.maximum(self._surface - lowest, 0.0)
+
+    def observe(self, sim, state):
+        """Record one snapshot `state` (SimState) of `sim`."""
+        self._legs = [leg.name for leg in state.legs]
+        self._times.append(state.time)
+        self._base.append(state.base_position)
+        self._speed.append(float(np.linalg.norm(state.base_linear_velocity)))
+        self._depth.append(self.depths(sim.data))
+        self._force_z.append([leg.force[2] for leg in state.legs])
+
+    def result(self, stable):
+        """{metric: value} (module docstring); only `stable` before any snapshot."""
+        metrics = {'stable': bool(stable)}
+        if not self._times:
+            return metrics
+        base = np.array(self._base)
+        elapsed = self._times[-1] - self._times[0]
+        path = float(np.linalg.norm(np.diff(base, axis=0), axis=1).sum())
+        displacement = base[-1] - base[0]
+        metrics.update({
+            'base_displacement_m': float(np.linalg.norm(displacement)),
+            'base_displacement_xyz_m': [float(v) for v in displacement],
+            'base_mean_speed_mps': path / elapsed if elapsed > 0 else 0.0,
+            'final_speed_mps': self._speed[-1],
+        })
+        depth = np.array(self._depth)
+        for i, body in enumerate(self._bodies):
+            touching = depth[:, i] > 0
+            metrics[f'max_depth_m_{body}'] = float(depth[:, i].max())
+            metrics[f'mean_stance_depth_m_{body}'] = (
+                float(depth[touching, i].mean()) if touching.any() else 0.0)
+        force_z = np.array(self._force_z).reshape(len(self._times), -1)
+        for i, leg in enumerate(self._legs):
+            metrics[f'mean_force_z_N_{leg}'] = float(force_z[:, i].mean())
+            metrics[f'peak_force_z_N_{leg}'] = float(force_z[:, i].max())
+        return metrics

@@ -1,0 +1,139 @@
+"""The scene schema: its reference doc, errors that name file, line and key, effective values,
+scenarios outside the package, and the metrics every scene reports."""
+import json
+from pathlib import Path
+
+import pytest
+
+from rft_sim_ros import cli
+from rft_sim_ros.scenes import schema
+from rft_sim_ros.scenes.config import SceneError, bundled_scenes, load_scene
+from rft_sim_ros.sim.runner import run_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / 'docs' / 'scene-reference.md'
+
+MINIMAL = """\
+name: mini
+model: plate.xml
+rft:
+  bodies: [plate]
+  plates_per_body: 50
+legs:
+  plate: [plate]
+"""
+
+
+def write(tmp_path, text, name='scene.yaml'):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_reference_doc_lists_every_key_as_the_schema_says():
+    document = REFERENCE.read_text()
+    assert schema.with_reference_table(document) == document, (
+        'docs/scene-reference.md is out of step with the schema: run '
+        'python -m rft_sim_ros.scenes.schema --write docs/scene-reference.md')
+    for key in schema.KEYS:
+        assert f'| `{key.path}` |' in document
+
+
+def test_every_bundled_scene_passes_the_schema():
+    for name, path in bundled_scenes().items():
+        scene = load_scene(path)
+        assert set(scene.values) <= set(schema.BY_PATH), name
+
+
+def test_defaults_fill_a_minimal_scene(tmp_path):
+    scene = load_scene(write(tmp_path, MINIMAL))
+    assert scene.scenario == 'external'
+    assert scene.timestep == 0.001 and scene.zeta == 3.75 and scene.surface_height == 0.0
+    assert scene.low_velocity == {'method': 'implicit', 'rest_speed': 1e-5, 'ema_alpha': 0.1}
+    assert scene.values['rft.plates_per_body'] == 50
+
+
+@pytest.mark.parametrize('edit, line, key, words', [
+    (('  plates_per_body: 50', '  plates_per_bdy: 50'), 5, 'rft.plates_per_bdy',
+     'did you mean rft.plates_per_body'),
+    (('  plates_per_body: 50', '  plates_per_body: -2'), 5, 'rft.plates_per_body',
+     'positive integer'),
+    (('name: mini', 'name: mini\ntimestep: fast'), 2, 'timestep', 'finite number'),
+    (('name: mini', 'name: mini\nzeta: 0'), 2, 'zeta', '> 0'),
+    (('  plate: [plate]', '  plate: [plat]'), 7, 'legs.plate', "'plat' is not one of"),
+    (('name: mini', 'name: mini\nrft_bodies: 1'), 2, 'rft_bodies', 'unknown key'),
+    (('  bodies: [plate]\n', ''), 3, 'rft.bodies', 'missing'),
+    (('name: mini', 'name: mini\nsand:\n  surface_height: [1]'), 3, 'sand.surface_height',
+     'finite number'),
+])
+def test_errors_name_file_line_and_key(tmp_path, edit, line, key, words):
+    path = write(tmp_path, MINIMAL.replace(*edit))
+    with pytest.raises(SceneError) as error:
+        load_scene(path)
+    assert str(error.value).startswith(f'{path}:{line}: {key}: ')
+    assert words in str(error.value)
+
+
+def test_syntax_errors_and_overrides_say_where(tmp_path):
+    with pytest.raises(SceneError, match=r"scene.yaml:4: not valid YAML: expected ','"):
+        load_scene(write(tmp_path, 'name: x\nmodel: plate.xml\nrft: {a: b\n  c d]\n'))
+    with pytest.raises(SceneError, match=r'scene.yaml: --set timestep: must be > 0'):
+        load_scene(write(tmp_path, MINIMAL), {'timestep': -1})
+
+
+def test_scenes_command_prints_effective_values_and_set_keys(capsys):
+    assert cli.main(['scenes', 'plate_drop', '--set', 'timestep=0.002']) == 0
+    out = capsys.readouterr().out
+    assert '  timestep = 0.002\n' in out
+    assert '  rft.low_velocity.method = "implicit"\n' in out
+    assert '  rft.plate_density_per_mm2 = null  (default)' in out
+    assert '  drop_height = 0.1' in out  # a scene value (params)
+    assert cli.main(['scenes', 'plate_drop', '--set', 'timestep=-1']) == 2
+
+
+def test_a_scenario_outside_the_package_runs_and_reports(tmp_path):
+    scene = load_scene(ROOT / 'docs' / 'examples' / 'hold_still.yaml')
+    summary = run_scene(scene, None, progress=False)
+    generic = summary['generic_metrics']
+    # the plate falls from its model pose into the sand: the scenario's own metric and the
+    # generic displacement see the same fall
+    assert summary['metrics']['base_sink_m'] == pytest.approx(
+        -generic['base_displacement_xyz_m'][2], rel=1e-9)
+    assert summary['metrics']['base_sink_m'] > 0.05
+
+
+def test_a_scenario_named_module_colon_class(tmp_path, monkeypatch):
+    (tmp_path / 'my_scenarios.py').write_text(
+        'from rft_sim_ros.scenes.scenarios import BaseScenario\n'
+        'class Sinking(BaseScenario):\n'
+        '    def metrics(self, sim):\n'
+        '        return {"steps": sim.steps}\n'
+        'class NotAScenario:\n    pass\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    path = write(tmp_path, MINIMAL + 'scenario: my_scenarios:Sinking\nduration: 0.01\n')
+    assert run_scene(load_scene(path), None, progress=False)['metrics'] == {'steps': 10}
+    path = write(tmp_path, MINIMAL + 'scenario: my_scenarios:NotAScenario\n')
+    with pytest.raises(SceneError, match='no class NotAScenario derived from'):
+        run_scene(load_scene(path), None, progress=False)
+    path = write(tmp_path, MINIMAL + 'scenario: missing.py\n')
+    with pytest.raises(SceneError, match='no such file'):
+        run_scene(load_scene(path), None, progress=False)
+
+
+def test_generic_metrics_of_a_plate_at_rest_in_sand():
+    """A plate dropped on sand: the generic metrics agree with the scenario's own depth
+    and, at rest, the sand carries its weight."""
+    scene = load_scene('plate_drop', {'duration': 1.5, 'rft.plates_per_body': 100})
+    summary = run_scene(scene, None, progress=False)
+    generic, own = summary['generic_metrics'], summary['metrics']
+    assert generic['stable'] is True
+    # the plate's lowest plate is its bottom face: the same depth the scenario measures
+    assert generic['max_depth_m_plate'] == pytest.approx(own['max_depth_m'], rel=1e-3)
+    assert 0 < generic['mean_stance_depth_m_plate'] <= generic['max_depth_m_plate']
+    weight = 1.0 * 9.81
+    assert generic['peak_force_z_N_plate'] > 2 * weight  # the impact
+    assert generic['final_speed_mps'] < 1e-3
+    assert generic['base_displacement_m'] == pytest.approx(
+        abs(generic['base_displacement_xyz_m'][2]))
+    assert generic['base_mean_speed_mps'] * 1.5 >= generic['base_displacement_m'] - 1e-9
+    json.dumps(summary['generic_metrics'])
