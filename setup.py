@@ -41,6 +41,9 @@ setup(
         'numba>=0.59',
         'rosbags>=0.10',
         'matplotlib>=3.7',
+        'scipy>=1.10',      # trimesh's convex hulls (mesh geoms: MuJoCo collides their hulls)
+        'xacro>=2.0',       # ROS's xacro, from PyPI: robot descriptions without ROS
+        'pycollada>=0.8',   # COLLADA (.dae) collision meshes, converted by trimesh
     ],
     extras_require={'test': ['pytest>=7', 'hypothesis>=6.80']},
     zip_safe=False,

@@ -1,12 +1,15 @@
 """`rft-sim`: run sand scenes headless, list them, benchmark and validate (no ROS needed).
 
   rft-sim scenes [SCENE [--set key=value ...]]
-  rft-sim run SCENE [--duration S] [--zeta Z] [--timestep DT] [--plates-per-body N]
-                    [--set key=value ...] [--set-at T:zeta=Z ...] [--out DIR]
-                    [--no-bag] [--plates]
+  rft-sim run SCENE|ROBOT_FILE [--sand-bodies P[,P...]|auto] [--base floating|fixed]
+                    [--package-path NAME=DIR ...] [--xacro-arg K=V ...] [--duration S]
+                    [--zeta Z] [--timestep DT] [--plates-per-body N] [--set key=value ...]
+                    [--set-at T:zeta=Z ...] [--out DIR] [--no-bag] [--plates]
   rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
 
+A ROBOT_FILE (MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro) runs in the scene
+`scenes.config.robot_scene` makes for it (external commands, paper sand, 1 ms steps).
 `run` writes DIR/summary.json, the time series and plots, and a rosbag2 (MCAP) under
 DIR/bag/ with the topics the ROS node publishes.
 
@@ -30,10 +33,36 @@ RUNTIME_SETTINGS = {
 def _scene_overrides(args):
     overrides = dict(parse_assignment(text) for text in args.set or [])
     for option, key in (('zeta', 'zeta'), ('timestep', 'timestep'),
-                        ('plates_per_body', 'rft.plates_per_body')):
+                        ('plates_per_body', 'rft.plates_per_body'), ('base', 'robot.base')):
         value = getattr(args, option)
         if value is not None:
             overrides[key] = value
+    overrides.update(robot_overrides(args.sand_bodies, args.package_path, args.xacro_arg))
+    return overrides
+
+
+def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
+    """Scene overrides of the robot options: sand_bodies 'A,B*' or 'auto' -> rft.bodies,
+    ['NAME=DIR'] -> robot.package_paths (folders made absolute), ['K=V'] ->
+    robot.xacro_args. Raises SceneError on a malformed item."""
+    overrides = {}
+    if sand_bodies:
+        names = [name.strip() for name in sand_bodies.split(',') if name.strip()]
+        overrides['rft.bodies'] = 'auto' if names == ['auto'] else names
+    for key, items, option in (('robot.package_paths', package_paths, '--package-path'),
+                               ('robot.xacro_args', xacro_args, '--xacro-arg')):
+        if not items:
+            continue
+        mapping = {}
+        for item in items:
+            name, sep, value = item.partition('=')
+            if not sep or not name.strip():
+                raise SceneError(f'{option} expects NAME=VALUE, got {item!r}')
+            mapping[name.strip()] = value.strip()
+        if key == 'robot.package_paths':
+            mapping = {name: str(Path(folder).expanduser().resolve())
+                       for name, folder in mapping.items()}
+        overrides[key] = mapping
     return overrides
 
 
@@ -155,7 +184,17 @@ def build_parser():
                         help='override a scene value first (repeatable)')
     scenes.set_defaults(func=cmd_scenes)
     run = commands.add_parser('run', help='run a scene headless and write its results')
-    run.add_argument('scene', help='bundled scene name or path to a scene YAML')
+    run.add_argument('scene', help='bundled scene name, path to a scene YAML, or a robot file '
+                                   '(MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro)')
+    run.add_argument('--sand-bodies', metavar='PATTERN[,PATTERN...]|auto',
+                     help='bodies that touch sand (rft.bodies): names, glob patterns or auto')
+    run.add_argument('--base', choices=('floating', 'fixed'),
+                     help='URDF root link: free (default) or welded to the world')
+    run.add_argument('--package-path', action='append', metavar='NAME=DIR',
+                     help='folder of ROS package NAME for $(find NAME) and package://NAME '
+                          '(repeatable; else the ament index or ROS_PACKAGE_PATH)')
+    run.add_argument('--xacro-arg', action='append', metavar='K=V',
+                     help='xacro argument (repeatable)')
     run.add_argument('--duration', type=float, help='sim time to run, s')
     run.add_argument('--zeta', type=float, help='sand stiffness, N/cm^3')
     run.add_argument('--timestep', type=float, help='integration timestep, s')

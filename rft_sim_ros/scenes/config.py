@@ -1,6 +1,6 @@
 """Scene configuration: one YAML file per scene, validated into a `SceneConfig`.
 
-A scene names the MJCF model, the bodies that touch sand and how they are discretised, the
+A scene names the robot or rig model (MJCF, URDF or xacro; `robot:` says how to load it), the bodies that touch sand and how they are discretised, the
 sand (surface height, zeta), the timestep and duration (s, or `auto`: as long as the
 scenario's own values say, e.g. one rotation at the set speed), the legs to report, and values of
 the scene's own (`params`: masses, drop heights, gait...) that its scenario module uses.
@@ -16,8 +16,12 @@ from pathlib import Path
 import yaml
 
 from .. import resources
+from ..robot.description import is_robot_file
 from .schema import BY_PATH, Locator, SceneError, check_scene, load_with_lines
 
+
+#: Plates per sand body of a bare robot file's scene.
+ROBOT_PLATES = 300
 
 #: Settings that replace each other: overriding one removes the other.
 _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
@@ -50,6 +54,7 @@ class SceneConfig:
     params: dict
     raw: dict
     values: dict  # every schema key's effective value, by dotted path (schema.check_scene)
+    robot: dict = None  # robot.base, robot.package_paths (absolute), robot.xacro_args
 
 
 def bundled_scenes():
@@ -67,9 +72,16 @@ def _is_scene_file(path):
 
 
 def load_scene(name_or_path, overrides=None):
-    """Load a bundled scene by name, or a scene YAML by path, apply `overrides`
-    ({key: value}, see module docstring) and validate it. Raises SceneError."""
+    """Load a bundled scene by name, a scene YAML by path, or a robot file (MJCF, URDF,
+    xacro: the scene `robot_scene` makes for it), apply `overrides` ({key: value}, see
+    module docstring) and validate it. Raises SceneError."""
     path = Path(name_or_path)
+    overrides = overrides or {}
+    if is_robot_file(path):
+        if not path.is_file():
+            raise SceneError(f'robot file {path} not found')
+        raw = apply_overrides(robot_scene(path), overrides)
+        return _validate(raw, path, Locator(path, {}, overridden=overrides))
     if not (path.suffix in ('.yaml', '.yml') and path.is_file()):
         scenes = bundled_scenes()
         if str(name_or_path) not in scenes:
@@ -83,9 +95,20 @@ def load_scene(name_or_path, overrides=None):
     raw, lines = load_with_lines(text, path)
     if not isinstance(raw, dict):
         raise SceneError(f'{path}: a scene file must hold a mapping')
-    overrides = overrides or {}
     raw = apply_overrides(raw, overrides)
     return _validate(raw, path, Locator(path, lines, overridden=overrides))
+
+
+def robot_scene(model_path):
+    """The scene of a bare robot file (the mapping a scene YAML would hold): scenario
+    `external` (the robot holds its pose and takes commands), paper sand (zeta 3.75
+    N/cm^3), 1 ms steps, ROBOT_PLATES plates per sand body, the schema's default duration,
+    floating base; the sand bodies come from `rft.bodies` (`rft-sim run --sand-bodies`)."""
+    return {'name': Path(model_path).name.split('.')[0], 'scenario': 'external',
+            'description': f'{Path(model_path).name} in sand (external commands)',
+            'model': str(Path(model_path).resolve()), 'timestep': 0.001, 'zeta': 3.75,
+            'rft': {'plates_per_body': ROBOT_PLATES}, 'legs': 'auto',
+            'robot': {'base': 'floating'}}
 
 
 def parse_assignment(text):
@@ -192,6 +215,10 @@ def _validate(raw, path, locator):
         params=dict(values['params']),
         raw=raw,
         values=values,
+        robot={'base': values['robot.base'],
+               'package_paths': {name: str(path.parent / Path(folder).expanduser())
+                                 for name, folder in values['robot.package_paths'].items()},
+               'xacro_args': values['robot.xacro_args']},
     )
 
 

@@ -79,6 +79,11 @@ def _mapping(value):
     return dict(value)
 
 
+def _text_mapping(value):
+    """A mapping of names to values, all as text."""
+    return {str(k): str(v) for k, v in _mapping(value).items()}
+
+
 def _plates_by_body(value):
     value = _mapping(value)
     for body, count in value.items():
@@ -158,8 +163,9 @@ KEYS = (
         '(module of rft_sim_ros.scenes.scenarios), a Python file `path/to/file.py` (relative '
         'to the scene file; its class `Scenario`) or `module:Class` (importable). See '
         'docs/scene-reference.md, "Own scenarios".', _text),
-    Key('model', 'text', '', REQUIRED, 'The robot: an MJCF file, relative to the scene file '
-        "or the package's models/ folder.", _text),
+    Key('model', 'text', '', REQUIRED, 'The robot: an MJCF (.xml), URDF (.urdf) or xacro '
+        "(.xacro, .urdf.xacro) file, relative to the scene file or the package's models/ "
+        'folder.', _text),
     Key('timestep', 'number > 0', 's', 0.001, 'Integration timestep.', _positive),
     Key('duration', "number > 0 or 'auto'", 's', 10.0, "Sim time `rft-sim run` runs; "
         "'auto': as long as the scenario says.", _duration),
@@ -207,6 +213,15 @@ KEYS = (
     Key('servo_kp', 'number > 0 or null', 'N m/rad or N/m', None, "Stiffness that replaces "
         "every MuJoCo position actuator's kp.",
         lambda v: None if v is None else _positive(v)),
+    Key('robot', 'mapping', '', {}, 'How the robot file is loaded.', _section),
+    Key('robot.base', "'floating' or 'fixed'", '', 'floating', 'A URDF root link: free '
+        '(6-DOF) or welded to the world (MJCF is used as written).',
+        _choice('floating', 'fixed')),
+    Key('robot.package_paths', 'mapping package -> folder', '', {}, 'Folders of the ROS '
+        'packages that $(find PKG) and package://PKG name (relative to the scene file); '
+        'else the ament index or ROS_PACKAGE_PATH.', _text_mapping),
+    Key('robot.xacro_args', 'mapping name -> value', '', {}, 'xacro arguments ($(arg NAME)).',
+        _text_mapping),
     Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
         'each can be overridden with `--set NAME=VALUE`.', _mapping),
 )
@@ -215,7 +230,7 @@ KEYS = (
 BY_PATH = {key.path: key for key in KEYS}
 
 #: Mappings whose own keys are free (not schema keys).
-_FREE = ('params', 'legs', 'rft.plates')
+_FREE = ('params', 'legs', 'rft.plates', 'robot.package_paths', 'robot.xacro_args')
 
 
 def load_with_lines(text, source='<scene>'):

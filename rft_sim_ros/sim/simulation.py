@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from ..control.commands import CommandHandler
+from ..robot.description import DescriptionError, load_description
 from ..sand.engine import LowVelocity, SandEngine
 from ..sand.geoms import body_plates
 from ..scenes.scenarios import load_scenario
@@ -77,10 +78,14 @@ class Simulation:
     def __init__(self, scene):
         self.scene = scene
         self.scenario = load_scenario(scene)
+        robot = scene.robot or {}
         try:
-            spec = mujoco.MjSpec.from_file(str(scene.model_path))
-        except Exception as error:  # MuJoCo reports parse errors as plain exceptions
-            raise SceneError(f'scene {scene.name}: cannot load {scene.model_path}: {error}') from None
+            self.description = load_description(
+                scene.model_path, package_paths=robot.get('package_paths'),
+                xacro_args=robot.get('xacro_args'), base=robot.get('base', 'floating'))
+        except DescriptionError as error:
+            raise SceneError(f'scene {scene.name}: {error}') from None
+        spec = self.description.spec
         self.scenario.edit_model(spec)
         try:
             self.model = spec.compile()

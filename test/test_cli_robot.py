@@ -1,0 +1,63 @@
+"""`rft-sim run ROBOT_FILE`: a bare robot file runs in sand in a scene made for it, with the
+robot options (--sand-bodies, --base, --package-path, --xacro-arg); bad input: one line, exit 2.
+"""
+import json
+from pathlib import Path
+
+import pytest
+
+from rft_sim_ros.cli import main
+from rft_sim_ros.scenes.config import ROBOT_DURATION, SceneError, load_scene
+
+PACKAGE = Path(__file__).parent / 'robots' / 'sandbot_description'
+XACRO = PACKAGE / 'urdf' / 'sandbot.urdf.xacro'
+FEET = 'fl_foot,fr_foot,rl_foot,rr_foot'
+ROBOT_OPTIONS = ['--package-path', f'sandbot_description={PACKAGE}', '--sand-bodies', FEET]
+
+
+def test_robot_file_scene_defaults():
+    scene = load_scene(XACRO, {'rft.bodies': ['fl_foot']})
+    assert scene.name == 'sandbot' and scene.scenario == 'external'
+    assert scene.model_path == XACRO.resolve()
+    assert (scene.timestep, scene.duration, scene.zeta) == (0.001, ROBOT_DURATION, 3.75)
+    assert scene.plates_per_body == 300 and scene.robot['base'] == 'floating'
+
+
+def test_robot_file_runs_in_sand_with_the_plates_asked(tmp_path, caplog):
+    out = tmp_path / 'run'
+    code = main(['run', str(XACRO), *ROBOT_OPTIONS, '--xacro-arg', 'hip_effort=20',
+                 '--set', 'sand.surface_height=-0.25', '--duration', '0.2', '--out', str(out),
+                 '--quiet'])
+    assert code == 0
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['plates_total'] == 4 * 300
+    assert summary['stable'] and summary['plates_active_mean'] > 0
+    assert (out / 'bag').is_dir()
+    assert 'dropped 1 visual mesh' in caplog.text  # the notices reach the user's log
+
+
+@pytest.mark.parametrize('arguments, message', [
+    (['missing.urdf'], 'robot file missing.urdf not found'),
+    ([str(XACRO), '--sand-bodies', FEET], "cannot find package 'sandbot_description'"),
+    ([str(XACRO), '--package-path', 'sandbot_description', '--sand-bodies', FEET],
+     '--package-path expects NAME=VALUE'),
+    ([str(XACRO), '--package-path', f'sandbot_description={PACKAGE}/nowhere',
+      '--sand-bodies', FEET], 'no such folder'),
+    ([str(XACRO), *ROBOT_OPTIONS, '--set', 'robot.base=welded'], 'robot.base must be one of'),
+    ([str(XACRO), '--package-path', f'sandbot_description={PACKAGE}',
+      '--sand-bodies', 'fl_foot,hoof'], "body 'hoof' is not in the model"),
+])
+def test_bad_robot_input_is_one_line_and_exit_2(arguments, message, capsys, monkeypatch,
+                                                tmp_path):
+    monkeypatch.delenv('ROS_PACKAGE_PATH', raising=False)
+    assert main(['run', *arguments, '--duration', '0.01', '--no-bag', '--quiet',
+                 '--out', str(tmp_path / 'out')]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert error.startswith('rft-sim: error: ') and message in error
+
+
+def test_fixed_base_option_welds_the_robot():
+    scene = load_scene(XACRO, {'robot.base': 'fixed', 'rft.bodies': ['fl_foot']})
+    assert scene.robot['base'] == 'fixed'
+    with pytest.raises(SceneError, match='robot.xacro_args must map'):
+        load_scene(XACRO, {'robot.xacro_args': 'hip_effort=3', 'rft.bodies': ['fl_foot']})

@@ -1,0 +1,178 @@
+"""Robot descriptions in: xacro URDF with $(find) includes, package:// meshes (OBJ, COLLADA),
+<ros2_control>/<gazebo> tags and a fixed root link; MJCF; robot_description strings; errors.
+
+Test robot: test/robots/sandbot_description (8 DOF, feet `*_foot` joined to the calves by
+fixed joints, root link `base` fixed to `trunk`).
+"""
+import shutil
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from rft_sim_ros.robot import DescriptionError, load_description
+from rft_sim_ros.robot.description import FLOATING_JOINT
+from rft_sim_ros.robot.xacro_files import expand_xacro
+from rft_sim_ros.robot.packages import PackageResolver
+
+PACKAGE = Path(__file__).parent / 'robots' / 'sandbot_description'
+XACRO = PACKAGE / 'urdf' / 'sandbot.urdf.xacro'
+PATHS = {'sandbot_description': PACKAGE}
+JOINTS = [f'{leg}_{j}' for leg in ('fl', 'fr', 'rl', 'rr') for j in ('hip', 'knee')]
+
+
+@pytest.fixture(scope='module')
+def sandbot():
+    return load_description(XACRO, package_paths=PATHS, log=lambda notice: None)
+
+
+def test_xacro_urdf_loads_with_floating_base_and_named_links(sandbot):
+    model = sandbot.spec.compile()
+    assert sandbot.kind == 'urdf' and sandbot.source_path == XACRO
+    bodies = {model.body(i).name for i in range(model.nbody)}
+    assert {'base', 'trunk', 'fl_foot', 'rr_calf'} <= bodies  # fixed-joint links kept
+    free = model.joint(FLOATING_JOINT)
+    assert model.jnt_type[free.id] == mujoco.mjtJoint.mjJNT_FREE
+    assert model.body(model.jnt_bodyid[free.id]).name == 'base'
+    hinges = [model.joint(j).name for j in range(model.njnt)
+              if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    assert hinges == JOINTS
+    # URDF masses: trunk 3 kg + 4 x (0.2 + 0.1) kg; massless base and feet
+    assert model.body_subtreemass[model.body('base').id] == pytest.approx(4.2)
+    assert model.body_mass[model.body('fl_foot').id] == 0.0
+
+
+def test_limits_and_ros2_control_initial_values_are_read(sandbot):
+    assert sandbot.effort_limits == {name: 12.0 for name in JOINTS}
+    assert sandbot.velocity_limits == {name: 12.0 for name in JOINTS}
+    assert sandbot.initial_positions == {
+        name: (0.4 if name.endswith('hip') else -0.8) for name in JOINTS}
+    model = sandbot.spec.compile()
+    assert model.jnt_range[model.joint('fl_knee').id] == pytest.approx([-2.5, 0.0])
+
+
+def test_meshes_resolved_visual_dae_dropped_collision_dae_converted(sandbot):
+    model = sandbot.spec.compile()
+    trunk = model.body('trunk').id
+    trunk_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == trunk]
+    assert [model.geom_type[g] for g in trunk_geoms] == [mujoco.mjtGeom.mjGEOM_BOX]
+    foot = model.body('fl_foot').id
+    foot_meshes = [g for g in range(model.ngeom) if model.geom_bodyid[g] == foot
+                   and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+    assert len(foot_meshes) == 1  # package:// OBJ, collision
+    thigh = model.body('fl_thigh').id
+    thigh_mesh = [model.geom_dataid[g] for g in range(model.ngeom)
+                  if model.geom_bodyid[g] == thigh][0]
+    vertices = model.mesh_vert[model.mesh_vertadr[thigh_mesh]:
+                               model.mesh_vertadr[thigh_mesh] + model.mesh_vertnum[thigh_mesh]]
+    # the COLLADA box (0.03 x 0.03 x 0.12 m) arrives with its size (centred by MuJoCo)
+    assert np.ptp(vertices, axis=0) == pytest.approx([0.03, 0.03, 0.12], abs=1e-6)
+    notices = ' | '.join(sandbot.notices)
+    assert 'ignored <gazebo>, <ros2_control>' in notices
+    assert 'dropped 1 visual mesh' in notices and 'trunk_visual.dae' in notices
+    assert 'converted 1 collision mesh' in notices and 'thigh.dae' in notices
+    assert len(sandbot.notices) == 3  # once each, not once per leg
+
+
+def test_notices_are_logged_once():
+    logged = []
+    load_description(XACRO, package_paths=PATHS, log=logged.append)
+    assert len(logged) == 3
+
+
+def test_fixed_base_welds_the_root_link():
+    model = load_description(XACRO, package_paths=PATHS, base='fixed',
+                             log=lambda notice: None).spec.compile()
+    assert model.nq == len(JOINTS) and model.nv == len(JOINTS)
+
+
+def test_xacro_args_are_passed():
+    description = load_description(XACRO, package_paths=PATHS, xacro_args={'hip_effort': 30},
+                                   log=lambda notice: None)
+    assert description.effort_limits['fl_hip'] == 30.0
+    assert description.effort_limits['fl_knee'] == 12.0
+
+
+def test_package_found_through_ros_package_path(monkeypatch, tmp_path):
+    monkeypatch.setenv('ROS_PACKAGE_PATH', str(PACKAGE.parent))
+    description = load_description(XACRO, log=lambda notice: None)
+    assert description.spec.compile().nu == 0
+
+
+def test_package_folder_named_otherwise_found_by_its_manifest(monkeypatch, tmp_path):
+    shutil.copytree(PACKAGE, tmp_path / 'src' / 'renamed_folder')
+    monkeypatch.setenv('ROS_PACKAGE_PATH', str(tmp_path / 'src'))
+    assert PackageResolver().find('sandbot_description') == (tmp_path / 'src' / 'renamed_folder')
+
+
+def test_unresolvable_package_is_one_clear_error(monkeypatch):
+    monkeypatch.delenv('ROS_PACKAGE_PATH', raising=False)
+    with pytest.raises(DescriptionError, match=r"sandbot_description.*--package-path"):
+        load_description(XACRO)
+
+
+def test_robot_description_string_loads_like_the_file():
+    text = expand_xacro(XACRO, PackageResolver(PATHS))
+    description = load_description(text, package_paths=PATHS, log=lambda notice: None)
+    assert description.source_path is None
+    assert description.initial_positions['rr_knee'] == -0.8
+    assert description.spec.compile().nbody == 15
+
+
+def test_mjcf_loads_as_written():
+    description = load_description(Path(__file__).parent / 'scenes' / 'servo_rig.xml')
+    assert description.kind == 'mjcf' and description.notices == []
+    assert description.spec.compile().nu > 0
+
+
+def test_urdf_saved_as_xml_is_told_by_its_root_element(tmp_path):
+    text = expand_xacro(XACRO, PackageResolver(PATHS))
+    (tmp_path / 'robot.xml').write_text(text)
+    description = load_description(tmp_path / 'robot.xml', package_paths=PATHS,
+                                   log=lambda notice: None)
+    assert description.kind == 'urdf'
+
+
+@pytest.mark.parametrize('text, message', [
+    ('<robot name="r"><link name="a"></robot>', r'line 1, column \d+: mismatched tag'),
+    ('<sdf version="1.9"/>', r'neither <robot> \(URDF\) nor <mujoco>'),
+    ('<robot name="r"><link name="a"/><link name="b"/></robot>', r'one root link'),
+    ('<robot name="r"><link name="a"><collision><geometry><mesh filename="nowhere.stl"/>'
+     '</geometry></collision></link></robot>', r'collision mesh nowhere.stl not found'),
+    ('<robot name="r"><link name="a"/><joint name="j" type="revolute"><parent link="a"/>'
+     '<child link="b"/><limit effort="x"/></joint><link name="b"/></robot>',
+     r'joint j: limit effort=.x. is not a number'),
+])
+def test_bad_descriptions_are_refused_with_the_reason(text, message):
+    with pytest.raises(DescriptionError, match=message):
+        load_description(text)
+
+
+def test_malformed_urdf_file_names_file_and_line(tmp_path):
+    path = tmp_path / 'bad.urdf'
+    path.write_text('<robot name="r">\n  <link name="a">\n</robot>\n')
+    with pytest.raises(DescriptionError, match=r'bad.urdf: malformed XML at line 3'):
+        load_description(path)
+
+
+def test_unconvertible_collision_mesh_is_refused_naming_the_file(tmp_path):
+    (tmp_path / 'broken.dae').write_text('not collada')
+    text = ('<robot name="r"><link name="a"><inertial><mass value="1"/><inertia ixx="1" '
+            'iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry>'
+            '<mesh filename="broken.dae"/></geometry></collision></link></robot>')
+    (tmp_path / 'r.urdf').write_text(text)
+    with pytest.raises(DescriptionError, match=r'broken.dae'):
+        load_description(tmp_path / 'r.urdf')
+
+
+def test_xacro_error_and_missing_file_are_one_line(tmp_path):
+    (tmp_path / 'bad.urdf.xacro').write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<link name="${undefined_property}"/></robot>')
+    with pytest.raises(DescriptionError, match=r'bad.urdf.xacro: xacro: .*undefined_property'):
+        load_description(tmp_path / 'bad.urdf.xacro')
+    with pytest.raises(DescriptionError, match='not found'):
+        load_description(tmp_path / 'missing.urdf')
+    with pytest.raises(DescriptionError, match='base must be one of'):
+        load_description(XACRO, base='welded')
