@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from rft_sim_ros.cli import main
-from rft_sim_ros.scenes.config import ROBOT_DURATION, SceneError, load_scene
+from rft_sim_ros.scenes.config import ROBOT_PLATES, SceneError, load_scene
+from rft_sim_ros.scenes.schema import BY_PATH
 
 PACKAGE = Path(__file__).parent / 'robots' / 'sandbot_description'
 XACRO = PACKAGE / 'urdf' / 'sandbot.urdf.xacro'
@@ -19,8 +20,9 @@ def test_robot_file_scene_defaults():
     scene = load_scene(XACRO, {'rft.bodies': ['fl_foot']})
     assert scene.name == 'sandbot' and scene.scenario == 'external'
     assert scene.model_path == XACRO.resolve()
-    assert (scene.timestep, scene.duration, scene.zeta) == (0.001, ROBOT_DURATION, 3.75)
-    assert scene.plates_per_body == 300 and scene.robot['base'] == 'floating'
+    assert (scene.timestep, scene.zeta) == (0.001, 3.75)
+    assert scene.duration == BY_PATH['duration'].default
+    assert scene.plates_per_body == ROBOT_PLATES and scene.robot['base'] == 'floating'
 
 
 def test_robot_file_runs_in_sand_with_the_plates_asked(tmp_path, caplog):
@@ -30,7 +32,7 @@ def test_robot_file_runs_in_sand_with_the_plates_asked(tmp_path, caplog):
                  '--quiet'])
     assert code == 0
     summary = json.loads((out / 'summary.json').read_text())
-    assert summary['plates_total'] == 4 * 300
+    assert summary['plates_total'] == 4 * ROBOT_PLATES
     assert summary['stable'] and summary['plates_active_mean'] > 0
     assert (out / 'bag').is_dir()
     assert 'dropped 1 visual mesh' in caplog.text  # the notices reach the user's log
@@ -43,7 +45,7 @@ def test_robot_file_runs_in_sand_with_the_plates_asked(tmp_path, caplog):
      '--package-path expects NAME=VALUE'),
     ([str(XACRO), '--package-path', f'sandbot_description={PACKAGE}/nowhere',
       '--sand-bodies', FEET], 'no such folder'),
-    ([str(XACRO), *ROBOT_OPTIONS, '--set', 'robot.base=welded'], 'robot.base must be one of'),
+    ([str(XACRO), *ROBOT_OPTIONS, '--set', 'robot.base=welded'], 'robot.base: must be one of'),
     ([str(XACRO), '--package-path', f'sandbot_description={PACKAGE}',
       '--sand-bodies', 'fl_foot,hoof'], "body 'hoof' is not in the model"),
 ])
@@ -59,5 +61,5 @@ def test_bad_robot_input_is_one_line_and_exit_2(arguments, message, capsys, monk
 def test_fixed_base_option_welds_the_robot():
     scene = load_scene(XACRO, {'robot.base': 'fixed', 'rft.bodies': ['fl_foot']})
     assert scene.robot['base'] == 'fixed'
-    with pytest.raises(SceneError, match='robot.xacro_args must map'):
+    with pytest.raises(SceneError, match='robot.xacro_args: must be a mapping'):
         load_scene(XACRO, {'robot.xacro_args': 'hip_effort=3', 'rft.bodies': ['fl_foot']})

@@ -207,7 +207,8 @@ def _validate(raw, path, locator):
                       'rest_speed': values['rft.low_velocity.rest_speed'],
                       'ema_alpha': values['rft.low_velocity.ema_alpha']},
         dynamic=dynamic,
-        legs={str(k): tuple(v) for k, v in legs.items()},
+        legs=({body: (body,) for body in bodies} if legs == 'auto'  # one leg per sand body
+              else {str(k): tuple(v) for k, v in legs.items()}),
         base_body=values['base_body'],
         publish_rate=values['publish_rate'],
         control_rate=values['control_rate'],
