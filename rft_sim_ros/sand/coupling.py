@@ -36,6 +36,8 @@ from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE
                            leading_forces)
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
+from .surface import FLAT
+from .surface_kernels import map_factor, surface_height as height_at, surface_top
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -86,11 +88,16 @@ SPEED = LAW_ROWS + 6   # |v|, m/s
 PLATE_ROWS = LAW_ROWS + 7
 
 #: The engine's settings, one float64 vector in both tables, by index: sand surface height
-#: (m, world z), zeta (N/m^3), reciprocal normalisers 1/a4 and 1/b4, lambda x rho of the
-#: dynamic term (kg/m^3), whether trailing plates are gathered too (1/0), and the implicit
-#: law's rest speed v_reg (m/s), joint damping and actuator velocity gains (1/0) implicit.
-SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS = range(9)
-SETTING_COUNT = 9
+#: (m, world z; a slope's at the world origin), zeta (N/m^3), reciprocal normalisers 1/a4 and
+#: 1/b4, lambda x rho of the dynamic term (kg/m^3), whether trailing plates are gathered too
+#: (1/0), and the implicit law's rest speed v_reg (m/s), joint damping and actuator velocity
+#: gains (1/0) implicit; then the surface (`surface.SurfaceData`): its kind code, the slope's
+#: gradient dh/dx, dh/dy, the grid's node [0, 0] (x, y) m and 1/spacing (1/m); and the zeta
+#: map: whether there is one (1/0), its cell [0, 0] corner (x, y) m and 1/cell (1/m).
+(SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
+ SURFACE_KIND, SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
+ ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY) = range(21)
+SETTING_COUNT = 21
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
@@ -104,6 +111,8 @@ GatherArrays = namedtuple('GatherArrays', [
     # the engine's settings and counters, plates and clusters
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
     'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
+    # the surface's grid and block maximum (`surface.SurfaceData`), the zeta map's factors
+    'surface_grid', 'surface_block_max', 'zeta_factors',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -161,13 +170,17 @@ def gather_plates(arrays):
     arrays: the table of an `ArrayTable` of `GatherArrays`; settings SURFACE ... TRAILING.
 
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
-    whose bounding sphere, lies above the surface are skipped without touching their plates.
+    whose bounding sphere, lies above the surface (above its highest point within the
+    sphere's radius, horizontally) are skipped without touching their plates. A plate's
+    depth is the surface height at its (x, y) minus its z (vertical, world axes); a
+    horizontal plane (SURFACE_KIND FLAT) keeps the original arithmetic, bit for bit.
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
     that the depth test reads positions only). A plate below the surface first has
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
     velocity W (9 multiply-adds), so only leading plates (n . v > TANGENTIAL x the body's
     speed scale), or all plates below the surface with TRAILING, are transformed to the
     world.
+    With a zeta map (ZETA_MAP), a plate's zeta is multiplied by the map's factor at its (x, y).
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
     SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
     index), out_slot[k] (slot) and the RFT force force[:3, k] (N, world). Counts the plates
@@ -179,6 +192,17 @@ def gather_plates(arrays):
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     surface_height, zeta_si = settings[SURFACE], settings[ZETA]
     include_trailing = settings[TRAILING] != 0.0
+    kind = int(settings[SURFACE_KIND])
+    flat = kind == FLAT
+    gx, gy = settings[SLOPE_X], settings[SLOPE_Y]
+    gx0, gy0 = settings[GRID_X0], settings[GRID_Y0]
+    g_idx, g_idy = settings[GRID_INV_DX], settings[GRID_INV_DY]
+    grid = float_matrix(arrays, a.surface_grid)
+    block_max = float_matrix(arrays, a.surface_block_max)
+    zeta_map = settings[ZETA_MAP] != 0.0
+    factors = float_matrix(arrays, a.zeta_factors)
+    mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
+    m_idx, m_idy = settings[MAP_INV_DX], settings[MAP_INV_DY]
     body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
     body_cluster_start = int_vector(arrays, a.body_cluster_start)
     cluster_plate_start = int_vector(arrays, a.cluster_plate_start)
@@ -199,7 +223,12 @@ def gather_plates(arrays):
     slots = 0
     for i in range(body_ids.shape[0]):
         b = body_ids[i]
-        if xpos[b, 2] - radii[i] >= surface_height:
+        if flat:
+            top = surface_height
+        else:
+            top = surface_top(kind, surface_height, gx, gy, grid, block_max, gx0, gy0, g_idx,
+                              g_idy, xpos[b, 0], xpos[b, 1], radii[i])
+        if xpos[b, 2] - radii[i] >= top:
             continue
         first = k
         root = body_rootid[b]
@@ -222,8 +251,12 @@ def gather_plates(arrays):
         tangential = TANGENTIAL * (np.sqrt(vx0 * vx0 + vy0 * vy0 + vz0 * vz0)
                                    + radii[i] * np.sqrt(wx * wx + wy * wy + wz * wz))
         for c in range(body_cluster_start[i], body_cluster_start[i + 1]):
-            if (oz + r20 * cluster_center[c, 0] + r21 * cluster_center[c, 1]
-                    + r22 * cluster_center[c, 2] - cluster_radius[c] >= surface_height):
+            ccx, ccy, ccz = cluster_center[c, 0], cluster_center[c, 1], cluster_center[c, 2]
+            if not flat:
+                top = surface_top(kind, surface_height, gx, gy, grid, block_max, gx0, gy0,
+                                  g_idx, g_idy, ox + r00 * ccx + r01 * ccy + r02 * ccz,
+                                  oy + r10 * ccx + r11 * ccy + r12 * ccz, cluster_radius[c])
+            if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= top:
                 continue
             j0 = cluster_plate_start[c]
             j1 = cluster_plate_start[c + 1]
@@ -231,7 +264,12 @@ def gather_plates(arrays):
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
-                depth = surface_height - pz
+                if flat:
+                    depth = surface_height - pz
+                else:
+                    depth = height_at(kind, surface_height, gx, gy, grid, gx0, gy0, g_idx,
+                                      g_idy, ox + r00 * lx + r01 * ly + r02 * lz,
+                                      oy + r10 * lx + r11 * ly + r12 * lz) - pz
                 if depth <= 0.0:
                     continue
                 mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
@@ -255,7 +293,10 @@ def gather_plates(arrays):
                 table[NORMAL + 2, k] = r20 * mx + r21 * my + r22 * mz
                 table[NORMAL_SPEED, k] = n_v
                 j = j0 + i_c
-                table[SCALE, k] = zeta_si * depth * areas[j] if leading else 0.0
+                scale = zeta_si * depth * areas[j]
+                if zeta_map:
+                    scale *= map_factor(factors, mx0, my0, m_idx, m_idy, px, py)
+                table[SCALE, k] = scale if leading else 0.0
                 table[AREA, k] = areas[j] if leading else 0.0
                 out_plate[k] = j
                 out_slot[k] = slots

@@ -20,6 +20,8 @@ from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import coupling
 from .array_table import ArrayTable
+from .surface import FLAT, Plane
+from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
@@ -63,12 +65,15 @@ class SandEngine:
 
     model, data: the MuJoCo model and its data (integrator Euler, implicit or implicitfast).
     body_plates: {body name: Plates in that body's frame (xpos/xmat), m}.
-    zeta: N/cm^3. surface_height: z of the horizontal sand surface, m.
+    zeta: N/cm^3 (multiplied by `zeta_map`'s factor where it has one: a ZetaMap or None).
+    surface_height: z of the horizontal sand surface, m; or `surface`: any `surface.Surface`
+    (slope, height grid), fixed for the engine's life (a grid may change in place).
     normalisation: 'treers' or 'rft_sim'. dynamic: DynamicTerm or None.
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
-                 normalisation='treers', dynamic=None, low_velocity=LowVelocity()):
+                 normalisation='treers', dynamic=None, low_velocity=LowVelocity(),
+                 surface=None, zeta_map=None):
         if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
             raise ValueError('the RFT engine needs the Euler, implicit or implicitfast '
                              'integrator (RK4 cannot be split into mj_step1/mj_step2)')
@@ -85,7 +90,16 @@ class SandEngine:
         # the kernels' settings and counters (coupling.SURFACE ..., coupling.STEPS ...)
         self._settings = np.zeros(coupling.SETTING_COUNT)
         self._counters = np.zeros(coupling.COUNTER_COUNT, dtype=np.int64)
-        self._settings[coupling.SURFACE] = surface_height
+        self.surface = Plane(surface_height) if surface is None else surface
+        self._set_surface(self.surface.data)
+        self.zeta_map = zeta_map
+        self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
+                              else np.ascontiguousarray(zeta_map.factors, dtype=float))
+        if zeta_map is not None:
+            self._settings[coupling.ZETA_MAP] = 1.0
+            self._settings[coupling.MAP_X0], self._settings[coupling.MAP_Y0] = zeta_map.origin
+            self._settings[coupling.MAP_INV_DX] = 1.0 / zeta_map.cell
+            self._settings[coupling.MAP_INV_DY] = 1.0 / zeta_map.cell
         self._settings[coupling.INV_A4] = 1.0 / norm.a4
         self._settings[coupling.INV_B4] = 1.0 / norm.b4
         self._settings[coupling.DYNAMIC] = 0.0 if dynamic is None else (dynamic.lam
@@ -116,6 +130,18 @@ class SandEngine:
         self.body_wrenches = np.zeros((nb, 6))
         self._views()
         self._load_kernels()
+
+    def _set_surface(self, data):
+        """Write a `surface.SurfaceData` into the kernels' settings; keep its arrays."""
+        settings = self._settings
+        settings[coupling.SURFACE_KIND] = data.kind
+        settings[coupling.SURFACE] = data.height
+        settings[coupling.SLOPE_X], settings[coupling.SLOPE_Y] = data.gradient
+        settings[coupling.GRID_X0], settings[coupling.GRID_Y0] = data.origin
+        settings[coupling.GRID_INV_DX] = 1.0 / data.spacing[0]
+        settings[coupling.GRID_INV_DY] = 1.0 / data.spacing[1]
+        self._surface_grid = data.grid
+        self._surface_block_max = data.block_max
 
     def _cluster(self, plates):
         """Store all plates, body by body and within a body cluster by cluster, with the
@@ -172,7 +198,8 @@ class SandEngine:
             radii=self.radii, body_cluster_start=self._body_cluster_start,
             cluster_plate_start=self._cluster_plate_start, cluster_center=self._cluster_center,
             cluster_radius=self._cluster_radius, positions=self.local_pos,
-            normals=self.local_normal, areas=self.areas,
+            normals=self.local_normal, areas=self.areas, surface_grid=self._surface_grid,
+            surface_block_max=self._surface_block_max, zeta_factors=self._zeta_factors,
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
@@ -209,7 +236,7 @@ class SandEngine:
 
     @property
     def surface_height(self):
-        """z of the horizontal sand surface, m (world)."""
+        """z of the horizontal sand surface, m (world); a slope's at the world origin."""
         return float(self._settings[coupling.SURFACE])
 
     @property
@@ -282,8 +309,9 @@ class SandEngine:
         numba loads them from its cache (or compiles them) now, as part of start-up, and not
         at the first step in contact with sand, where it would stall a running simulation
         (a paced ROS node) for up to a few tenths of a second."""
-        surface = self._settings[coupling.SURFACE]
+        surface, kind = self._settings[coupling.SURFACE], self._settings[coupling.SURFACE_KIND]
         self._settings[coupling.SURFACE] = -np.inf  # a surface no plate is below
+        self._settings[coupling.SURFACE_KIND] = FLAT
         if self._implicit_method:
             self._implicit()
             self._implicit_plate_forces(0)
@@ -291,6 +319,7 @@ class SandEngine:
             coupling.gather_plates(self._gather_arrays.table)
             self._explicit()
         self._settings[coupling.SURFACE] = surface
+        self._settings[coupling.SURFACE_KIND] = kind
         self._counters[:] = 0
 
     def active_plates(self):

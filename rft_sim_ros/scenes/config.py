@@ -39,6 +39,8 @@ class SceneConfig:
     duration: float
     zeta: float
     surface_height: float
+    surface: dict     # sand.surface.* (sand.surface.surface_from_settings), file resolved
+    zeta_map: dict    # sand.zeta_map.* (sand.zeta_map.zeta_map_from_settings) or None
     sand_bodies: tuple
     plates_per_body: int
     plate_density_per_mm2: float
@@ -198,6 +200,8 @@ def _validate(raw, path, locator):
         duration=None if values['duration'] == 'auto' else values['duration'],
         zeta=values['zeta'],
         surface_height=values['sand.surface_height'],
+        surface=_subsection(values, 'sand.surface', path),
+        zeta_map=_subsection(values, 'sand.zeta_map', path) or None,
         sand_bodies=tuple(bodies),
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
@@ -221,6 +225,17 @@ def _validate(raw, path, locator):
                                  for name, folder in values['robot.package_paths'].items()},
                'xacro_args': values['robot.xacro_args']},
     )
+
+
+def _subsection(values, section, scene_path):
+    """{leaf: value} of the keys under `section` that have a value, a relative `file`
+    resolved against the scene file's folder."""
+    prefix = section + '.'
+    settings = {path[len(prefix):]: value for path, value in values.items()
+                if path.startswith(prefix) and value is not None}
+    if 'file' in settings and not Path(settings['file']).is_absolute():
+        settings['file'] = str(scene_path.parent / settings['file'])
+    return settings
 
 
 def _scenario_reference(scenario, scene_path):

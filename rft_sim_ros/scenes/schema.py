@@ -124,6 +124,33 @@ def _choice(*options):
     return check
 
 
+def _pair(value, positive=False):
+    """[a, b] of two finite numbers (> 0 with `positive`)."""
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ValueError(f'must be [x, y], got {value!r}')
+    return [_number(v, positive=positive) for v in value]
+
+
+def _low_high(value):
+    low, high = _pair(value)
+    if high < low:
+        raise ValueError(f'must be [low, high] with low <= high, got {value!r}')
+    return [low, high]
+
+
+def _flag(value):
+    if not isinstance(value, bool):
+        raise ValueError(f'must be true or false, got {value!r}')
+    return value
+
+
+def _regions(value):
+    if not isinstance(value, list) or not value or not all(isinstance(r, dict) for r in value):
+        raise ValueError('must be a list of {x: [low, high], y: [low, high], factor: f}, '
+                         f'got {value!r}')
+    return value
+
+
 def _section(value):
     return _mapping(value)
 
@@ -174,6 +201,40 @@ KEYS = (
     Key('sand', 'mapping', '', {}, 'The sand bed.', _section),
     Key('sand.surface_height', 'number', 'm', 0.0, 'z of the horizontal sand surface.',
         _finite),
+    Key('sand.surface', 'mapping', '', {}, 'Shape of the sand surface (docs/terrain.md).',
+        _section),
+    Key('sand.surface.type', "'plane', 'slope', 'grid' or 'hfield'", '', 'plane',
+        'Horizontal plane at sand.surface_height; inclined plane; height field from a file; '
+        "the model's own <hfield> geom.", _choice('plane', 'slope', 'grid', 'hfield')),
+    Key('sand.surface.angle_deg', 'number in [0, 90)', 'deg', 0.0, 'Slope: inclination '
+        '(through (0, 0, sand.surface_height)).',
+        lambda v: _number(v, minimum=0.0, maximum=89.9)),
+    Key('sand.surface.downhill_deg', 'number', 'deg', 0.0, 'Slope: heading of the downhill '
+        'direction, from +x towards +y.', _finite),
+    Key('sand.surface.file', 'text', '', None, 'Grid: a PNG (grey levels) or .npy (heights, '
+        'm, added to sand.surface_height), relative to the scene file.', _optional_text),
+    Key('sand.surface.size', '[x, y] > 0', 'm', None, "Grid: extent of the file's nodes.",
+        lambda v: _pair(v, positive=True)),
+    Key('sand.surface.center', '[x, y]', 'm', [0.0, 0.0], "Grid: world (x, y) of the grid's "
+        'centre.', _pair),
+    Key('sand.surface.height_range', '[low, high]', 'm', None, 'Grid: heights that grey 0..1 '
+        'maps to (required for a PNG; rescales a .npy).', _low_high),
+    Key('sand.surface.geom', 'text', '', None, "Hfield: name of the model's hfield geom (its "
+        'rigid collisions are switched off).', _optional_text),
+    Key('sand.zeta_map', 'mapping or null', '', None, 'Factors multiplying zeta by position '
+        '(docs/terrain.md); null: zeta everywhere.', _optional_section),
+    Key('sand.zeta_map.regions', 'list of {x, y, factor}', 'm', None, 'Rectangles {x: [low, '
+        'high], y: [low, high], factor: f}, later over earlier.', _regions),
+    Key('sand.zeta_map.cell', 'number > 0', 'm', 0.01, 'Raster of the regions.', _positive),
+    Key('sand.zeta_map.file', 'text', '', None, 'Instead of regions: a .npy of factors or a '
+        'PNG (grey levels onto sand.zeta_map.range), relative to the scene file.',
+        _optional_text),
+    Key('sand.zeta_map.size', '[x, y] > 0', 'm', None, "File: extent of the map's cells.",
+        lambda v: _pair(v, positive=True)),
+    Key('sand.zeta_map.center', '[x, y]', 'm', [0.0, 0.0], "File: world (x, y) of the map's "
+        'centre.', _pair),
+    Key('sand.zeta_map.range', '[low, high]', '', None, 'PNG file: factors that grey 0..1 '
+        'maps to.', _low_high),
     Key('rft', 'mapping', '', {}, 'Which bodies feel sand and how they are discretised.',
         _section),
     Key('rft.bodies', 'list of names', '', REQUIRED, 'The bodies that touch sand (MuJoCo '

@@ -21,6 +21,8 @@ from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
 from ..sand.engine import LowVelocity, SandEngine
 from ..sand.geoms import body_plates
+from ..sand.surface import surface_from_settings
+from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
 from .state import ActivePlates, LegWrench, SimState
@@ -92,6 +94,14 @@ class Simulation:
         except Exception as error:
             raise SceneError(f'scene {scene.name}: model does not compile: {error}') from None
         self.model.opt.timestep = scene.timestep
+        try:
+            surface = surface_from_settings(scene.surface, scene.surface_height, self.model)
+            zeta_map = zeta_map_from_settings(scene.zeta_map)
+        except ValueError as error:
+            raise SceneError(f'scene {scene.name}: {error}') from None
+        if scene.surface.get('type') == 'hfield':  # the sand carries bodies there, not MuJoCo
+            geom = self.model.geom(scene.surface['geom'])
+            geom.contype[0] = geom.conaffinity[0] = 0
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
@@ -110,7 +120,8 @@ class Simulation:
                 density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
         try:
             self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
-                                     surface_height=scene.surface_height,
+                                     surface_height=scene.surface_height, surface=surface,
+                                     zeta_map=zeta_map,
                                      normalisation=scene.normalisation,
                                      dynamic=_dynamic_term(scene.dynamic),
                                      low_velocity=LowVelocity(**scene.low_velocity))

@@ -78,7 +78,7 @@ class Scenario(BaseScenario):
     def initialize(self, sim):
         qpos = sim.data.joint('base_free').qpos
         qpos[:3] = (0.0, 0.0,
-                    self.scene.surface_height + self.drop_height + NEUTRAL_FOOT_DROP_M)
+                    self._ground(sim) + self.drop_height + NEUTRAL_FOOT_DROP_M)
         qpos[3:] = (1.0, 0.0, 0.0, 0.0)
         self._base = sim.model.body(sim.base_body).id
         self._feet = np.array([sim.model.site(name).id for name in FOOT_SITES])
@@ -88,6 +88,12 @@ class Scenario(BaseScenario):
             for body in sim.scene.legs[leg]:
                 self._leg_sum[row, names.index(body)] = 1.0
         self._samples = []
+
+    @staticmethod
+    def _ground(sim, reach=0.3):
+        """Highest sand surface within `reach` m of the origin (where the robot starts), m."""
+        x, y = np.meshgrid(np.linspace(-reach, reach, 31), np.linspace(-reach, reach, 31))
+        return float(np.max(sim.engine.surface.height(x, y)))
 
     def control(self, sim):
         # the gait's clock is the time since this run (or reset) started: sim.data.time
@@ -100,14 +106,16 @@ class Scenario(BaseScenario):
             return
         d = sim.data
         force_z = sim.engine.body_wrenches[:, 2]
+        tips = d.site_xpos[self._feet]
+        above = tips[:, 2] - sim.engine.surface.height(tips[:, 0], tips[:, 1])
         self._samples.append(np.concatenate([
-            [t], d.xpos[self._base], d.site_xpos[self._feet, 2], self._leg_sum @ force_z]))
+            [t], d.xpos[self._base], above, self._leg_sum @ force_z]))
 
     def series(self):
         """The walk's time course: {'time_s', 'x_m', 'y_m', 'z_m'} (base_link origin, world)
         and 'sinkage_m' (mean stance foot-tip depth), (n,) arrays."""
         s = np.array(self._samples) if self._samples else np.zeros((0, 16))
-        depth = np.maximum(self.scene.surface_height - s[:, 4:10], 0.0)
+        depth = np.maximum(-s[:, 4:10], 0.0)  # below the local surface
         stance = self._stance(s[:, 0])
         counts = stance.sum(axis=1)
         sinkage = np.where(counts > 0, (depth * stance).sum(axis=1) / np.maximum(counts, 1), 0.0)
@@ -125,12 +133,12 @@ class Scenario(BaseScenario):
         if len(self._samples) < 2:
             return {'total_mass_kg': total_mass, 'walk_time_s': 0.0}
         s = np.array(self._samples)
-        times, base, tips, legs_fz = s[:, 0], s[:, 1:4], s[:, 4:10], s[:, 10:16]
+        times, base, tips_above, legs_fz = s[:, 0], s[:, 1:4], s[:, 4:10], s[:, 10:16]
         walked = times[-1] - times[0]
         forward = base[-1, 0] - base[0, 0]
         steps = np.diff(base[:, 0])
         ahead = steps[steps > 0].sum()
-        depth = np.maximum(self.scene.surface_height - tips, 0.0)
+        depth = np.maximum(-tips_above, 0.0)
         stance = self._stance(times)
         metrics = {
             'forward_distance_m': float(forward),

@@ -1,0 +1,251 @@
+"""The sand's free surface: local height (and normal) at a world (x, y), for the kernels.
+
+Every surface answers one question, `height(x, y)` (m, world z of the free surface above the
+point), and hands the compiled kernels the same answer in a fixed form (`SurfaceData`): a
+kind code plus a plane (height at the world origin and gradient) and a height grid.
+
+- `Plane(height)`: horizontal plane (the default; the kernels keep their original path).
+- `Slope(height, angle_deg, downhill_deg)`: inclined plane through (0, 0, height) that falls
+  by tan(angle) per metre along the heading `downhill_deg` (degrees from +x towards +y).
+- `HeightGrid(heights, size, center)`: a height field sampled on a regular grid of nodes
+  (heights[iy, ix], m, world z; row 0 at the lowest y), spanning `size` = [x, y] m centred on
+  `center`; bilinear between nodes, and outside the grid the edge values continue.
+  `from_file` reads a PNG (grey levels mapped onto a height range) or a .npy (heights in m);
+  `from_mjcf_hfield` reads a MuJoCo model's own <hfield> geom.
+
+Depth below a sloped surface is measured vertically, in world axes (see docs/terrain.md for
+the literature behind this choice): depth = height(x, y) - z of the plate.
+
+The grid carries a coarse "block maximum" (the highest node of each BLOCK x BLOCK tile) so
+that a kernel can tell in a few reads whether a bounding sphere lies wholly above the sand.
+"""
+from collections import namedtuple
+from pathlib import Path
+
+import numpy as np
+
+#: Kind codes read by the kernels.
+FLAT, SLOPE, GRID = 0, 1, 2
+#: Nodes per side of a block of the grid's block maximum.
+BLOCK = 8
+
+#: What the kernels read: kind code; the plane's height at the world origin (m) and gradient
+#: dh/dx, dh/dy; the grid (heights (ny, nx) m, origin = world (x, y) of node [0, 0], node
+#: spacing (dx, dy) m) and its block maximum ((ceil((ny-1)/BLOCK)+1, ...) m). A surface
+#: without a grid passes 2 x 2 placeholders.
+SurfaceData = namedtuple('SurfaceData', ['kind', 'height', 'gradient', 'grid', 'origin',
+                                         'spacing', 'block_max'])
+
+
+def block_maximum(grid, block=BLOCK):
+    """(by, bx) array: block [j, i] = max of the nodes [j*block .. (j+1)*block] x
+    [i*block .. (i+1)*block] (inclusive, clipped to the grid), so every node n belongs to
+    block n // block and the bilinear surface inside a cell never exceeds its blocks."""
+    ny, nx = grid.shape
+    by, bx = (ny - 1) // block + 1, (nx - 1) // block + 1
+    out = np.empty((by, bx))
+    for j in range(by):
+        for i in range(bx):
+            out[j, i] = grid[j * block:(j + 1) * block + 1, i * block:(i + 1) * block + 1].max()
+    return out
+
+
+class Surface:
+    """A sand surface. Subclasses define `height` and `data`."""
+
+    def height(self, x, y):
+        """World z of the free surface at world (x, y) (m; arrays broadcast)."""
+        raise NotImplementedError
+
+    def normal(self, x, y, step=1e-4):
+        """Unit upward normal of the surface at (x, y) ((..., 3)), from the height's central
+        differences over +-step m."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        gx = (self.height(x + step, y) - self.height(x - step, y)) / (2 * step)
+        gy = (self.height(x, y + step) - self.height(x, y - step)) / (2 * step)
+        n = np.stack(np.broadcast_arrays(-gx, -gy, np.ones_like(gx)), axis=-1)
+        return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+    @property
+    def data(self):
+        """The kernels' SurfaceData."""
+        raise NotImplementedError
+
+
+_NO_GRID = np.zeros((2, 2))
+
+
+class Plane(Surface):
+    """Horizontal sand surface at z = height (m)."""
+
+    def __init__(self, height=0.0):
+        self.level = float(height)
+
+    def height(self, x, y):
+        return np.full(np.broadcast(x, y).shape, self.level) if np.ndim(x) or np.ndim(y) \
+            else self.level
+
+    @property
+    def data(self):
+        return SurfaceData(FLAT, self.level, (0.0, 0.0), _NO_GRID, (0.0, 0.0), (1.0, 1.0),
+                           _NO_GRID)
+
+
+class Slope(Surface):
+    """Inclined plane: z = height at the world origin, falling by tan(angle_deg) per metre
+    along the heading downhill_deg (degrees from +x towards +y)."""
+
+    def __init__(self, height=0.0, angle_deg=0.0, downhill_deg=0.0):
+        if not 0.0 <= angle_deg < 90.0:
+            raise ValueError(f'sand.surface.angle_deg must be in [0, 90), got {angle_deg}')
+        self.level, self.angle_deg, self.downhill_deg = float(height), angle_deg, downhill_deg
+        fall, heading = np.tan(np.radians(angle_deg)), np.radians(downhill_deg)
+        self.gradient = (-fall * np.cos(heading), -fall * np.sin(heading))
+
+    def height(self, x, y):
+        return self.level + self.gradient[0] * np.asarray(x) + self.gradient[1] * np.asarray(y)
+
+    @property
+    def data(self):
+        return SurfaceData(SLOPE, self.level, self.gradient, _NO_GRID, (0.0, 0.0), (1.0, 1.0),
+                           _NO_GRID)
+
+
+class HeightGrid(Surface):
+    """Height field on a regular grid of nodes: heights[iy, ix] (m, world z; row 0 at the
+    lowest y), spanning size = (x, y) m centred on center = (x, y) m; bilinear between nodes,
+    the edge values continued outside."""
+
+    def __init__(self, heights, size, center=(0.0, 0.0)):
+        grid = np.array(heights, dtype=float)
+        if grid.ndim != 2 or min(grid.shape) < 2:
+            raise ValueError(f'a height grid needs at least 2 x 2 nodes, got shape {grid.shape}')
+        if not np.all(np.isfinite(grid)):
+            raise ValueError('a height grid must hold finite heights')
+        size = tuple(float(s) for s in size)
+        if len(size) != 2 or min(size) <= 0:
+            raise ValueError(f'sand.surface.size must be [x, y] > 0 m, got {size}')
+        self.grid = np.ascontiguousarray(grid)
+        self.size, self.center = size, tuple(float(c) for c in center)
+        ny, nx = grid.shape
+        self.spacing = (size[0] / (nx - 1), size[1] / (ny - 1))
+        self.origin = (self.center[0] - size[0] / 2, self.center[1] - size[1] / 2)
+        self.block_max = block_maximum(self.grid)
+
+    @classmethod
+    def from_file(cls, path, size, center=(0.0, 0.0), height_range=None, base=0.0):
+        """A grid from a .npy (heights in m above `base`; `height_range` [low, high] m, if
+        given, rescales its values onto that range) or a PNG (grey levels 0..1 mapped onto
+        `height_range`, which is then required; the image's top row is the +y edge, as a map
+        seen from above)."""
+        path = Path(path)
+        if not path.is_file():
+            raise ValueError(f'sand.surface.file {str(path)!r} not found')
+        if path.suffix.lower() == '.npy':
+            values = np.load(path, allow_pickle=False).astype(float)
+            if height_range is not None:
+                values = _rescale(values, height_range)
+        elif path.suffix.lower() == '.png':
+            if height_range is None:
+                raise ValueError('sand.surface.height_range [low, high] m is needed for a '
+                                 'PNG height field')
+            from matplotlib.image import imread
+            image = np.asarray(imread(path), dtype=float)
+            if image.ndim == 3:  # RGB(A): the mean of the colour channels as grey level
+                image = image[..., :3].mean(axis=2)
+            low, high = _range(height_range)
+            values = low + (high - low) * image[::-1]
+        else:
+            raise ValueError(f'sand.surface.file must be a .png or .npy, got {path.name!r}')
+        return cls(base + values, size, center)
+
+    @classmethod
+    def from_mjcf_hfield(cls, model, geom):
+        """The height field of the MuJoCo model's hfield geom `geom` (name), world frame.
+        The geom must be axis aligned (no rotation about any axis); its heights are
+        pos_z + data x size_z over x in pos_x +- size_x and y in pos_y +- size_y, as MuJoCo
+        places them."""
+        import mujoco
+        try:
+            g = model.geom(geom)
+        except KeyError:
+            raise ValueError(f'sand.surface.geom: no geom {geom!r} in the model') from None
+        if g.type[0] != mujoco.mjtGeom.mjGEOM_HFIELD:
+            raise ValueError(f'sand.surface.geom: geom {geom!r} is not an hfield geom')
+        if g.bodyid[0] != 0 or not np.allclose(g.quat, [1, 0, 0, 0]):
+            raise ValueError(f'sand.surface.geom: hfield geom {geom!r} must sit in the world '
+                             'body, axis aligned')
+        h = int(g.dataid[0])
+        rows, cols = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
+        start = int(model.hfield_adr[h])
+        data = model.hfield_data[start:start + rows * cols].reshape(rows, cols)
+        sx, sy, sz, _ = model.hfield_size[h]
+        pos = g.pos
+        return cls(pos[2] + sz * data, (2 * sx, 2 * sy), (pos[0], pos[1]))
+
+    def height(self, x, y):
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        ny, nx = self.grid.shape
+        u = np.clip((x - self.origin[0]) / self.spacing[0], 0.0, nx - 1)
+        v = np.clip((y - self.origin[1]) / self.spacing[1], 0.0, ny - 1)
+        i = np.minimum(u.astype(int), nx - 2)
+        j = np.minimum(v.astype(int), ny - 2)
+        fu, fv = u - i, v - j
+        g = self.grid
+        return ((1 - fv) * ((1 - fu) * g[j, i] + fu * g[j, i + 1])
+                + fv * ((1 - fu) * g[j + 1, i] + fu * g[j + 1, i + 1]))
+
+    @property
+    def data(self):
+        return SurfaceData(GRID, 0.0, (0.0, 0.0), self.grid, self.origin, self.spacing,
+                           self.block_max)
+
+
+def _range(height_range):
+    try:
+        low, high = (float(v) for v in height_range)
+    except (TypeError, ValueError):
+        raise ValueError(f'sand.surface.height_range must be [low, high] m, '
+                         f'got {height_range!r}') from None
+    if not high >= low:
+        raise ValueError(f'sand.surface.height_range needs high >= low, got {height_range!r}')
+    return low, high
+
+
+def _rescale(values, height_range):
+    low, high = _range(height_range)
+    span = values.max() - values.min()
+    unit = (values - values.min()) / span if span > 0 else np.zeros_like(values)
+    return low + (high - low) * unit
+
+
+SURFACE_TYPES = ('plane', 'slope', 'grid', 'hfield')
+
+
+def surface_from_settings(settings, base_height=0.0, model=None, relative_to=None):
+    """The Surface a scene's `sand.surface` mapping describes (see module docstring).
+
+    settings: {'type': 'plane' | 'slope' | 'grid' | 'hfield', ...}; base_height: the scene's
+    sand.surface_height (m): the plane's height, the slope's height at the origin, the
+    offset of a grid's heights. model: the compiled MuJoCo model (hfield). relative_to: the
+    folder a relative `file` is looked up in. Raises ValueError with the reason."""
+    settings = dict(settings or {})
+    kind = settings.get('type', 'plane')
+    if kind not in SURFACE_TYPES:
+        raise ValueError(f'sand.surface.type must be one of {SURFACE_TYPES}, got {kind!r}')
+    if kind == 'plane':
+        return Plane(base_height)
+    if kind == 'slope':
+        return Slope(base_height, float(settings.get('angle_deg', 0.0)),
+                     float(settings.get('downhill_deg', 0.0)))
+    if kind == 'hfield':
+        if not isinstance(settings.get('geom'), str):
+            raise ValueError('sand.surface.geom must name the model\'s hfield geom')
+        return HeightGrid.from_mjcf_hfield(model, settings['geom'])
+    if 'file' not in settings or 'size' not in settings:
+        raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
+    path = Path(str(settings['file']))
+    if not path.is_absolute() and relative_to is not None:
+        path = Path(relative_to) / path
+    return HeightGrid.from_file(path, settings['size'], settings.get('center', (0.0, 0.0)),
+                                settings.get('height_range'), base_height)

@@ -1,0 +1,67 @@
+"""Compiled look-ups of the sand surface (`surface.SurfaceData`) and of the zeta map, inlined
+into `coupling.gather_plates`. World frame, m.
+
+The grid is read in node coordinates u = (x - x0) / dx, v = (y - y0) / dy, clamped to the
+grid, so the edge values continue outside it.
+"""
+from numba import njit
+
+from .surface import BLOCK, FLAT, SLOPE
+
+
+@njit(inline='always')
+def grid_height(grid, x0, y0, inv_dx, inv_dy, x, y):
+    """Bilinear height of the grid at world (x, y), m."""
+    ny, nx = grid.shape
+    u = min(max((x - x0) * inv_dx, 0.0), nx - 1.0)
+    v = min(max((y - y0) * inv_dy, 0.0), ny - 1.0)
+    i = min(int(u), nx - 2)
+    j = min(int(v), ny - 2)
+    fu, fv = u - i, v - j
+    low = grid[j, i] + fu * (grid[j, i + 1] - grid[j, i])
+    high = grid[j + 1, i] + fu * (grid[j + 1, i + 1] - grid[j + 1, i])
+    return low + fv * (high - low)
+
+
+@njit(inline='always')
+def grid_top(grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
+    """An upper bound of the grid's height over the square |x' - x|, |y' - y| <= r (m): the
+    largest block maximum of the blocks it touches."""
+    ny, nx = grid.shape
+    u0 = int(min(max((x - r - x0) * inv_dx, 0.0), nx - 1.0))
+    u1 = int(min(max((x + r - x0) * inv_dx, 0.0), nx - 1.0)) + 1
+    v0 = int(min(max((y - r - y0) * inv_dy, 0.0), ny - 1.0))
+    v1 = int(min(max((y + r - y0) * inv_dy, 0.0), ny - 1.0)) + 1
+    top = -1e300
+    for bj in range(v0 // BLOCK, min(v1 // BLOCK, block_max.shape[0] - 1) + 1):
+        for bi in range(u0 // BLOCK, min(u1 // BLOCK, block_max.shape[1] - 1) + 1):
+            top = max(top, block_max[bj, bi])
+    return top
+
+
+@njit(inline='always')
+def surface_height(kind, level, gx, gy, grid, x0, y0, inv_dx, inv_dy, x, y):
+    """Height of a SLOPE or GRID surface at world (x, y), m."""
+    if kind == SLOPE:
+        return level + gx * x + gy * y
+    return grid_height(grid, x0, y0, inv_dx, inv_dy, x, y)
+
+
+@njit(inline='always')
+def surface_top(kind, level, gx, gy, grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
+    """An upper bound of the surface's height within horizontal distance r of (x, y), m."""
+    if kind == FLAT:
+        return level
+    if kind == SLOPE:
+        return level + gx * x + gy * y + r * (gx * gx + gy * gy) ** 0.5
+    return grid_top(grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r)
+
+
+@njit(inline='always')
+def map_factor(factors, x0, y0, inv_dx, inv_dy, x, y):
+    """The zeta map's factor at world (x, y): its cell's value, 1 outside the map."""
+    u = (x - x0) * inv_dx
+    v = (y - y0) * inv_dy
+    if u < 0.0 or v < 0.0 or u >= factors.shape[1] or v >= factors.shape[0]:
+        return 1.0
+    return factors[int(v), int(u)]

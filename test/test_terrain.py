@@ -1,0 +1,250 @@
+"""Sand surfaces (plane, slope, height grid, MJCF hfield) and the zeta map."""
+import mujoco
+import numpy as np
+import pytest
+
+from rft_sim_ros.rft import body_wrench
+from rft_sim_ros.sand.engine import LowVelocity, SandEngine
+from rft_sim_ros.sand.geoms import body_plates
+from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum,
+                                      surface_from_settings)
+from rft_sim_ros.sand.zeta_map import ZetaMap, zeta_map_from_settings
+from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.sim.simulation import Simulation
+
+LEGS = """
+<mujoco><option timestep="0.001" integrator="implicitfast"/>
+<worldbody>
+  <body name="base" pos="0 0 0.3"><freejoint/>
+    <geom type="box" size="0.1 0.05 0.02" mass="2"/>
+    <body name="upper" pos="0.1 0 0"><joint name="hip" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.1 0 -0.1" size="0.01" mass="0.2"/>
+      <body name="lower" pos="0.1 0 -0.1"><joint name="knee" type="hinge" axis="1 0 0"/>
+        <geom type="box" size="0.03 0.03 0.01" pos="0 0 -0.05" mass="0.1"/>
+      </body>
+    </body>
+  </body>
+</worldbody></mujoco>"""
+
+
+def _engine(surface=None, zeta_map=None, **options):
+    model = mujoco.MjModel.from_xml_string(LEGS)
+    data = mujoco.MjData(model)
+    plates = {name: body_plates(model, model.body(name).id, count=300)
+              for name in ('upper', 'lower')}
+    return model, data, SandEngine(model, data, plates, zeta=2.0, surface=surface,
+                                   zeta_map=zeta_map, **options)
+
+
+def _state(model, data, seed, height=0.12):
+    rng = np.random.default_rng(seed)
+    data.qpos[:3] = [rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), height]
+    quat = np.array([1.0, 0, 0, 0]) + 0.1 * rng.normal(size=4)
+    data.qpos[3:7] = quat / np.linalg.norm(quat)
+    data.qpos[7:9] = rng.uniform(-0.4, 0.4, size=2)
+    data.qvel[:] = rng.normal(size=model.nv) * 0.3
+    data.qvel[2] = -0.3
+
+
+def _wrenches(surface, seed, zeta_map=None, **state):
+    model, data, engine = _engine(surface, zeta_map, low_velocity=LowVelocity(method='none'))
+    _state(model, data, seed, **state)
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    return model, data, engine, engine.body_wrenches.copy()
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_a_flat_height_grid_gives_exactly_the_planes_forces(seed):
+    h = 0.0375
+    grid = HeightGrid(np.full((41, 31), h), size=(1.2, 1.6), center=(0.1, -0.05))
+    *_, plane = _wrenches(Plane(h), seed)
+    *_, engine, flat_grid = _wrenches(grid, seed)
+    assert engine.plates_active > 0
+    assert np.array_equal(plane, flat_grid)
+
+
+@pytest.mark.parametrize('seed', range(3))
+@pytest.mark.parametrize('surface', [
+    Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
+    HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
+               size=(1.5, 1.2), center=(0.05, 0.0))])
+def test_depth_below_a_shaped_surface_is_vertical_below_the_local_height(surface, seed):
+    """The engine's wrench equals the reference law with each plate's depth measured
+    vertically below the surface height at its own (x, y)."""
+    model, data, engine, wrenches = _wrenches(surface, seed)
+    assert engine.plates_active > 0
+    for i, name in enumerate(engine.body_names):
+        body = model.body(name).id
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, body, velocity, 0)
+        plates = body_plates(model, body, count=300)
+        rotation = data.xmat[body].reshape(3, 3)
+        world = plates.centroids @ rotation.T + data.xpos[body]
+        heights = surface.height(world[:, 0], world[:, 1])
+        force, torque = body_wrench(plates, data.xpos[body], rotation, velocity[3:],
+                                    velocity[:3], 2.0, surface_height=heights)
+        torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
+        assert np.allclose(wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
+        assert np.allclose(wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
+
+
+def test_bodies_above_a_hill_are_skipped_but_not_bodies_in_it():
+    hill = HeightGrid(np.zeros((101, 101)), size=(2.0, 2.0))
+    hill.grid[45:56, 45:56] = 0.4  # a 0.2 m tower of sand around the origin
+    hill.block_max[:] = block_maximum(hill.grid)
+    for x, inside in ((0.0, True), (0.8, False)):
+        model, data, engine = _engine(hill, low_velocity=LowVelocity(method='none'))
+        data.qpos[:3] = [x - 0.15, 0.0, 0.3]  # the lower leg hangs over (x, 0)
+        data.qvel[2] = -0.1
+        mujoco.mj_step1(model, data)
+        engine.apply()
+        assert (engine.plates_active > 0) == inside
+
+
+def test_block_maximum_bounds_every_node():
+    rng = np.random.default_rng(1)
+    grid = rng.normal(size=(37, 29))
+    blocks = block_maximum(grid, block=8)
+    for j in range(37):
+        for i in range(29):
+            assert blocks[j // 8, i // 8] >= grid[j, i]
+
+
+def test_slope_heights_and_normal():
+    slope = Slope(0.1, angle_deg=10.0, downhill_deg=90.0)  # falls towards +y
+    assert slope.height(3.0, 0.0) == pytest.approx(0.1)
+    assert slope.height(0.0, 1.0) == pytest.approx(0.1 - np.tan(np.radians(10)))
+    assert np.allclose(slope.normal(0.2, 0.3), [0, np.sin(np.radians(10)), np.cos(np.radians(10))])
+    with pytest.raises(ValueError, match='angle_deg'):
+        Slope(0.0, angle_deg=95.0)
+
+
+HFIELD = """
+<mujoco>
+  <asset><hfield name="dunes" nrow="3" ncol="4" size="0.6 0.4 0.05 0.01"
+                 elevation="0 1 2 3  1 2 3 4  0 0 4 4"/></asset>
+  <worldbody><geom name="terrain" type="hfield" hfield="dunes" pos="0.1 -0.2 0.02"/></worldbody>
+</mujoco>"""
+
+
+def test_mjcf_hfield_heights_match_mujocos_own_ray_casts():
+    model = mujoco.MjModel.from_xml_string(HFIELD)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    grid = HeightGrid.from_mjcf_hfield(model, 'terrain')
+    rng = np.random.default_rng(0)
+    geomid = np.zeros(1, dtype=np.int32)
+    for x, y in rng.uniform([-0.45, -0.55], [0.65, 0.15], size=(20, 2)):
+        distance = mujoco.mj_ray(model, data, np.array([x, y, 1.0]), np.array([0, 0, -1.0]),
+                                 None, 1, -1, geomid)
+        # MuJoCo triangulates each cell; bilinear agrees at nodes and along cell edges and
+        # lies within the cell's node range inside it
+        assert abs((1.0 - distance) - grid.height(x, y)) < 0.05 * 0.5
+    ny, nx = grid.grid.shape
+    for j in range(ny):
+        for i in range(nx):
+            x = grid.origin[0] + i * grid.spacing[0]
+            y = grid.origin[1] + j * grid.spacing[1]
+            start = np.array([np.clip(x, -0.499, 0.699), np.clip(y, -0.599, 0.199), 1.0])
+            distance = mujoco.mj_ray(model, data, start, np.array([0, 0, -1.0]), None, 1, -1,
+                                     geomid)
+            assert 1.0 - distance == pytest.approx(grid.height(*start[:2]), abs=2e-3)
+
+
+def test_grid_files_png_and_npy(tmp_path):
+    from matplotlib.image import imsave
+    heights = np.linspace(0, 1, 12).reshape(3, 4)
+    np.save(tmp_path / 'h.npy', heights)
+    grid = surface_from_settings({'type': 'grid', 'file': str(tmp_path / 'h.npy'),
+                                  'size': [0.3, 0.2]}, base_height=0.5)
+    assert grid.height(-0.15, -0.1) == pytest.approx(0.5)
+    assert grid.height(0.15, 0.1) == pytest.approx(1.5)
+    image = np.zeros((3, 4))
+    image[0, :] = 1.0  # top image row: the +y edge
+    imsave(tmp_path / 'h.png', image, cmap='gray', vmin=0, vmax=1)
+    png = surface_from_settings({'type': 'grid', 'file': str(tmp_path / 'h.png'),
+                                 'size': [0.3, 0.2], 'height_range': [0.0, 0.04]})
+    assert png.height(0.0, 0.1) == pytest.approx(0.04, abs=1e-3)
+    assert png.height(0.0, -0.1) == pytest.approx(0.0, abs=1e-3)
+    with pytest.raises(ValueError, match='height_range'):
+        surface_from_settings({'type': 'grid', 'file': str(tmp_path / 'h.png'),
+                               'size': [0.3, 0.2]})
+    with pytest.raises(ValueError, match='not found'):
+        surface_from_settings({'type': 'grid', 'file': 'nothing.npy', 'size': [1, 1]})
+    with pytest.raises(ValueError, match='type'):
+        surface_from_settings({'type': 'dune'})
+
+
+def test_zeta_map_multiplies_zeta_where_the_plates_are():
+    patch = ZetaMap.from_regions([{'x': [-2, 2], 'y': [-2, 2], 'factor': 0.25}])
+    elsewhere = ZetaMap.from_regions([{'x': [5, 6], 'y': [5, 6], 'factor': 0.25}])
+    *_, plain = _wrenches(Plane(0.0), 0)
+    *_, soft = _wrenches(Plane(0.0), 0, zeta_map=patch)
+    *_, away = _wrenches(Plane(0.0), 0, zeta_map=elsewhere)
+    assert np.abs(plain).max() > 0
+    assert np.allclose(soft, 0.25 * plain, rtol=1e-12)
+    assert np.array_equal(away, plain)
+    half = ZetaMap.from_regions([{'x': [0, 1], 'y': [-1, 1], 'factor': 3.0},
+                                 {'x': [0.5, 1], 'y': [-1, 1], 'factor': 0.5}], cell=0.1)
+    assert np.allclose(half.factor([-0.5, 0.25, 0.75, 2.0], 0.0), [1.0, 3.0, 0.5, 1.0])
+    with pytest.raises(ValueError, match='regions'):
+        zeta_map_from_settings({'regions': [{'x': [1, 0], 'y': [0, 1], 'factor': 2}]})
+
+
+def test_zeta_map_from_a_file(tmp_path):
+    np.save(tmp_path / 'z.npy', np.array([[1.0, 2.0], [3.0, 4.0]]))
+    zmap = zeta_map_from_settings({'file': str(tmp_path / 'z.npy'), 'size': [2.0, 2.0]})
+    assert np.allclose(zmap.factor([-0.5, 0.5, -0.5, 0.5], [-0.5, -0.5, 0.5, 0.5]),
+                       [1, 2, 3, 4])
+
+
+def test_scene_keys_select_the_surface_and_bad_ones_are_refused(tmp_path):
+    np.save(tmp_path / 'flat.npy', np.zeros((5, 5)))
+    scene = load_scene('plate_drop', {'sand.surface.type': 'grid',
+                                      'sand.surface.file': str(tmp_path / 'flat.npy'),
+                                      'sand.surface.size': [1.0, 1.0], 'duration': 0.01})
+    assert isinstance(Simulation(scene).engine.surface, HeightGrid)
+    with pytest.raises(SceneError, match='angle_deg: must be <= 89.9'):
+        load_scene('plate_drop', {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 100})
+    with pytest.raises(SceneError, match='sand.surface: must be a mapping'):
+        load_scene('plate_drop', {'sand.surface': 3})
+    with pytest.raises(SceneError, match='sand.surface.type: must be one of'):
+        load_scene('plate_drop', {'sand.surface.type': 'dune'})
+    scene = load_scene('plate_drop', {'sand.surface.type': 'grid', 'duration': 0.01})
+    with pytest.raises(SceneError, match='needs sand.surface.file'):
+        Simulation(scene)
+    scene = load_scene('plate_drop', {'sand.surface.type': 'hfield', 'duration': 0.01,
+                                      'sand.surface.geom': 'plate_geom'})
+    with pytest.raises(SceneError, match='not an hfield geom'):
+        Simulation(scene)
+
+
+def _drop(overrides, duration=1.5):
+    sim = Simulation(load_scene('plate_drop', {'duration': duration, **overrides}))
+    sim.step(int(round(duration / sim.timestep)))
+    return sim
+
+
+def test_plate_drop_on_a_flat_height_grid_is_the_plane_drop_at_that_height(tmp_path):
+    h = 0.05
+    np.save(tmp_path / 'flat.npy', np.zeros((9, 9)))
+    plane = _drop({'sand.surface_height': h}, duration=0.3)
+    grid = _drop({'sand.surface_height': h, 'sand.surface.type': 'grid',
+                  'sand.surface.file': str(tmp_path / 'flat.npy'),
+                  'sand.surface.size': [2.0, 2.0]}, duration=0.3)
+    assert np.array_equal(plane.data.qpos, grid.data.qpos)
+    assert np.array_equal(plane.data.qvel, grid.data.qvel)
+
+
+@pytest.mark.parametrize('angle', [10.0, 20.0])
+def test_plate_dropped_on_a_slope_comes_to_rest(angle):
+    """A 1 kg plate on a slope gentler than the sand's angle of repose (~30 deg) sinks in and
+    is held: rest speed < 1 mm/s, no creep down the slope."""
+    sim = _drop({'sand.surface.type': 'slope', 'sand.surface.angle_deg': angle,
+                 'sand.surface.downhill_deg': 0.0})
+    x0 = sim.data.qpos[0]
+    sim.step(500)
+    speed = np.linalg.norm(sim.data.qvel[:3])
+    assert speed < 1e-3
+    assert abs(sim.data.qpos[0] - x0) < 1e-3 * 0.5  # < 1 mm/s over 0.5 s
