@@ -149,12 +149,8 @@ class HeightGrid(Surface):
             if height_range is None:
                 raise ValueError('sand.surface.height_range [low, high] m is needed for a '
                                  'PNG height field')
-            from matplotlib.image import imread
-            image = np.asarray(imread(path), dtype=float)
-            if image.ndim == 3:  # RGB(A): the mean of the colour channels as grey level
-                image = image[..., :3].mean(axis=2)
             low, high = _range(height_range)
-            values = low + (high - low) * image[::-1]
+            values = low + (high - low) * grey_levels(path)
         else:
             raise ValueError(f'sand.surface.file must be a .png or .npy, got {path.name!r}')
         return cls(base + values, size, center)
@@ -201,6 +197,16 @@ class HeightGrid(Surface):
                            self.block_max)
 
 
+def grey_levels(path):
+    """A PNG's grey levels 0..1 as a (rows, columns) array with row 0 the image's bottom
+    row (lowest y: the image is a map seen from above); RGB(A): the colour channels' mean."""
+    from matplotlib.image import imread
+    image = np.asarray(imread(path), dtype=float)
+    if image.ndim == 3:
+        image = image[..., :3].mean(axis=2)
+    return image[::-1]
+
+
 def _range(height_range):
     try:
         low, high = (float(v) for v in height_range)
@@ -222,13 +228,13 @@ def _rescale(values, height_range):
 SURFACE_TYPES = ('plane', 'slope', 'grid', 'hfield')
 
 
-def surface_from_settings(settings, base_height=0.0, model=None, relative_to=None):
+def surface_from_settings(settings, base_height=0.0, model=None):
     """The Surface a scene's `sand.surface` mapping describes (see module docstring).
 
     settings: {'type': 'plane' | 'slope' | 'grid' | 'hfield', ...}; base_height: the scene's
     sand.surface_height (m): the plane's height, the slope's height at the origin, the
-    offset of a grid's heights. model: the compiled MuJoCo model (hfield). relative_to: the
-    folder a relative `file` is looked up in. Raises ValueError with the reason."""
+    offset of a grid's heights. model: the compiled MuJoCo model (hfield). Raises ValueError
+    with the reason."""
     settings = dict(settings or {})
     kind = settings.get('type', 'plane')
     if kind not in SURFACE_TYPES:
@@ -244,8 +250,5 @@ def surface_from_settings(settings, base_height=0.0, model=None, relative_to=Non
         return HeightGrid.from_mjcf_hfield(model, settings['geom'])
     if 'file' not in settings or 'size' not in settings:
         raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
-    path = Path(str(settings['file']))
-    if not path.is_absolute() and relative_to is not None:
-        path = Path(relative_to) / path
-    return HeightGrid.from_file(path, settings['size'], settings.get('center', (0.0, 0.0)),
+    return HeightGrid.from_file(settings['file'], settings['size'], settings.get('center', (0.0, 0.0)),
                                 settings.get('height_range'), base_height)

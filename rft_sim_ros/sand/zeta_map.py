@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .surface import grey_levels
+
 
 class ZetaMap:
     """factors (ny, nx) > 0 on square cells of side `cell` m from world corner `origin`."""
@@ -84,12 +86,8 @@ class ZetaMap:
         elif path.suffix.lower() == '.png':
             if value_range is None:
                 raise ValueError('sand.zeta_map.range [low, high] is needed for a PNG zeta map')
-            from matplotlib.image import imread
-            image = np.asarray(imread(path), dtype=float)
-            if image.ndim == 3:
-                image = image[..., :3].mean(axis=2)
             low, high = (float(v) for v in value_range)
-            factors = low + (high - low) * image[::-1]
+            factors = low + (high - low) * grey_levels(path)
         else:
             raise ValueError(f'sand.zeta_map.file must be a .png or .npy, got {path.name!r}')
         ny, nx = factors.shape
@@ -101,7 +99,7 @@ class ZetaMap:
         return cls(factors, origin, cell_x)
 
 
-def zeta_map_from_settings(settings, relative_to=None):
+def zeta_map_from_settings(settings):
     """The ZetaMap a scene's `sand.zeta_map` mapping describes, or None without one.
     Raises ValueError with the reason."""
     if not settings:
@@ -112,8 +110,5 @@ def zeta_map_from_settings(settings, relative_to=None):
         return ZetaMap.from_regions(settings['regions'], float(settings.get('cell', 0.01)))
     if 'file' not in settings or 'size' not in settings:
         raise ValueError('sand.zeta_map needs regions, or file and size [x, y] m')
-    path = Path(str(settings['file']))
-    if not path.is_absolute() and relative_to is not None:
-        path = Path(relative_to) / path
-    return ZetaMap.from_file(path, settings['size'], settings.get('center', (0.0, 0.0)),
+    return ZetaMap.from_file(settings['file'], settings['size'], settings.get('center', (0.0, 0.0)),
                              settings.get('range'))
