@@ -3,8 +3,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from test_engine import _arm, _random_state
+
 from rft_sim_ros.rft import body_wrench
-from rft_sim_ros.sand.engine import LowVelocity, SandEngine
+from rft_sim_ros.sand.engine import LowVelocity
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum,
                                       surface_from_settings)
@@ -12,43 +14,14 @@ from rft_sim_ros.sand.zeta_map import ZetaMap, zeta_map_from_settings
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
-LEGS = """
-<mujoco><option timestep="0.001" integrator="implicitfast"/>
-<worldbody>
-  <body name="base" pos="0 0 0.3"><freejoint/>
-    <geom type="box" size="0.1 0.05 0.02" mass="2"/>
-    <body name="upper" pos="0.1 0 0"><joint name="hip" type="hinge" axis="0 1 0"/>
-      <geom type="capsule" fromto="0 0 0 0.1 0 -0.1" size="0.01" mass="0.2"/>
-      <body name="lower" pos="0.1 0 -0.1"><joint name="knee" type="hinge" axis="1 0 0"/>
-        <geom type="box" size="0.03 0.03 0.01" pos="0 0 -0.05" mass="0.1"/>
-      </body>
-    </body>
-  </body>
-</worldbody></mujoco>"""
-
 
 def _engine(surface=None, zeta_map=None, **options):
-    model = mujoco.MjModel.from_xml_string(LEGS)
-    data = mujoco.MjData(model)
-    plates = {name: body_plates(model, model.body(name).id, count=300)
-              for name in ('upper', 'lower')}
-    return model, data, SandEngine(model, data, plates, zeta=2.0, surface=surface,
-                                   zeta_map=zeta_map, **options)
+    return _arm(surface=surface, zeta_map=zeta_map, **options)
 
 
-def _state(model, data, seed, height=0.12):
-    rng = np.random.default_rng(seed)
-    data.qpos[:3] = [rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), height]
-    quat = np.array([1.0, 0, 0, 0]) + 0.1 * rng.normal(size=4)
-    data.qpos[3:7] = quat / np.linalg.norm(quat)
-    data.qpos[7:9] = rng.uniform(-0.4, 0.4, size=2)
-    data.qvel[:] = rng.normal(size=model.nv) * 0.3
-    data.qvel[2] = -0.3
-
-
-def _wrenches(surface, seed, zeta_map=None, **state):
+def _wrenches(surface, seed, zeta_map=None):
     model, data, engine = _engine(surface, zeta_map, low_velocity=LowVelocity(method='none'))
-    _state(model, data, seed, **state)
+    _random_state(model, data, seed)
     mujoco.mj_step1(model, data)
     engine.apply()
     return model, data, engine, engine.body_wrenches.copy()
@@ -95,7 +68,7 @@ def test_bodies_above_a_hill_are_skipped_but_not_bodies_in_it():
     hill.block_max[:] = block_maximum(hill.grid)
     for x, inside in ((0.0, True), (0.8, False)):
         model, data, engine = _engine(hill, low_velocity=LowVelocity(method='none'))
-        data.qpos[:3] = [x - 0.15, 0.0, 0.3]  # the lower leg hangs over (x, 0)
+        data.qpos[:3] = [x - 0.2, 0.0, 0.3]  # the lower leg hangs over (x, 0)
         data.qvel[2] = -0.1
         mujoco.mj_step1(model, data)
         engine.apply()
