@@ -45,7 +45,12 @@ setup(
         'xacro>=2.0',       # ROS's xacro, from PyPI: robot descriptions without ROS
         'pycollada>=0.8',   # COLLADA (.dae) collision meshes, converted by trimesh
     ],
-    extras_require={'test': ['pytest>=7', 'hypothesis>=6.80']},
+    extras_require={
+        # Ray: studies on a cluster (`rft-sim sweep --ray`); the test extra includes it so
+        # CI tests that backend on a real single-machine cluster
+        'ray': ['ray>=2.9'],
+        'test': ['pytest>=7', 'hypothesis>=6.80', 'ray>=2.9'],
+    },
     zip_safe=False,
     maintainer='rft_sim_ros developers',
     maintainer_email='dev@rft-sim-ros.invalid',

@@ -7,6 +7,8 @@
                     [--set-at T:zeta=Z ...] [--out DIR] [--no-bag] [--plates]
   rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
+  rft-sim sweep STUDY.yaml [--out DIR] [--workers N | --ray auto|ADDRESS] [--resume]
+                           [--run-timeout S]
 
 A ROBOT_FILE (MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro) runs in the scene
 `scenes.config.robot_scene` makes for it (external commands, paper sand, 1 ms steps).
@@ -174,6 +176,24 @@ def cmd_bench(args):
     return 0
 
 
+def cmd_sweep(args):
+    from .study import load_study, run_study
+    study = load_study(args.study)
+    if args.workers is not None and args.workers < 1:
+        raise SceneError(f'--workers must be >= 1, got {args.workers}')
+    if args.run_timeout is not None and not args.run_timeout > 0:
+        raise SceneError(f'--run-timeout must be > 0 s, got {args.run_timeout}')
+    out = args.out or str(Path('runs') / f'study-{Path(args.study).stem}')
+    result = run_study(study, out, workers=args.workers, ray=args.ray, resume=args.resume,
+                       retry_failed=args.retry_failed, run_timeout=args.run_timeout,
+                       progress=not args.quiet,
+                       log=lambda line: print(f'sweep: {line}', file=sys.stderr))
+    print(f'{len(result.rows)} runs ({result.ran} run now, {result.resumed} before), '
+          f'{result.failed} not stable; {result.wall_s:.1f} s')
+    print(f'wrote {Path(out) / "results.csv"}', file=sys.stderr)
+    return 0
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog='rft-sim', description=__doc__.split('\n')[0])
     commands = parser.add_subparsers(dest='command', required=True)
@@ -226,6 +246,23 @@ def build_parser():
                                'start/stop, extreme sand, timesteps, divergence): '
                                'stability.md and plots')
     validate.set_defaults(func=cmd_validate)
+    sweep = commands.add_parser('sweep', help='run a study: a scene over varied values, '
+                                'on all cores or a Ray cluster (docs/studies.md)')
+    sweep.add_argument('study', help='study YAML (scene, vary, repeats, metrics)')
+    sweep.add_argument('--out', help='output folder (default: runs/study-<name>)')
+    where = sweep.add_mutually_exclusive_group()
+    where.add_argument('--workers', type=int, help='local worker processes (default: all cores)')
+    where.add_argument('--ray', metavar='auto|ADDRESS',
+                       help="run on a Ray cluster: 'auto', HOST:PORT, ray://HOST:PORT, or "
+                            "'local' (pip install \"rft_sim_ros[ray]\")")
+    sweep.add_argument('--resume', action='store_true',
+                       help='finish a study in --out: runs already recorded are not repeated')
+    sweep.add_argument('--retry-failed', action='store_true',
+                       help='with --resume: run again the runs recorded as not stable')
+    sweep.add_argument('--run-timeout', type=float, metavar='S',
+                       help='wall-clock limit per run, s (recorded as a failed run)')
+    sweep.add_argument('--quiet', action='store_true', help='no progress bar')
+    sweep.set_defaults(func=cmd_sweep)
     return parser
 
 

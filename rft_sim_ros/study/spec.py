@@ -1,0 +1,173 @@
+"""Study files: a scene plus the values to vary, loaded, validated and expanded into runs.
+
+A study file (YAML):
+
+    scene: hexapod                 # bundled scene name, or a scene YAML path (relative to
+                                   # the study file, or absolute)
+    set: {cycles: 2}               # optional: fixed overrides for every run (as --set)
+    duration: 3.0                  # optional: sim time per run, s (default: the scene's)
+    vary: {zeta: [1.0, 3.75], payload: [0.0, 1.0]}   # grid: every combination
+    repeats: 1                     # optional: each combination this many times
+    metrics: [forward_distance_m, mean_sinkage_m]
+
+`vary` takes three forms: a mapping of key -> list of values (a grid, every combination);
+a list of mappings (explicit runs); or `{sample: {count: N, seed: S, ranges: {key: [low,
+high], ...}}}` (N random runs drawn uniformly within each range; integers when both bounds
+are integers; `log: [keys]` draws those keys uniformly in log space). Keys are anything
+`rft-sim run --set` accepts (`zeta`, `timestep`, `rft.plates_per_body`, a scene param...).
+Every run's scene is loaded and validated here, before any run starts.
+"""
+import itertools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..scenes.config import SceneError, load_scene
+
+_KNOWN = {'scene', 'set', 'duration', 'vary', 'repeats', 'metrics', 'description'}
+
+
+class StudyError(SceneError):
+    """A study file cannot be loaded or is invalid; the message says what to fix."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a study: its id (folder name under DIR/runs), the varied values, the repeat
+    index (0-based) and the overrides it hands load_scene (fixed `set` + varied values)."""
+    run_id: str
+    varied: dict
+    repeat: int
+    overrides: dict
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study. scene: bundled name or absolute YAML path; fixed: overrides for every
+    run; duration: s or None (the scene's); keys: the varied keys in column order."""
+    scene: str
+    fixed: dict
+    duration: float
+    keys: tuple
+    runs: tuple
+    repeats: int
+    metrics: tuple
+    source: dict
+
+
+def load_study(path):
+    """Read, validate and expand the study file at `path`. Raises StudyError."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise StudyError(f'cannot read study file {path}: {error.strerror}') from None
+    except yaml.YAMLError as error:
+        raise StudyError(f'{path}: not valid YAML: {error}') from None
+    return study_from_mapping(raw, base=path.parent, where=str(path))
+
+
+def study_from_mapping(raw, base=Path('.'), where='study'):
+    """Validate and expand a study given as a mapping (the content of a study file); scene
+    paths are relative to `base`. Raises StudyError."""
+    if not isinstance(raw, dict):
+        raise StudyError(f'{where}: a study file must hold a mapping')
+    unknown = sorted(set(raw) - _KNOWN)
+    if unknown:
+        raise StudyError(f'{where}: unknown keys {unknown} (known: {sorted(_KNOWN)})')
+    scene = raw.get('scene')
+    if not isinstance(scene, str) or not scene:
+        raise StudyError(f'{where}: missing scene (a bundled scene name or a scene YAML path)')
+    if scene.endswith(('.yaml', '.yml')) and not Path(scene).is_absolute():
+        scene = str((Path(base) / scene).resolve())
+    fixed = raw.get('set') or {}
+    if not isinstance(fixed, dict) or not all(isinstance(k, str) for k in fixed):
+        raise StudyError(f'{where}: set must map scene keys to values')
+    duration = raw.get('duration')
+    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
+                                 or not (math.isfinite(duration) and duration > 0)):
+        raise StudyError(f'{where}: duration must be a number of seconds > 0, got {duration!r}')
+    repeats = raw.get('repeats', 1)
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise StudyError(f'{where}: repeats must be a positive integer, got {repeats!r}')
+    metrics = raw.get('metrics')
+    if (not isinstance(metrics, list) or not metrics
+            or not all(isinstance(m, str) and m for m in metrics)):
+        raise StudyError(f'{where}: metrics must list the summary metrics to collect, '
+                         'e.g. [forward_distance_m, mean_sinkage_m]')
+    points = expand(raw.get('vary'), where)
+    keys = tuple(dict.fromkeys(k for point in points for k in point))
+    width = len(str(len(points) * repeats - 1))
+    runs = []
+    for i, point in enumerate(points):
+        for repeat in range(repeats):
+            index = i * repeats + repeat
+            runs.append(Run(f'{index:0{width}d}', point, repeat, {**fixed, **point}))
+    for point in {_frozen(r.overrides): r.overrides for r in runs}.values():
+        try:
+            load_scene(scene, point)
+        except SceneError as error:
+            raise StudyError(f'{where}: run with {point}: {error}') from None
+    return Study(scene=scene, fixed=dict(fixed), duration=None if duration is None
+                 else float(duration), keys=keys, runs=tuple(runs), repeats=repeats,
+                 metrics=tuple(metrics), source=raw)
+
+
+def expand(vary, where='study'):
+    """The points (list of {key: value}) a `vary` entry describes (see module docstring)."""
+    if isinstance(vary, list):
+        if not vary or not all(isinstance(p, dict) and p for p in vary):
+            raise StudyError(f'{where}: vary as a list must hold one mapping per run')
+        return [dict(p) for p in vary]
+    if not isinstance(vary, dict) or not vary:
+        raise StudyError(f'{where}: vary must be a grid {{key: [values]}}, a list of runs '
+                         '[{key: value}], or {sample: {count, seed, ranges}}')
+    if set(vary) == {'sample'}:
+        return _samples(vary['sample'], where)
+    for key, values in vary.items():
+        if not isinstance(values, list) or not values:
+            raise StudyError(f'{where}: vary.{key} must be a non-empty list of values')
+    keys = list(vary)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*vary.values())]
+
+
+def _samples(spec, where):
+    if not isinstance(spec, dict) or set(spec) - {'count', 'seed', 'ranges', 'log'}:
+        raise StudyError(f'{where}: vary.sample takes count, seed, ranges and log')
+    count, seed, ranges = spec.get('count'), spec.get('seed'), spec.get('ranges')
+    log = spec.get('log') or []
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise StudyError(f'{where}: vary.sample.count must be a positive integer')
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise StudyError(f'{where}: vary.sample.seed must be an integer >= 0 (samples are '
+                         'reproducible)')
+    if not isinstance(ranges, dict) or not ranges:
+        raise StudyError(f'{where}: vary.sample.ranges must map keys to [low, high]')
+    for key, bounds in ranges.items():
+        if (not isinstance(bounds, list) or len(bounds) != 2
+                or not all(isinstance(b, (int, float)) and not isinstance(b, bool)
+                           and math.isfinite(b) for b in bounds) or not bounds[0] < bounds[1]):
+            raise StudyError(f'{where}: vary.sample.ranges.{key} must be [low, high] with '
+                             f'low < high, got {bounds!r}')
+        if key in log and not bounds[0] > 0:
+            raise StudyError(f'{where}: vary.sample.ranges.{key}: log sampling needs low > 0')
+    if not isinstance(log, list) or not set(log) <= set(ranges):
+        raise StudyError(f'{where}: vary.sample.log must list keys of ranges')
+    rng = np.random.default_rng(seed)
+    columns = {}
+    for key, (low, high) in ranges.items():
+        if isinstance(low, int) and isinstance(high, int) and key not in log:
+            columns[key] = [int(v) for v in rng.integers(low, high, count, endpoint=True)]
+        elif key in log:
+            columns[key] = [float(v) for v in np.exp(rng.uniform(np.log(low), np.log(high),
+                                                                   count))]
+        else:
+            columns[key] = [float(v) for v in rng.uniform(low, high, count)]
+    return [{key: columns[key][i] for key in ranges} for i in range(count)]
+
+
+def _frozen(mapping):
+    return tuple(sorted((k, repr(v)) for k, v in mapping.items()))

@@ -1,0 +1,152 @@
+"""`rft-sim sweep`: run every run of a study on a backend (local processes or Ray), record
+each as it finishes, and write the results table and plots.
+
+Output folder:
+  study.yaml             the study as given (for the record)
+  runs/<id>/summary.json each run: `study_run` (varied values, overrides, repeat,
+                         wall_time_s, stable, reason, worker) and `summary` (run_scene's
+                         summary.json content, null if the run raised); written
+                         atomically as the run finishes: the source of truth for --resume
+  results.csv            one row per run (see table.py), results.npz the same, columnar
+  plots/                 each metric against each varied key
+  study.json             counts, wall time, backend, workers, machine
+"""
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from ..sim.runner import _json_default, machine_info
+from . import plots, table
+from .execute import RunTask, execute, failure_record
+from .pool import default_workers, map_unordered
+from .progress import StudyProgress
+from .spec import StudyError
+
+#: Least time between two rewrites of results.csv while runs finish, s.
+TABLE_EVERY_S = 2.0
+
+
+@dataclass
+class StudyResult:
+    """rows: the table rows in run order; ran / failed: runs executed this time and how many
+    of all rows are not stable; resumed: runs found finished on disk; wall_s: this session."""
+    rows: list
+    ran: int
+    resumed: int
+    failed: int
+    wall_s: float
+    plots: list
+
+
+def _summary_path(out, run_id):
+    return Path(out) / 'runs' / run_id / 'summary.json'
+
+
+def _same(a, b):
+    return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+
+def finished_records(out, study, retry_failed=False):
+    """{run_id: record} of the study's runs already on disk with the same overrides (a run
+    whose summary is missing, unreadable or for other values is not finished)."""
+    records = {}
+    for run in study.runs:
+        try:
+            saved = json.loads(_summary_path(out, run.run_id).read_text())
+        except (OSError, ValueError):
+            continue
+        mark = saved.get('study_run') or {}
+        if not _same(mark.get('overrides'), run.overrides) or mark.get('repeat') != run.repeat:
+            continue
+        if retry_failed and not mark.get('stable'):
+            continue
+        records[run.run_id] = {**{k: mark.get(k) for k in ('stable', 'reason', 'worker')},
+                               'wall_time_s': mark.get('wall_time_s'),
+                               'run_id': run.run_id, 'summary': saved.get('summary')}
+    return records
+
+
+def _save(out, run, record):
+    content = {'study_run': {
+        'run_id': run.run_id, 'varied': run.varied, 'repeat': run.repeat,
+        'overrides': run.overrides, 'wall_time_s': record['wall_time_s'],
+        'stable': record['stable'], 'reason': record['reason'], 'worker': record['worker']},
+        'summary': record['summary']}
+    path = _summary_path(out, run.run_id)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table.write_atomic(path, json.dumps(content, indent=1, default=_json_default).encode())
+
+
+def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=False,
+              run_timeout=None, progress=True, log=lambda line: None):
+    """Run `study` (spec.Study) into folder `out`: on `workers` local processes (default: all
+    cores) or, when `ray` is an address, on that Ray cluster (see ray_backend). resume: keep
+    the runs already finished in `out` (retry_failed: except those not stable); run_timeout:
+    s per run (None: no limit). Returns a StudyResult."""
+    out = Path(out)
+    if (out / 'runs').is_dir() and any((out / 'runs').iterdir()) and not resume:
+        raise StudyError(f'{out} already holds a study: pass --resume to finish it, or '
+                         'choose another --out')
+    out.mkdir(parents=True, exist_ok=True)
+    table.write_atomic(out / 'study.yaml', yaml.safe_dump(study.source, sort_keys=False).encode())
+    started = time.perf_counter()
+    records = finished_records(out, study, retry_failed) if resume else {}
+    resumed = len(records)
+    todo = [run for run in study.runs if run.run_id not in records]
+    by_id = {run.run_id: run for run in study.runs}
+    tasks = [RunTask(run.run_id, study.scene, run.overrides, study.duration, run_timeout)
+             for run in todo]
+    if ray is not None:
+        from . import ray_backend
+        outcomes = ray_backend.map_unordered(execute, tasks, ray)
+        backend = f'ray ({ray})'
+    else:
+        workers = workers or default_workers()
+        hard = None if run_timeout is None else 2 * run_timeout + 30
+        outcomes = map_unordered(execute, tasks, workers, hard_timeout=hard)
+        backend = f'local ({min(workers, max(1, len(tasks)))} workers)'
+    log(f'{len(study.runs)} runs: {resumed} finished before, {len(tasks)} to run on {backend}')
+    bar = StudyProgress(len(tasks), enabled=progress)
+    names = table.columns(study)
+    done = failed = 0
+    last_table = time.monotonic()
+    try:
+        for outcome in outcomes:
+            run_id = tasks[outcome.index].run_id
+            record = outcome.value if outcome.error is None else failure_record(
+                run_id, outcome.error)
+            records[run_id] = record
+            _save(out, by_id[run_id], record)
+            done += 1
+            failed += not record['stable']
+            if not record['stable']:
+                log(f'run {run_id} {by_id[run_id].varied}: {record["reason"]}')
+            bar.update(done, failed)
+            if time.monotonic() - last_table > TABLE_EVERY_S:
+                table.write_csv(out / 'results.csv', names, _rows(study, records))
+                last_table = time.monotonic()
+    finally:
+        bar.close()
+    rows = _rows(study, records)
+    table.write_csv(out / 'results.csv', names, rows)
+    table.write_npz(out / 'results.npz', names, rows)
+    names_written = plots.plot_study(out, study, rows)
+    result = StudyResult(rows=rows, ran=done, resumed=resumed,
+                         failed=sum(not r['stable'] for r in rows),
+                         wall_s=time.perf_counter() - started, plots=names_written)
+    missing = [m for m in study.metrics if all(r[m] is None for r in rows if r['stable'])]
+    if missing:
+        log(f'no stable run reported {missing}: check the metric names in the run summaries')
+    table.write_atomic(out / 'study.json', json.dumps({
+        'scene': study.scene, 'runs': len(study.runs), 'ran': done, 'resumed': resumed,
+        'failed': result.failed, 'wall_time_s': result.wall_s, 'backend': backend,
+        'missing_metrics': missing, 'machine': machine_info()}, indent=2).encode())
+    return result
+
+
+def _rows(study, records):
+    return [table.row(study, run, records[run.run_id])
+            for run in study.runs if run.run_id in records]

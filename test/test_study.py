@@ -1,0 +1,184 @@
+"""Studies (`rft-sim sweep`): study files expanded into runs, the local process pool (results
+identical to serial runs, a failing run recorded, a killed worker retried, resume) and the
+Ray backend against a real single-machine Ray cluster on loopback."""
+import json
+import math
+import os
+import shutil
+import signal
+
+import numpy as np
+import pytest
+import yaml
+
+from rft_sim_ros.cli import main
+from rft_sim_ros.study import StudyError, load_study, run_study, study_from_mapping
+from rft_sim_ros.study.execute import RunTask, execute
+from rft_sim_ros.study.pool import map_unordered
+from rft_sim_ros.study.table import read_csv
+
+#: A short plate drop: the plate hits the sand after ~0.14 s and is at rest by 0.4 s.
+DROP = {'scene': 'plate_drop', 'duration': 0.4, 'set': {'rft.plates_per_body': 100},
+        'metrics': ['max_depth_m', 'final_depth_m']}
+
+
+def _study(**changes):
+    return study_from_mapping({**DROP, **changes})
+
+
+def test_grid_expands_every_combination_with_repeats():
+    study = _study(vary={'zeta': [1.0, 3.75], 'mass': [0.5, 1.0, 2.0]}, repeats=2)
+    assert study.keys == ('zeta', 'mass')
+    assert len(study.runs) == 12
+    points = [(r.varied['zeta'], r.varied['mass'], r.repeat) for r in study.runs]
+    assert len(set(points)) == 12
+    assert {p[:2] for p in points} == {(z, m) for z in (1.0, 3.75) for m in (0.5, 1.0, 2.0)}
+    assert [r.run_id for r in study.runs] == [f'{i:02d}' for i in range(12)]
+    assert all(r.overrides['rft.plates_per_body'] == 100 for r in study.runs)
+
+
+def test_list_and_samples():
+    listed = _study(vary=[{'zeta': 1.0}, {'mass': 2.0, 'timestep': 0.0005}])
+    assert [r.varied for r in listed.runs] == [{'zeta': 1.0}, {'mass': 2.0, 'timestep': 0.0005}]
+    assert listed.keys == ('zeta', 'mass', 'timestep')
+    spec = {'sample': {'count': 20, 'seed': 7, 'log': ['zeta'],
+                       'ranges': {'zeta': [0.5, 5.0], 'rft.plates_per_body': [50, 60]}}}
+    sampled = _study(vary=spec)
+    again = _study(vary=spec)
+    assert [r.varied for r in sampled.runs] == [r.varied for r in again.runs]  # seeded
+    zetas = [r.varied['zeta'] for r in sampled.runs]
+    plates = [r.varied['rft.plates_per_body'] for r in sampled.runs]
+    assert all(0.5 <= z <= 5.0 for z in zetas) and len(set(zetas)) == 20
+    assert all(isinstance(p, int) and 50 <= p <= 60 for p in plates)
+    other = _study(vary={'sample': {**spec['sample'], 'seed': 8}})
+    assert [r.varied for r in other.runs] != [r.varied for r in sampled.runs]
+
+
+@pytest.mark.parametrize('changes, message', [
+    ({'vary': {'no_such_key': [1, 2]}}, 'unknown setting'),
+    ({'vary': {'zeta': [1.0, -1.0]}}, 'zeta'),
+    ({'vary': {'zeta': 1.0}}, 'non-empty list'),
+    ({'vary': {'sample': {'count': 3, 'ranges': {'zeta': [1, 2]}}}}, 'seed'),
+    ({'vary': {'zeta': [1.0]}, 'metrics': []}, 'metrics'),
+    ({'vary': {'zeta': [1.0]}, 'repeat': 2}, 'unknown keys'),
+    ({'vary': {'zeta': [1.0]}, 'scene': 'no_such_scene'}, 'unknown scene'),
+])
+def test_bad_studies_are_refused_with_the_reason(changes, message):
+    with pytest.raises(StudyError, match=message):
+        _study(**changes)
+
+
+def test_the_contract_study_file_loads(tmp_path):
+    path = tmp_path / 'study.yaml'
+    path.write_text('scene: hexapod\nvary: {zeta: [1.0, 3.75], payload: [0.0, 1.0]}\n'
+                    'repeats: 1\nmetrics: [forward_distance_m, mean_sinkage_m]\n')
+    study = load_study(path)
+    assert len(study.runs) == 4 and study.keys == ('zeta', 'payload')
+
+
+def test_a_run_that_raises_or_times_out_is_recorded():
+    broken = execute(RunTask('0', 'plate_drop', {'mass': 'heavy'}, 0.1))
+    assert not broken['stable'] and broken['reason'].startswith('error: ')
+    assert broken['summary'] is None
+    slow = execute(RunTask('1', 'plate_drop', {}, 30.0, timeout=0.2))
+    assert not slow['stable'] and slow['reason'].startswith('timeout')
+    assert slow['wall_time_s'] < 5.0
+
+
+@pytest.fixture(scope='module')
+def local_study(tmp_path_factory):
+    """A 2 x 2 plate-drop grid plus one broken run, on two local workers."""
+    out = tmp_path_factory.mktemp('study') / 'out'
+    study = _study(vary=[{'zeta': z, 'mass': m} for z in (1.0, 3.75) for m in (0.5, 2.0)]
+                   + [{'zeta': 1.0, 'mass': 'heavy'}])
+    return study, out, run_study(study, out, workers=2, progress=False)
+
+
+def test_local_study_writes_table_summaries_and_plots(local_study):
+    study, out, result = local_study
+    rows = read_csv(out / 'results.csv')
+    assert list(rows[0]) == ['run_id', 'repeat', 'zeta', 'mass', 'max_depth_m',
+                             'final_depth_m', 'wall_time_s', 'stable', 'reason']
+    assert [r['run_id'] for r in rows] == ['0', '1', '2', '3', '4']
+    assert [r['stable'] for r in rows] == ['True'] * 4 + ['False']
+    assert rows[4]['reason'].startswith('error: ') and rows[4]['max_depth_m'] == ''
+    assert result.failed == 1 and result.ran == 5
+    # physics through the table: heavier plates and looser sand sink deeper
+    depth = {(float(r['zeta']), float(r['mass'])): float(r['max_depth_m']) for r in rows[:4]}
+    assert depth[1.0, 2.0] > depth[1.0, 0.5] > depth[3.75, 0.5] > 0
+    assert depth[1.0, 2.0] > depth[3.75, 2.0] > depth[3.75, 0.5]
+    columns = np.load(out / 'results.npz')
+    assert columns['max_depth_m'].dtype == float and math.isnan(columns['max_depth_m'][4])
+    assert columns['stable'].dtype == bool and list(columns['stable']) == [True] * 4 + [False]
+    saved = json.loads((out / 'runs' / '0' / 'summary.json').read_text())
+    assert saved['study_run']['overrides'] == study.runs[0].overrides
+    assert saved['summary']['metrics']['max_depth_m'] == float(rows[0]['max_depth_m'])
+    assert sorted(p.name for p in (out / 'plots').iterdir()) == sorted(
+        f'{m}_vs_{k}.png' for m in study.metrics for k in study.keys)
+
+
+def test_local_study_matches_serial_runs_bit_for_bit(local_study):
+    study, out, result = local_study
+    for run, row in zip(study.runs[:4], result.rows):
+        serial = execute(RunTask(run.run_id, study.scene, run.overrides, study.duration))
+        assert serial['summary']['metrics'] == json.loads(
+            (out / 'runs' / run.run_id / 'summary.json').read_text())['summary']['metrics']
+        assert row['max_depth_m'] == serial['summary']['metrics']['max_depth_m']
+
+
+def test_resume_runs_only_what_is_missing(local_study, tmp_path):
+    study, out, result = local_study
+    copy = tmp_path / 'out'
+    shutil.copytree(out, copy)
+    with pytest.raises(StudyError, match='--resume'):
+        run_study(study, copy, workers=1, progress=False)
+    (copy / 'runs' / '2' / 'summary.json').unlink()
+    (copy / 'runs' / '3' / 'summary.json').write_text('{"truncated')  # a crash mid-write
+    resumed = run_study(study, copy, workers=1, progress=False, resume=True)
+    assert (resumed.ran, resumed.resumed) == (2, 3)
+    assert resumed.rows == [{**r, 'wall_time_s': n['wall_time_s']}
+                            for r, n in zip(result.rows, resumed.rows)]
+    assert read_csv(copy / 'results.csv')[2]['max_depth_m'] == repr(result.rows[2]['max_depth_m'])
+    retried = run_study(study, copy, workers=1, progress=False, resume=True, retry_failed=True)
+    assert (retried.ran, retried.resumed) == (1, 4)
+
+
+def die_once(item):
+    """Kill this worker process the first time `item` (a marker path) is seen; later return
+    the item's name."""
+    path, always = item
+    if always or not os.path.exists(path):
+        open(path, 'w').close()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return os.path.basename(path)
+
+
+def test_a_killed_worker_is_replaced_and_its_item_retried_once(tmp_path):
+    items = [(str(tmp_path / f'item{i}'), i == 3) for i in range(4)]
+    outcomes = {o.index: o for o in map_unordered(die_once, items, workers=2)}
+    assert [outcomes[i].value for i in range(3)] == ['item0', 'item1', 'item2']
+    assert outcomes[3].value is None and 'worker died twice' in outcomes[3].error
+
+
+def test_cli_sweep(tmp_path, capsys):
+    path = tmp_path / 'study.yaml'
+    path.write_text(yaml.safe_dump({**DROP, 'duration': 0.2, 'vary': {'zeta': [2.0]}}))
+    assert main(['sweep', str(path), '--out', str(tmp_path / 'out'), '--workers', '1',
+                 '--quiet']) == 0
+    assert read_csv(tmp_path / 'out' / 'results.csv')[0]['stable'] == 'True'
+    assert main(['sweep', str(tmp_path / 'missing.yaml')]) == 2
+    assert 'rft-sim: error: cannot read study file' in capsys.readouterr().err
+    assert main(['sweep', str(path), '--workers', '0']) == 2
+
+
+def test_ray_backend_on_a_local_cluster_matches_the_local_backend(local_study, tmp_path):
+    import ray  # the test extra installs Ray: this test runs in CI, never skips
+    study, out, result = local_study
+    ray.init(address='local', include_dashboard=False, num_cpus=2, log_to_driver=False,
+             _node_ip_address='127.0.0.1')
+    try:
+        on_ray = run_study(study, tmp_path / 'ray', ray='local', progress=False)
+    finally:
+        ray.shutdown()
+    assert [{k: v for k, v in r.items() if k != 'wall_time_s'} for r in on_ray.rows] == [
+        {k: v for k, v in r.items() if k != 'wall_time_s'} for r in result.rows]
