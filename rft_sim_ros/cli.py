@@ -13,23 +13,49 @@
 A ROBOT_FILE (MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro) runs in the scene
 `scenes.config.robot_scene` makes for it (external commands, paper sand, 1 ms steps).
 `run` writes DIR/summary.json, the time series and plots, and a rosbag2 (MCAP) under
-DIR/bag/ with the topics the ROS node publishes.
+DIR/bag/ with the topics the ROS node publishes. `validate` and `bench` write into a fresh
+runs/<command>-<time> unless `--out` names a folder (e.g. the committed validation/).
 
-Errors in what the user asked for (unknown scene, bad value) print one line and exit 2.
+Errors in what the user asked for (unknown scene, bad value, an output folder that cannot
+be written) print one line and exit 2, before anything runs. Ctrl-C (SIGINT) or SIGTERM stops
+a run at the next published state: the bag is closed, summary.json says `"interrupted":
+true`, and the exit status is 128 + the signal number (130, 143), as a shell reports it.
 """
 import argparse
 import datetime
 import json
+import os
+import shutil
+import signal
 import sys
+import threading
 from pathlib import Path
 
+from . import __version__
+from .sim.summary import significant
 from .scenes.config import SceneError, bundled_scenes, load_scene, parse_assignment
 from .units import validated_zeta
 
-#: Values `--set-at` may change during a run: name -> (check(value), apply(sim, value)).
-RUNTIME_SETTINGS = {
-    'zeta': (validated_zeta, lambda sim, value: setattr(sim, 'zeta', value)),
-}
+
+class UsageError(ValueError):
+    """What the user asked for cannot be done (e.g. an output folder that cannot be written);
+    the message says why."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: `rft-sim: error: ...`, exit 2 (no usage block)."""
+
+    def error(self, message):
+        self.exit(2, f'rft-sim: error: {message} (see rft-sim {self._subcommand()}--help)\n')
+
+    def _subcommand(self):
+        words = self.prog.split()[1:]
+        return ''.join(f'{word} ' for word in words)
+
+
+#: Values `--set-at` may change during a run: name -> check(value) (returns it, or raises
+#: ValueError); the change is a runner.SettingChange of the Simulation attribute `name`.
+RUNTIME_SETTINGS = {'zeta': validated_zeta}
 
 
 def _scene_overrides(args):
@@ -69,7 +95,8 @@ def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
 
 
 def parse_timed_assignment(text):
-    """'T:key=value' -> (T in s, action(sim)) for run_scene's schedule; raises SceneError."""
+    """'T:key=value' -> (T in s, SettingChange) for run_scene's schedule; raises SceneError."""
+    from .sim.runner import SettingChange
     at, sep, assignment = text.partition(':')
     try:
         at = float(at)
@@ -81,12 +108,39 @@ def parse_timed_assignment(text):
     if key not in RUNTIME_SETTINGS:
         raise SceneError(f'--set-at can change {", ".join(RUNTIME_SETTINGS)} during a run, '
                          f'not {key!r}')
-    check, apply = RUNTIME_SETTINGS[key]
     try:
-        value = check(value)
+        value = RUNTIME_SETTINGS[key](value)
     except ValueError as error:
         raise SceneError(f'--set-at {text}: {error}') from None
-    return at, lambda sim: apply(sim, value)
+    return at, SettingChange(key, value)
+
+
+def warn(message):
+    """One `rft-sim: warning: ...` line on stderr (the run goes on)."""
+    print(f'rft-sim: warning: {message}', file=sys.stderr)
+
+
+def output_folder(path):
+    """Create the output folder `path` (and its parents) and check that files can be written
+    in it; returns it as a Path. Raises UsageError saying why not (a file in the way, no
+    permission, a system folder such as /proc)."""
+    path = Path(path)
+    for folder in (path, *path.parents):
+        if folder.exists() and not folder.is_dir():
+            raise UsageError(f'--out {path}: {folder} is a file, not a folder')
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f'.rft-sim-write-test-{os.getpid()}'
+        probe.write_bytes(b'')
+        probe.unlink()
+    except OSError as error:
+        raise UsageError(f'--out {path}: cannot write there ({error.strerror or error})') from None
+    return path
+
+
+def fresh_folder(name):
+    """runs/<name>-<local time>: where a command writes unless --out says otherwise."""
+    return Path('runs') / f'{name}-{datetime.datetime.now():%Y%m%d-%H%M%S}'
 
 
 def cmd_scenes(args):
@@ -119,34 +173,86 @@ def _given(raw, key):
 
 
 def cmd_run(args):
-    from .sim.runner import run_scene
+    from .sim.runner import run_duration, run_scene
     scene = load_scene(args.scene, _scene_overrides(args))
     if args.duration is not None and not args.duration > 0:
         raise SceneError(f'--duration must be > 0 s, got {args.duration}')
     schedule = [parse_timed_assignment(text) for text in args.set_at or []]
-    out = Path(args.out) if args.out else Path('runs') / (
-        f'{scene.name}-{datetime.datetime.now():%Y%m%d-%H%M%S}')
-    recorders = []
-    if not args.no_bag:
-        if (out / 'bag').exists():
-            raise SceneError(f'{out / "bag"} exists: choose another --out, remove it, '
-                             'or pass --no-bag')
-        from .ros.recording import BagRecorder
-        out.mkdir(parents=True, exist_ok=True)
-        recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
-    summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
-                        recorders=recorders, schedule=schedule)
+    duration = run_duration(scene, args.duration)
+    for (at, change), text in zip(schedule, args.set_at or []):
+        if at > duration:
+            warn(f'--set-at {text} comes after the run ends ({duration:g} s): not applied')
+    out = Path(args.out) if args.out else fresh_folder(scene.name)
+    if not args.no_bag and (out / 'bag').exists():
+        raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
+                         'or pass --no-bag')
+    created = next((folder for folder in reversed((out, *out.parents))
+                    if not folder.exists()), None)  # the first folder this run makes
+    output_folder(out)
+    try:
+        recorders = []
+        if not args.no_bag:
+            from .ros.recording import BagRecorder
+            recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
+        with stop_on_signals() as stop:
+            summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
+                                recorders=recorders, schedule=schedule, stop=stop)
+    except (SceneError, ValueError):  # refused before it ran (e.g. the model does not load)
+        if created is not None:
+            shutil.rmtree(created, ignore_errors=True)
+        raise
     keys = ('scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s', 'real_time_factor',
-            'plates_total', 'plates_active_mean', 'stable', 'reason')
-    print(json.dumps({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
-                      'generic_metrics': summary['generic_metrics']}, indent=2))
+            'plates_total', 'plates_active_mean', 'stable', 'interrupted', 'reason')
+    print(json.dumps(significant({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
+                                  'generic_metrics': summary['generic_metrics']}), indent=2))
     print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag'),
           file=sys.stderr)
+    if stop.signal is not None:
+        return 128 + stop.signal
     return 0 if summary['stable'] else 1
+
+
+class StopRequest(threading.Event):
+    """Set by SIGINT/SIGTERM while a run is going; `signal` is the number that set it and
+    `reason` says so (run_scene puts it in the summary)."""
+    signal = None
+
+    @property
+    def reason(self):
+        return f'{signal.Signals(self.signal).name} received' if self.signal else None
+
+
+class stop_on_signals:
+    """Context: SIGINT and SIGTERM set the yielded StopRequest instead of killing the process,
+    so the run ends at its next published state with its bag closed and its summary written;
+    a second signal acts as usual (KeyboardInterrupt / termination). Handlers are restored
+    on exit."""
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __enter__(self):
+        self.stop = StopRequest()
+        self.previous = {number: signal.getsignal(number) for number in self.SIGNALS}
+        for number in self.SIGNALS:
+            signal.signal(number, self._handle)
+        return self.stop
+
+    def _handle(self, number, frame):
+        self.stop.signal = number
+        self.stop.set()
+        print(f'\nrft-sim: {signal.Signals(number).name}: stopping at the next published '
+              'state (again to quit at once)', file=sys.stderr)
+        for other in self.SIGNALS:  # the next one stops at once
+            signal.signal(other, self.previous[other])
+
+    def __exit__(self, *exc):
+        for number, handler in self.previous.items():
+            signal.signal(number, handler)
 
 
 def cmd_validate(args):
     log = lambda line: print(f'validate: {line}', file=sys.stderr)  # noqa: E731
+    args.out = output_folder(args.out or fresh_folder('stability' if args.stability
+                                                      else 'validate'))
     if args.stability:
         from .validation.stability import run_stability
         suite = run_stability(args.out, quick=args.quick, log=log)
@@ -166,6 +272,7 @@ def cmd_validate(args):
 
 def cmd_bench(args):
     from .bench import run_bench
+    args.out = output_folder(args.out or fresh_folder('bench'))
     results = run_bench(args.out, quick=args.quick,
                         log=lambda line: print(f'bench: {line}', file=sys.stderr))
     cost = results['step_cost']
@@ -195,7 +302,8 @@ def cmd_sweep(args):
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(prog='rft-sim', description=__doc__.split('\n')[0])
+    parser = Parser(prog='rft-sim', description=__doc__.split('\n')[0])
+    parser.add_argument('--version', action='version', version=f'rft-sim {__version__}')
     commands = parser.add_subparsers(dest='command', required=True)
     scenes = commands.add_parser(
         'scenes', help="list the bundled scenes, or print one scene's effective values")
@@ -222,7 +330,8 @@ def build_parser():
     run.add_argument('--set', action='append', metavar='KEY=VALUE',
                      help='override a scene value (repeatable), e.g. --set drop_height=0.5')
     run.add_argument('--set-at', action='append', metavar='T:KEY=VALUE',
-                     help='change a value when sim time reaches T s (repeatable); '
+                     help='change a value when sim time reaches T s (repeatable; recorded in '
+                          'summary.json); '
                           f'KEY: {", ".join(RUNTIME_SETTINGS)}, e.g. --set-at 1.5:zeta=1.0')
     run.add_argument('--out', help='output folder (default: runs/<scene>-<time>)')
     run.add_argument('--no-bag', action='store_true', help='do not write DIR/bag (rosbag2)')
@@ -232,15 +341,17 @@ def build_parser():
     run.set_defaults(func=cmd_run)
     bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')
     bench.add_argument('--quick', action='store_true', help='few, short measurements')
-    bench.add_argument('--out', default='bench/results', help='output folder')
+    bench.add_argument('--out', help='output folder (default: a fresh runs/bench-<time>; '
+                                     'the committed results: --out bench/results)')
     bench.set_defaults(func=cmd_bench)
     validate = commands.add_parser(
         'validate', help="reproduce the RFT-SiM paper's trends as a report with plots")
     validate.add_argument('--quick', action='store_true',
-                          help='coarse plates and fewer cases (a few minutes)')
-    validate.add_argument('--out', default='validation',
+                          help='coarse plates and fewer cases (about 15 s; the full run about 35 s)')
+    validate.add_argument('--out',
                           help='output folder for report.md, results.json and plots '
-                               '(default: validation/)')
+                               '(default: a fresh runs/validate-<time>; the committed '
+                               'report: --out validation)')
     validate.add_argument('--stability', action='store_true',
                           help='run the stability suite instead (drops, standing still, '
                                'start/stop, extreme sand, timesteps, divergence): '
@@ -266,8 +377,28 @@ def build_parser():
     return parser
 
 
+def joined_values(parser, argv):
+    """argv with each value that starts with '-' joined to its option (`--set-at -1:zeta=1`
+    -> `--set-at=-1:zeta=1`), so that the value is checked, and refused with its own reason,
+    instead of argparse taking it for an option."""
+    actions = [*parser._actions, *(action for sub in parser._subparsers._group_actions[0]
+                                   .choices.values() for action in sub._actions)]
+    options = {option for action in actions for option in action.option_strings}
+    takes_value = {option for action in actions for option in action.option_strings
+                   if action.nargs is None}
+    joined = []
+    for word in argv:
+        if (joined and joined[-1] in takes_value and word.startswith('-')
+                and word not in options and len(word) > 1):
+            joined[-1] = f'{joined[-1]}={word}'
+        else:
+            joined.append(word)
+    return joined
+
+
 def main(argv=None):
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(joined_values(parser, sys.argv[1:] if argv is None else argv))
     try:
         return args.func(args)
     except (SceneError, ValueError) as error:

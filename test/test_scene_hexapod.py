@@ -46,6 +46,7 @@ def test_no_gait_stands_still():
     assert summary['stable'], summary['reason']
     assert abs(m['forward_distance_m']) < 2e-3
     assert m['mean_sinkage_m'] > 0.0
+    assert m['backward_fraction'] == 0.0  # nanometre jitter is not motion (was 61 here)
 
 
 @pytest.mark.parametrize('overrides, message', [

@@ -81,10 +81,10 @@ def test_vertical_plate_torque_is_the_rft_integral():
         1e6 * 0.37 * 0.02 * 0.06 ** 3 / 3, rel=1e-3)
 
 
-def test_cli_validate_defaults_to_the_validation_folder():
+def test_cli_validate_writes_the_committed_report_only_when_told():
     args = build_parser().parse_args(['validate'])
-    assert args.out == 'validation' and not args.quick
-    assert build_parser().parse_args(['validate', '--quick', '--out', 'x']).quick
+    assert args.out is None and not args.quick  # a fresh runs/validate-<time> (test_cli.py)
+    assert build_parser().parse_args(['validate', '--quick', '--out', 'validation']).quick
 
 
 @pytest.mark.slow

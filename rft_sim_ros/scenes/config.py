@@ -84,10 +84,13 @@ def load_scene(name_or_path, overrides=None):
             raise SceneError(f'robot file {path} not found')
         raw = apply_overrides(robot_scene(path), overrides)
         return _validate(raw, path, Locator(path, {}, overridden=overrides))
-    if not (path.suffix in ('.yaml', '.yml') and path.is_file()):
+    if path.suffix in ('.yaml', '.yml') or len(path.parts) > 1:
+        if not path.is_file():
+            raise SceneError(f'scene file {path} not found')
+    else:
         scenes = bundled_scenes()
         if str(name_or_path) not in scenes:
-            raise SceneError(f'unknown scene {name_or_path!r}: not a YAML file and not one '
+            raise SceneError(f'unknown scene {name_or_path!r}: not a scene file and not one '
                              f'of the bundled scenes ({", ".join(scenes)})')
         path = scenes[str(name_or_path)]
     try:

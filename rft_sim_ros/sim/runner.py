@@ -4,12 +4,14 @@ and write summary.json, a time series and plots.
 `run_scene` is what `rft-sim run` calls; recorders (e.g. the rosbag2 writer) receive the same
 SimState snapshots the ROS node publishes, at the scene's publish rate (Hz of sim time).
 """
+import contextlib
 import json
 import math
 import os
 import platform
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -17,7 +19,9 @@ import numpy as np
 
 from .. import __version__
 from .metrics import GenericMetrics
+from ..scenes.scenarios import load_scenario
 from .simulation import Simulation, SimulationDiverged
+from .summary import finite, json_default, significant
 
 
 class ProgressBar:
@@ -60,8 +64,49 @@ def machine_info():
             'rft_sim_ros': __version__, 'platform': platform.platform()}
 
 
+@dataclass(frozen=True)
+class SettingChange:
+    """A scheduled change of a run-time setting (`key` an attribute of Simulation, e.g.
+    'zeta' in N/cm^3): callable on a Simulation, and recorded in the summary."""
+    key: str
+    value: float
+
+    def __call__(self, sim):
+        setattr(sim, self.key, self.value)
+
+
+def run_duration(scene, duration=None):
+    """The sim time (s) a run of `scene` lasts: `duration`, else the scene's, else its
+    scenario's own (`duration: auto`); checked to be a positive finite number."""
+    if duration is None:
+        duration = (scene.duration if scene.duration is not None
+                    else load_scenario(scene).duration())
+    duration = float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f'duration must be a positive number of seconds, got {duration}')
+    return duration
+
+
+@contextlib.contextmanager
+def mujoco_log(path):
+    """MuJoCo's own messages (e.g. 'Nan, Inf or huge value in QACC') go to the file `path`
+    instead of MUJOCO_LOG.TXT in the working directory and the console; None: dropped (the
+    run's summary says why it stopped). The previous settings are restored afterwards."""
+    previous = mujoco.MjLogConfig.get()
+    config = mujoco.MjLogConfig.get()
+    config.logto_console = False
+    config.logto_file = path is not None
+    if path is not None:
+        config.logfile = str(path)
+    config.set()
+    try:
+        yield
+    finally:
+        previous.set()
+
+
 def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True,
-              schedule=()):
+              schedule=(), stop=None):
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
 
     out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
@@ -70,24 +115,46 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     wants_plates attribute asks for the active plates in the states.
     schedule: (time_s, action) pairs; action(sim) runs once, when sim time first reaches
     time_s (rounded up to a whole step): after the state of that instant is recorded, before
-    the next step (e.g. a zeta change, which then acts from that step on).
+    the next step (e.g. a zeta change, which then acts from that step on). SettingChange
+    actions are listed in the summary's `schedule` (time_s, key: value, applied).
+    stop: an object whose is_set() asks the run to end early (e.g. a threading.Event set on
+    Ctrl-C): checked at every published state; the summary then says `interrupted` (and the
+    object's `reason`, if it has one).
+    MuJoCo's messages go to out_dir/mujoco.log (see `mujoco_log`).
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
     part of wall_time_s spent in the recorders; generic_metrics: sim/metrics.py, those of
     every scene, next to the scenario's own `metrics`).
     """
+    out = None if out_dir is None else Path(out_dir)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    with mujoco_log(None if out is None else out / 'mujoco.log'):
+        summary, series = _run(scene, duration, recorders, progress, schedule, stop)
+    if out is not None:
+        (out / 'summary.json').write_text(
+            json.dumps(significant(summary), indent=2, default=json_default))
+        _write_series(out / 'timeseries.csv', series, scene)
+        if plots and series:
+            from .plots import plot_timeseries
+            plot_timeseries(out / 'timeseries.png', series, scene, summary['schedule'])
+    return summary
+
+
+def _run(scene, duration, recorders, progress, schedule, stop):
+    """The run itself: (summary, time series rows)."""
     bar = None
     loop_started = None
+    interrupted = False
     try:  # recorders are closed however the run ends (a bag is only complete once closed)
+        duration = run_duration(scene, duration)
         actions = _scheduled_steps(schedule, scene.timestep)
+        changes = [{'time_s': step * scene.timestep, action.key: action.value,
+                    'applied': False} for step, action in actions
+                   if isinstance(action, SettingChange)]
         started = time.perf_counter()
         sim = Simulation(scene)
         startup = time.perf_counter() - started
         generic = GenericMetrics(sim)
-        if duration is None:
-            duration = scene.duration if scene.duration is not None else sim.scenario.duration()
-        duration = float(duration)
-        if not (math.isfinite(duration) and duration > 0):
-            raise ValueError(f'duration must be a positive number of seconds, got {duration}')
         steps = int(round(duration / sim.timestep))
         publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
         with_plates = any(getattr(r, 'wants_plates', False) for r in recorders)
@@ -102,8 +169,11 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         recording = 0.0
         generic.observe(sim, sim.state())  # the initial state
         loop_started = time.perf_counter()
-        _run_due(actions, done, sim)
+        _run_due(actions, done, sim, changes)
         while done < steps:
+            if stop is not None and stop.is_set():
+                interrupted = True
+                break
             chunk = min(publish_every - done % publish_every, steps - done)
             if actions:
                 chunk = min(chunk, actions[0][0] - done)
@@ -119,7 +189,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
                     recorder.record(state)
                 recording += time.perf_counter() - recording_started
                 bar.update(done)
-            _run_due(actions, done, sim)
+            _run_due(actions, done, sim, changes)
     except SimulationDiverged as error:
         reason = f'diverged {error}'
     finally:
@@ -131,10 +201,15 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
             recorder.close()
     sim_time = sim.steps * sim.timestep
     metrics = sim.scenario.metrics(sim) if done else {}
+    if interrupted:
+        reason = (f'interrupted at t = {sim_time:.4f} s of {duration:g} s '
+                  f'({getattr(stop, "reason", None) or "stopped on request"})')
     summary = {
         'scene': scene.name,
         'description': scene.description,
-        'zeta': sim.zeta,
+        'zeta': scene.zeta,
+        'zeta_final': sim.zeta,
+        'schedule': changes,
         'timestep_s': sim.timestep,
         'sim_time_s': sim_time,
         'wall_time_s': wall,
@@ -152,22 +227,15 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         'implicit_solves_per_step': sim.engine.solves / max(1, sim.steps),
         'implicit_unsettled_steps': sim.engine.unsettled_steps,
         'normalisation': scene.normalisation,
-        'stable': reason is None,
+        'stable': reason is None or interrupted,
+        'interrupted': interrupted,
         'reason': reason,
-        'metrics': _finite(metrics),
-        'generic_metrics': _finite(generic.result(stable=reason is None)),
+        'metrics': finite(metrics),
+        'generic_metrics': finite(generic.result(stable=reason is None or interrupted)),
         'scene_config': scene.raw,
         'machine': machine_info(),
     }
-    if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / 'summary.json').write_text(json.dumps(summary, indent=2, default=_json_default))
-        _write_series(out / 'timeseries.csv', series, scene)
-        if plots and series:
-            from .plots import plot_timeseries
-            plot_timeseries(out / 'timeseries.png', series, scene)
-    return summary
+    return summary, series
 
 
 def _scheduled_steps(schedule, timestep):
@@ -181,10 +249,14 @@ def _scheduled_steps(schedule, timestep):
     return sorted(actions, key=lambda item: item[0])
 
 
-def _run_due(actions, done, sim):
-    """Run (and drop) the scheduled actions due at step `done`."""
+def _run_due(actions, done, sim, changes):
+    """Run (and drop) the scheduled actions due at step `done`; mark the SettingChanges
+    among them applied in `changes` (the summary's schedule, in the same order)."""
     while actions and actions[0][0] <= done:
-        actions.pop(0)[1](sim)
+        action = actions.pop(0)[1]
+        action(sim)
+        if isinstance(action, SettingChange):
+            next(change for change in changes if not change['applied'])['applied'] = True
 
 
 def _series_row(state):
@@ -203,23 +275,3 @@ def _write_series(path, series, scene):
     lines = [','.join(columns)]
     lines += [','.join(f'{row[c]:.9g}' for c in columns) for row in series]
     path.write_text('\n'.join(lines) + '\n')
-
-
-def _finite(metrics):
-    """Metrics with non-finite floats replaced by None (JSON has no NaN)."""
-    clean = {}
-    for key, value in metrics.items():
-        if isinstance(value, float) and not math.isfinite(value):
-            value = None
-        clean[key] = value
-    return clean
-
-
-def _json_default(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f'not JSON serialisable: {type(value).__name__}')

@@ -10,6 +10,7 @@ import importlib
 import importlib.util
 import math
 from pathlib import Path
+import pkgutil
 
 from ..config import SceneError
 
@@ -84,10 +85,16 @@ def load_scenario(scene):
         except ModuleNotFoundError as error:
             if error.name and module_name.startswith(error.name):
                 raise SceneError(f'{where}: unknown scenario (not a bundled one, a .py file '
-                                 'or an importable module:Class)') from None
+                                 'or an importable module:Class); bundled: '
+                                 f'{", ".join(scenario_names())}') from None
             raise
     scenario_class = getattr(module, class_name, None)
     if not (isinstance(scenario_class, type) and issubclass(scenario_class, BaseScenario)):
         raise SceneError(f'{where}: {module.__name__} has no class {class_name} derived from '
                          'rft_sim_ros.scenes.scenarios.BaseScenario')
     return scenario_class(scene)
+
+
+def scenario_names():
+    """Names of the bundled scenario modules (what a scene's `scenario:` may say), sorted."""
+    return sorted(module.name for module in pkgutil.iter_modules(__path__))

@@ -1,0 +1,203 @@
+"""`rft-sim` as a user meets it: one-line errors (exit 2) before anything runs, output
+folders, --version, Ctrl-C / SIGTERM on a running `run`, MuJoCo's log, the written summary."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from rosbags.highlevel import AnyReader
+
+from rft_sim_ros import __version__
+from rft_sim_ros.cli import main
+from rft_sim_ros.sim.simulation import Simulation
+from rft_sim_ros.scenes.config import load_scene
+
+#: A short, cheap run.
+SHORT = ['run', 'plate_drop', '--duration', '0.05', '--quiet', '--set', 'drop_height=0.01']
+
+
+def one_error_line(capsys, *phrases):
+    """The captured stderr is exactly one `rft-sim: error:` line holding every phrase."""
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith('rft-sim: error: '), lines
+    for phrase in phrases:
+        assert phrase in lines[0], lines
+    return lines[0]
+
+
+def exit_code(argv):
+    """main(argv)'s exit status, whether it returns it or argparse exits."""
+    try:
+        return main(argv)
+    except SystemExit as stop:
+        return stop.code
+
+
+# --- output folders: checked before running ------------------------------------------------
+
+@pytest.mark.parametrize('bag', [[], ['--no-bag']])
+def test_out_at_a_file_or_under_one_is_refused_before_running(tmp_path, capsys, bag):
+    existing = tmp_path / 'results.txt'
+    existing.write_text('keep me')
+    for out in (existing, existing / 'run'):
+        assert exit_code([*SHORT, '--out', str(out), *bag]) == 2
+        one_error_line(capsys, str(out), 'is a file')
+    assert existing.read_text() == 'keep me'
+
+
+@pytest.mark.parametrize('bag', [[], ['--no-bag']])
+def test_out_where_nothing_can_be_written_is_refused(capsys, bag):
+    assert exit_code([*SHORT, '--out', '/proc/rft-sim-run', *bag]) == 2
+    one_error_line(capsys, '/proc/rft-sim-run', 'cannot write there')
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason='root may write into a read-only folder')
+def test_out_in_a_read_only_folder_is_refused(tmp_path, capsys):
+    locked = tmp_path / 'locked'
+    locked.mkdir()
+    locked.chmod(0o555)
+    try:
+        assert exit_code([*SHORT, '--out', str(locked / 'run'), '--no-bag']) == 2
+        one_error_line(capsys, 'cannot write there')
+    finally:
+        locked.chmod(0o755)
+
+
+def test_a_scene_that_fails_to_build_leaves_no_folder_behind(tmp_path, capsys):
+    model = tmp_path / 'broken.xml'
+    model.write_text('<mujoco>\n  <worldbody>\n    <body name="a">\n  </worldbody>\n</mujoco>\n')
+    scene = tmp_path / 'broken.yaml'
+    scene.write_text(yaml.safe_dump({**load_scene('plate_drop').raw, 'model': str(model)}))
+    out = tmp_path / 'runs' / 'broken'
+    assert exit_code(['run', str(scene), '--out', str(out), '--quiet']) == 2
+    one_error_line(capsys, str(model), 'line ')   # MuJoCo's line number, the file named
+    assert not (tmp_path / 'runs').exists()
+
+
+def test_validate_and_bench_write_into_a_fresh_folder_unless_told(monkeypatch, tmp_path):
+    import rft_sim_ros.bench as bench
+    import rft_sim_ros.validation as validation
+    monkeypatch.chdir(tmp_path)
+    seen = []
+
+    class Results:
+        trends, wall_s = [], 0.0
+
+    monkeypatch.setattr(validation, 'run_validation',
+                        lambda out, quick, log: seen.append(Path(out)) or Results())
+    monkeypatch.setattr(bench, 'run_bench', lambda out, quick, log: seen.append(Path(out)) or {
+        'step_cost': {'sand_step_s': 1.0, 'rigid_step_s': 1.0, 'ratio_full_to_rigid': 1.0},
+        'trial': {'real_time_factor': 1.0}})
+    assert main(['validate', '--quick']) == 0
+    assert main(['bench', '--quick']) == 0
+    assert main(['validate', '--quick', '--out', 'validation']) == 0
+    assert [p.parent.name for p in seen[:2]] == ['runs', 'runs']
+    assert seen[0].name.startswith('validate-') and seen[1].name.startswith('bench-')
+    assert seen[2] == Path('validation')
+
+
+# --- messages --------------------------------------------------------------------------------
+
+def test_version(capsys):
+    assert exit_code(['--version']) == 0
+    assert capsys.readouterr().out.strip() == f'rft-sim {__version__}'
+
+
+@pytest.mark.parametrize('argv, phrases', [
+    (['run', 'plate_drop', '--zeta', 'abc'], ['--zeta', "'abc'"]),
+    (['run'], ['scene']),
+    (['run', 'plate_drop', '--set-at', '-1:zeta=1'], ['T >= 0', '-1:zeta=1']),
+    (['run', 'plate_drop', '--set-at', '1:zeta=-2'], ['zeta']),
+    (['run', 'nosuch'], ['unknown scene', 'hexapod', 'plate_drop']),
+    (['run', 'missing.yaml'], ['missing.yaml', 'not found']),
+    (['run', 'sub/missing'], ['sub/missing', 'not found']),
+])
+def test_bad_arguments_give_one_error_line_and_exit_2(capsys, argv, phrases):
+    assert exit_code(argv) == 2
+    one_error_line(capsys, *phrases)
+
+
+def test_yaml_syntax_error_names_the_file_and_line(tmp_path, capsys):
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text('name: bad\nscenario: plate_drop\n  model: [x\n')
+    assert exit_code(['run', str(scene)]) == 2
+    line = one_error_line(capsys, f'{scene}:3', 'not valid YAML')
+    assert 'unicode string' not in line
+
+
+def test_unknown_scenario_lists_the_known_ones(tmp_path, capsys):
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text(yaml.safe_dump({**load_scene('plate_drop').raw,
+                                     'scenario': 'walking_on_water'}))
+    assert exit_code(['run', str(scene), '--no-bag', '--out', str(tmp_path / 'o')]) == 2
+    one_error_line(capsys, "'walking_on_water'", 'unknown scenario', 'hexapod', 'plate_drop', 'external')
+
+
+def test_set_at_past_the_end_warns_and_the_schedule_is_recorded(tmp_path, capsys):
+    out = tmp_path / 'run'
+    assert main(['run', 'plate_drop', '--duration', '0.2', '--zeta', '5', '--set-at',
+                 '0.1:zeta=1', '--set-at', '99:zeta=2', '--out', str(out), '--quiet',
+                 '--no-bag']) == 0
+    err = capsys.readouterr().err
+    assert 'rft-sim: warning: --set-at 99:zeta=2 comes after the run ends (0.2 s)' in err
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['zeta'] == 5.0 and summary['zeta_final'] == 1.0
+    assert summary['schedule'] == [{'time_s': 0.1, 'zeta': 1.0, 'applied': True},
+                                   {'time_s': 99.0, 'zeta': 2.0, 'applied': False}]
+
+
+def test_mujoco_messages_go_to_the_runs_log_not_the_working_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / 'run'
+    code = main(['run', 'blade_drag', '--set', 'servo_kp=1e10', '--duration', '0.6',
+                 '--out', str(out), '--quiet', '--no-bag'])
+    assert code == 1                                      # diverged, and said so
+    assert not (tmp_path / 'MUJOCO_LOG.TXT').exists()
+    assert 'unstable' in (out / 'mujoco.log').read_text()
+
+
+def test_written_summary_has_no_float_noise(tmp_path):
+    out = tmp_path / 'run'
+    assert main([*SHORT, '--out', str(out), '--no-bag']) == 0
+    text = (out / 'summary.json').read_text()
+    numbers = [float(word.strip(',')) for word in text.split()
+               if word.strip(',').replace('.', '', 1).replace('e-', '', 1).isdigit()]
+    assert numbers
+    assert all(float(f'{value:.12g}') == value for value in numbers)
+    assert json.loads(text)['sim_time_s'] == 0.05
+
+
+# --- Ctrl-C and SIGTERM on a running `rft-sim run` -------------------------------------------
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, signum):
+    Simulation(load_scene('plate_drop'))  # kernels in numba's cache: the child starts warm
+    out = tmp_path / 'run'
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '600',
+         '--out', str(out), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
+    bag_file = out / 'bag' / 'bag.mcap'
+    deadline = time.monotonic() + 120
+    while not (bag_file.exists() and bag_file.stat().st_size > 0):  # stepping, recording
+        assert child.poll() is None and time.monotonic() < deadline, child.communicate()
+        time.sleep(0.1)
+    child.send_signal(signum)
+    stdout, stderr = child.communicate(timeout=60)
+    assert child.returncode == 128 + signum, stderr
+    assert 'Traceback' not in stderr
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['interrupted'] is True and summary['stable'] is True
+    assert signal.Signals(signum).name in summary['reason']
+    assert 0 < summary['sim_time_s'] < 600
+    assert json.loads(stdout)['interrupted'] is True
+    with AnyReader([out / 'bag']) as bag:                 # a complete, readable bag
+        clocks = [m for m in bag.messages() if m[0].topic == '/clock']
+    published = round(summary['sim_time_s'] * 100)        # 100 Hz publish rate
+    assert abs(len(clocks) - published) <= 1
