@@ -18,7 +18,8 @@ from pathlib import Path
 
 import yaml
 
-from ..sim.runner import _json_default, machine_info
+from ..sim.runner import machine_info
+from ..sim.summary import json_default
 from . import plots, table
 from .execute import RunTask, execute, failure_record
 from .pool import default_workers, map_unordered
@@ -77,7 +78,7 @@ def _save(out, run, record):
         'summary': record['summary']}
     path = _summary_path(out, run.run_id)
     path.parent.mkdir(parents=True, exist_ok=True)
-    table.write_atomic(path, json.dumps(content, indent=1, default=_json_default).encode())
+    table.write_atomic(path, json.dumps(content, indent=1, default=json_default).encode())
 
 
 def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=False,
