@@ -196,7 +196,8 @@ def cmd_run(args):
             recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
         with stop_on_signals() as stop:
             summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
-                                recorders=recorders, schedule=schedule, stop=stop)
+                                recorders=recorders, schedule=schedule, stop=stop,
+                                log=lambda line: print(f'rft-sim: {line}', file=sys.stderr))
     except (SceneError, ValueError):  # refused before it ran (e.g. the model does not load)
         if created is not None:
             shutil.rmtree(created, ignore_errors=True)

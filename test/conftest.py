@@ -1,11 +1,15 @@
-"""Test configuration: reproducible property tests.
+"""Test configuration: reproducible property tests, a plate cache of the tests' own.
 
 Hypothesis draws the same examples on every run (derandomize), so CI is deterministic; set
 HYPOTHESIS_PROFILE=explore for a long randomised search when changing the force law.
 """
 import os
+import tempfile
 
 from hypothesis import settings
+
+# plates made by the tests are cached in a folder of their own, not the user's cache
+os.environ['XDG_CACHE_HOME'] = tempfile.mkdtemp(prefix='rft-sim-test-cache-')
 
 settings.register_profile('default', max_examples=200, derandomize=True, deadline=None)
 settings.register_profile('explore', max_examples=5000, deadline=None)

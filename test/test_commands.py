@@ -557,5 +557,5 @@ def test_float64_multi_array_message_drives_the_handler():
     msg = received(F.make('std_msgs/msg/Float64MultiArray', layout=layout,
                           data=F.float64_sequence([0.5, 0.6, 0.7])))
     h = handler()
-    assert h.set_positions(inbound.position_command(msg), now=0.0).accepted
+    assert h.set_positions(inbound.array_command(msg), now=0.0).accepted
     np.testing.assert_array_equal(h.sample(1.0).positions, [0.5, 0.6, 0.7])

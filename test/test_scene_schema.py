@@ -9,6 +9,7 @@ from rft_sim_ros import cli
 from rft_sim_ros.scenes import schema
 from rft_sim_ros.scenes.config import SceneError, bundled_scenes, load_scene
 from rft_sim_ros.sim.runner import run_scene
+from rft_sim_ros.sim.simulation import Simulation
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / 'docs' / 'scene-reference.md'
@@ -60,17 +61,27 @@ def test_defaults_fill_a_minimal_scene(tmp_path):
      'positive integer'),
     (('name: mini', 'name: mini\ntimestep: fast'), 2, 'timestep', 'finite number'),
     (('name: mini', 'name: mini\nzeta: 0'), 2, 'zeta', '> 0'),
-    (('  plate: [plate]', '  plate: [plat]'), 7, 'legs.plate', "'plat' is not one of"),
+    (('  plate: [plate]', '  plate: [plat]'), 7, 'legs.plate', "'plat' is not a sand body"),
+    (('  bodies: [plate]', '  bodies: [plate, "*foot*"]'), 4, 'rft.bodies',
+     "sand body '*foot*' matches no body"),
+    (('model: plate.xml', 'model: plate.xml\nrobot:\n  keyframe: home'), 4, 'robot.keyframe',
+     "keyframe 'home' is not in the model"),
+    (('name: mini', 'name: mini\nservos: {"*": {kp: -1}}'), 2, 'servos', '*.kp: must be'),
+    (('name: mini', 'name: mini\nrobot: {spawn: "drop:x"}'), 2, 'robot.spawn',
+     'must be model, rest or drop:HEIGHT'),
     (('name: mini', 'name: mini\nrft_bodies: 1'), 2, 'rft_bodies', 'unknown key'),
-    (('  bodies: [plate]\n', ''), 3, 'rft.bodies', 'missing'),
+    (('model: plate.xml\n', ''), None, 'model', 'missing (required)'),  # no line to name
     (('name: mini', 'name: mini\nsand:\n  surface_height: [1]'), 3, 'sand.surface_height',
      'finite number'),
 ])
 def test_errors_name_file_line_and_key(tmp_path, edit, line, key, words):
+    """Schema errors come from load_scene, those that need the model (body names, keyframes)
+    from the Simulation: both name the file, the line and the key."""
     path = write(tmp_path, MINIMAL.replace(*edit))
     with pytest.raises(SceneError) as error:
-        load_scene(path)
-    assert str(error.value).startswith(f'{path}:{line}: {key}: ')
+        Simulation(load_scene(path))
+    where = f'{path}:{line}' if line else f'{path}'
+    assert str(error.value).startswith(f'{where}: {key}: ')
     assert words in str(error.value)
 
 

@@ -16,6 +16,11 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
   positions are held with velocity 0. Accelerations and efforts are not used.
 * `set_positions` (std_msgs/Float64MultiArray to forward_position_controller): new
   targets for all joints in `joint_names` order, held from now on; cancels any trajectory.
+* `set_efforts` (std_msgs/Float64MultiArray to the effort forward controller): efforts for
+  all joints in `joint_names` order (N m or N), applied from now on instead of the position
+  targets (`efforts` is then not None) until the next position command or trajectory; the
+  simulation reports the joints' positions meanwhile (`track`), so that a trajectory then
+  starts where the joints are.
 
 Every command is validated first; a bad one is rejected with a `CommandResult` naming the
 problem, counted per `Reason`, and changes nothing. Times are sim time in s; positions in
@@ -194,6 +199,7 @@ class CommandHandler:
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self._active = _Spline.hold(0.0, initial)
         self._pending = None
+        self._efforts = None
         self._rejections = Counter()
 
     @property
@@ -209,17 +215,48 @@ class CommandHandler:
     def set_positions(self, positions, now):
         """Hold `positions` (all joints, `joint_names` order) from sim time `now` (s) on."""
         try:
-            values = _float_vector(positions, 'position command')
-            if values.size != len(self.joint_names):
-                raise _Rejected(Reason.ARRAY_LENGTH,
-                                f'position command has {values.size} values, expected '
-                                f'{len(self.joint_names)} ({", ".join(self.joint_names)})')
-            _check_finite(values, 'position command', self.joint_names)
+            values = self._joint_array(positions, 'position command')
         except _Rejected as rejected:
             return self._reject(rejected)
         self._pending = None
+        self._efforts = None
         self._active = _Spline.hold(now, values)
         return ACCEPTED
+
+    def set_efforts(self, efforts, now):
+        """Apply `efforts` (all joints, `joint_names` order; N m or N) from sim time `now` (s)
+        on: effort mode, as ros2_control's effort forward controller, until the next position
+        command or trajectory (which starts from the positions last given to `track`)."""
+        try:
+            values = self._joint_array(efforts, 'effort command')
+        except _Rejected as rejected:
+            return self._reject(rejected)
+        self._pending = None
+        self._efforts = values
+        return ACCEPTED
+
+    def track(self, positions, now):
+        """In effort mode: the joints are at `positions` (`joint_names` order) at sim time
+        `now`; a later trajectory starts from there (as joint_trajectory_controller starts
+        from the current state), not from the targets held before the efforts."""
+        if self._efforts is not None:
+            self._active = _Spline.hold(now, np.asarray(positions, dtype=float))
+
+    @property
+    def efforts(self):
+        """The commanded efforts (N m or N, `joint_names` order) in effort mode; None in
+        position mode."""
+        return self._efforts
+
+    def _joint_array(self, values, what):
+        """One finite value per joint, `joint_names` order; raises _Rejected."""
+        values = _float_vector(values, what)
+        if values.size != len(self.joint_names):
+            raise _Rejected(Reason.ARRAY_LENGTH,
+                            f'{what} has {values.size} values, expected '
+                            f'{len(self.joint_names)} ({", ".join(self.joint_names)})')
+        _check_finite(values, what, self.joint_names)
+        return values
 
     def set_trajectory(self, command, now):
         """Accept `command` (a `TrajectoryCommand`) received at sim time `now` (s), or reject it.
@@ -231,6 +268,7 @@ class CommandHandler:
         except _Rejected as rejected:
             return self._reject(rejected)
         self._start_pending(now)
+        self._efforts = None
         if plan.start > now:
             self._pending = plan
         else:

@@ -22,7 +22,7 @@ def trajectory_command(msg):
         start_time=ros_time_to_seconds(msg.header.stamp))
 
 
-def position_command(msg):
-    """Positions of a std_msgs/Float64MultiArray (layout ignored, as forward_command_controller
-    does): one value per joint in `joint_names` order."""
+def array_command(msg):
+    """The values of a std_msgs/Float64MultiArray (layout ignored, as
+    forward_command_controller does): one position or effort per joint, `joint_names` order."""
     return list(msg.data)

@@ -58,7 +58,7 @@ class SimNode(Node):
         self._topic_publishers = {
             topic: self.create_publisher(self._factory.message_class(msgtype), topic,
                                          TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH)
-            for topic, msgtype in topics.published_topics(list(sim.scene.legs),
+            for topic, msgtype in topics.published_topics(list(sim.legs),
                                                           plates=self._plates).items()}
         logger = self.get_logger()
         self.runtime = SimRuntime(
@@ -72,6 +72,9 @@ class SimNode(Node):
                                  QUEUE_DEPTH)
         self.create_subscription(self._factory.message_class(topics.POSITION_COMMANDS_TYPE),
                                  topics.POSITION_COMMANDS, self.runtime.on_positions,
+                                 QUEUE_DEPTH)
+        self.create_subscription(self._factory.message_class(topics.EFFORT_COMMANDS_TYPE),
+                                 topics.EFFORT_COMMANDS, self.runtime.on_efforts,
                                  QUEUE_DEPTH)
         set_bool = self._factory.message_class('std_srvs/srv/SetBool')
         trigger = self._factory.message_class('std_srvs/srv/Trigger')

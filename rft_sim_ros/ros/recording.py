@@ -14,7 +14,8 @@ from rft_sim_ros.ros.messages import RunStatus
 
 
 class BagRecorder:
-    """Write a run of `scene` (SceneConfig) into a new rosbag2 folder `path`.
+    """Write a run of `scene` (SceneConfig) into a new rosbag2 folder `path` (created when the
+    run starts).
 
     plates: record /rft/plates (active plate markers). diagnostics_period_s: sim seconds
     between /diagnostics. clock: wall time, s, for the reported real-time factor.
@@ -24,7 +25,8 @@ class BagRecorder:
                  clock=time.perf_counter):
         self.wants_plates = bool(plates)
         self._scene = scene.name
-        self._writer = BagWriter(path, list(scene.legs), plates=self.wants_plates)
+        self._path = path
+        self._writer = None  # opened by start(), once the Simulation knows its legs
         self._schedule = DiagnosticsSchedule(diagnostics_period_s)
         self._clock = clock
         self._sim = None
@@ -34,6 +36,7 @@ class BagRecorder:
     def start(self, sim):
         """Called by run_scene with the Simulation before its first step."""
         self._sim = sim
+        self._writer = BagWriter(self._path, list(sim.legs), plates=self.wants_plates)
         self._started = (sim.time, self._clock())
 
     def _status(self, state):
@@ -55,7 +58,10 @@ class BagRecorder:
             self._writer.write_diagnostics(state, status)
 
     def close(self):
-        """Report a divergence on /diagnostics, then finish the bag."""
+        """Report a divergence on /diagnostics, then finish the bag (an empty one if the run
+        never started)."""
+        if self._writer is None:
+            self._writer = BagWriter(self._path, [], plates=self.wants_plates)
         if self._sim is not None and self._sim.diverged and self._last is not None:
             self._writer.write_diagnostics(self._last, self._status(self._last))
         self._writer.close()

@@ -9,7 +9,7 @@ rclpy node only forwards events to it:
   for at most `tick_budget_s` of wall time so the executor stays responsive, then
   /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
   initial state.
-* `on_trajectory(msg)` / `on_positions(msg)`: incoming commands (any message backend) go to
+* `on_trajectory(msg)` / `on_positions(msg)` / `on_efforts(msg)`: incoming commands (any message backend) go to
   `sim.commands` at the current sim time; bad ones are rejected with a throttled warning
   naming the problem and counted per reason (reported on /diagnostics). Never raises.
 * `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused.
@@ -46,7 +46,7 @@ def array_order(servo_joints, joint_names):
     exactly once (as forward_position_controller, which commands all its joints)."""
     joint_names = tuple(str(n) for n in joint_names)
     if sorted(joint_names) != sorted(servo_joints):
-        raise ValueError(f'joint_names must list each position-servo joint of the scene once '
+        raise ValueError(f'joint_names must list each commanded joint of the scene once '
                          f'({", ".join(servo_joints) or "none"}), got {list(joint_names)}')
     return tuple(joint_names.index(name) for name in servo_joints)
 
@@ -56,7 +56,7 @@ class SimRuntime:
 
     publish_rate: state publications per second of sim time (rounded to whole steps; the
     effective value is `publish_period`). joint_names: order of array commands (None: the
-    scene's servo joints). plates: publish active plates. warn, error: log functions (str).
+    scene's commanded joints, Simulation.servo_joint_names). plates: publish active plates. warn, error: log functions (str).
     clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
     diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
     rejected-command warnings (one line per reason and topic per period).
@@ -170,20 +170,30 @@ class SimRuntime:
 
     def on_positions(self, msg):
         """A std_msgs/Float64MultiArray of positions in `joint_names` order (rad or m)."""
+        return self._on_array(msg, 'position', topics.POSITION_COMMANDS)
+
+    def on_efforts(self, msg):
+        """A std_msgs/Float64MultiArray of efforts in `joint_names` order (N m or N), as
+        ros2_control's effort forward controller takes them."""
+        return self._on_array(msg, 'effort', topics.EFFORT_COMMANDS)
+
+    def _on_array(self, msg, kind, topic):
         try:
-            values = inbound.position_command(msg)
+            values = inbound.array_command(msg)
         except (AttributeError, TypeError, ValueError) as error:
-            result = CommandResult(Reason.MALFORMED, f'not a position array ({error})')
+            result = CommandResult(Reason.MALFORMED, f'not a {kind} array ({error})')
         else:
             if self.sim.commands is None:
-                result = CommandResult(Reason.ARRAY_LENGTH, f'position command has '
+                result = CommandResult(Reason.ARRAY_LENGTH, f'{kind} command has '
                                        f'{len(values)} values, but this scene has no '
-                                       'position servos')
+                                       'commanded joints')
             else:
                 if len(values) == len(self._array_order):
                     values = [values[i] for i in self._array_order]
-                result = self.sim.commands.set_positions(values, now=self.sim.time)
-        return self._outcome(topics.POSITION_COMMANDS, result)
+                apply = (self.sim.commands.set_positions if kind == 'position'
+                         else self.sim.commands.set_efforts)
+                result = apply(values, now=self.sim.time)
+        return self._outcome(topic, result)
 
     def _outcome(self, topic, result):
         if not result.accepted:

@@ -19,6 +19,7 @@ DIAGNOSTICS = '/diagnostics'
 #: Command topics of a ros2_control stack, so existing gait controllers drive the sim unchanged.
 JOINT_TRAJECTORY = '/joint_trajectory_controller/joint_trajectory'
 POSITION_COMMANDS = '/forward_position_controller/commands'
+EFFORT_COMMANDS = '/effort_controller/commands'
 
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
@@ -29,6 +30,7 @@ MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
 DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
 POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
+EFFORT_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 
 _NAME_TOKEN = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
 

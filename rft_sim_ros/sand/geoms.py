@@ -1,11 +1,21 @@
-"""Plates for a MuJoCo body, made from its geoms (no sites in the XML, no hand remeshing).
+"""Plates for a MuJoCo body, made from what touches the sand: its collision geoms (contype or
+conaffinity nonzero, MuJoCo's own test of whether a geom can collide; the group numbers vary
+between model sources), or all its geoms when it has none. No sites in the XML, no hand
+remeshing.
 
 Each geom (sphere, capsule, cylinder, box, ellipsoid, mesh) is tessellated with trimesh at a
 target edge length, refined so that no edge is longer, and expressed in the body frame (the
 frame of mjData.xpos / xmat). Plates whose centroid lies inside another geom of the same body
 are dropped, so overlapping geoms contribute their outer surface only. A target plate count
 per body is met by searching the edge length; a target density (plates/mm^2) sets it directly.
+A mesh far finer than its share of the count is first simplified (quadric decimation,
+trimesh with fast_simplification), so the count asked is the count made. Plates of an
+unchanged body are cached on disk (`plate_cache_dir`; key: the geometry and the count).
 """
+import hashlib
+import os
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import trimesh
@@ -21,12 +31,13 @@ def _geom_rotation(model, geom_id):
     return rotation.reshape(3, 3)
 
 
-def geom_mesh(model, geom_id, edge):
+def geom_mesh(model, geom_id, edge, mesh=None):
     """Surface of geom `geom_id` as a trimesh in the geom's own frame, edges <= `edge` (m).
 
     Primitives start from a coarse tessellation that is refined by edge bisection; the new
     vertices are then put back on the exact curved surface, so area and normals converge at
-    second order in the plate size. Mesh geoms are refined as given.
+    second order in the plate size. Mesh geoms are refined as given, or from `mesh` (their
+    simplified surface, `simplified_meshes`).
     """
     kind = mujoco.mjtGeom(int(model.geom_type[geom_id]))
     size = model.geom_size[geom_id]
@@ -49,11 +60,7 @@ def geom_mesh(model, geom_id, edge):
         mesh = trimesh.creation.box(extents=2 * size[:3])
         project = None
     elif kind == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh_id = model.geom_dataid[geom_id]
-        v0, nv = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
-        f0, nf = model.mesh_faceadr[mesh_id], model.mesh_facenum[mesh_id]
-        mesh = trimesh.Trimesh(vertices=model.mesh_vert[v0:v0 + nv].copy(),
-                               faces=model.mesh_face[f0:f0 + nf].copy(), process=True)
+        mesh = mesh if mesh is not None else model_mesh(model, geom_id)
         project = None
     else:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom_id) or f'#{geom_id}'
@@ -63,6 +70,33 @@ def geom_mesh(model, geom_id, edge):
     if project is not None:
         mesh.vertices = project(np.asarray(mesh.vertices))
     return mesh
+
+
+def model_mesh(model, geom_id):
+    """The mesh of mesh geom `geom_id` as MuJoCo compiled it (geom frame), a trimesh."""
+    mesh_id = model.geom_dataid[geom_id]
+    v0, nv = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
+    f0, nf = model.mesh_faceadr[mesh_id], model.mesh_facenum[mesh_id]
+    return trimesh.Trimesh(vertices=model.mesh_vert[v0:v0 + nv].copy(),
+                           faces=model.mesh_face[f0:f0 + nf].copy(), process=True)
+
+
+def _hull_planes(model, geom_id):
+    """(outward unit normals (F, 3), offsets (F,)) of the convex hull MuJoCo made for mesh geom
+    `geom_id` (geom frame): a point p is inside when normals @ p < offsets everywhere."""
+    mesh_id = model.geom_dataid[geom_id]
+    v0, nv = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
+    vertices = model.mesh_vert[v0:v0 + nv]
+    graph = model.mesh_graph[model.mesh_graphadr[mesh_id]:]
+    numvert, numface = graph[0], graph[1]
+    faces = graph[2 + 3 * numvert + 3 * numface:][:3 * numface].reshape(-1, 3)
+    corners = vertices[faces]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    offsets = np.einsum('fk,fk->f', normals, corners[:, 0])
+    inward = offsets < normals @ vertices.mean(axis=0)  # orient every face outward
+    normals[inward], offsets[inward] = -normals[inward], -offsets[inward]
+    return normals, offsets
 
 
 def _onto_capsule(vertices, radius, half):
@@ -100,28 +134,37 @@ def inside_geom(model, geom_id, points_in_body):
     if kind == mujoco.mjtGeom.mjGEOM_BOX:
         return np.all(np.abs(local) < size[:3] - _INSIDE_MARGIN, axis=1)
     if kind == mujoco.mjtGeom.mjGEOM_MESH:  # MuJoCo collides meshes as convex hulls
-        hull = geom_mesh(model, geom_id, edge=np.inf).convex_hull
-        distances = np.einsum('pfk,fk->pf', local[:, None, :] - hull.triangles[None, :, 0, :],
-                              hull.face_normals)
-        return np.all(distances < -_INSIDE_MARGIN, axis=1)
+        if model.mesh_graphadr[model.geom_dataid[geom_id]] < 0:  # no hull made: hide nothing
+            return np.zeros(len(points_in_body), dtype=bool)
+        normals, offsets = _hull_planes(model, geom_id)
+        return np.all(local @ normals.T < offsets - _INSIDE_MARGIN, axis=1)
     return np.zeros(len(points_in_body), dtype=bool)
 
 
+def is_collision_geom(model, geom_id):
+    """Whether MuJoCo may collide geom `geom_id` (contype or conaffinity nonzero)."""
+    return bool(model.geom_contype[geom_id] or model.geom_conaffinity[geom_id])
+
+
 def body_geoms(model, body_id):
-    """Ids of the geoms attached to body `body_id`."""
+    """Ids of the geoms that carry the plates of body `body_id`: its collision geoms, or all
+    its geoms when it has none."""
     start, count = model.body_geomadr[body_id], model.body_geomnum[body_id]
-    return list(range(start, start + count)) if start >= 0 else []
+    geoms = list(range(start, start + count)) if start >= 0 else []
+    return [g for g in geoms if is_collision_geom(model, g)] or geoms
 
 
-def body_triangles(model, body_id, edge):
+def body_triangles(model, body_id, edge, meshes=None):
     """Surface triangles of body `body_id` ((T, 3, 3), m, body frame) with edges <= ~`edge`:
-    its geoms' surfaces without the parts inside another geom of the body."""
+    its geoms' surfaces without the parts inside another geom of the body. meshes: {geom id:
+    simplified trimesh} to use for mesh geoms (`simplified_meshes`)."""
     geoms = body_geoms(model, body_id)
+    meshes = meshes or {}
     parts = []
     for geom_id in geoms:
         rotation = _geom_rotation(model, geom_id)
-        triangles = (np.asarray(geom_mesh(model, geom_id, edge).triangles) @ rotation.T
-                     + model.geom_pos[geom_id])
+        mesh = geom_mesh(model, geom_id, edge, meshes.get(geom_id))
+        triangles = np.asarray(mesh.triangles) @ rotation.T + model.geom_pos[geom_id]
         centroids = triangles.mean(axis=1)
         hidden = np.zeros(len(triangles), dtype=bool)
         for other in geoms:
@@ -136,32 +179,106 @@ def body_plates_at_edge(model, body_id, edge):
     return Plates.from_triangles(body_triangles(model, body_id, edge))
 
 
-def body_plates(model, body_id, count=None, density_per_mm2=None):
+def simplified_meshes(model, body_id, count):
+    """{geom id: trimesh} of the mesh geoms of body `body_id` with more triangles than half
+    their share (by area) of `count` plates, decimated to that half share (quadric error
+    decimation), so that refinement, not the mesh, sets the plate count."""
+    geoms = body_geoms(model, body_id)
+    meshes = {g: model_mesh(model, g) for g in geoms
+              if int(model.geom_type[g]) == mujoco.mjtGeom.mjGEOM_MESH}
+    if not meshes:
+        return {}
+    areas = {g: geom_mesh(model, g, np.inf, meshes.get(g)).area for g in geoms}
+    total = sum(areas.values())
+    simplified = {}
+    for geom_id, mesh in meshes.items():
+        budget = max(8, int(0.5 * count * areas[geom_id] / total))
+        if len(mesh.faces) > budget:
+            simplified[geom_id] = mesh.simplify_quadric_decimation(face_count=budget)
+    return simplified
+
+
+def plate_cache_dir():
+    """Where plates are cached: $XDG_CACHE_HOME/rft_sim_ros/plates (default ~/.cache/...)."""
+    base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
+    return Path(base) / 'rft_sim_ros' / 'plates'
+
+
+#: Bump when the plate-making changes, so that old cache entries are not used.
+_CACHE_VERSION = 1
+
+
+def _geometry_key(model, body_id, count, density_per_mm2):
+    """A hash of everything body_plates reads: the surface geoms' types, sizes, poses and
+    meshes, and the count or density asked."""
+    digest = hashlib.sha256(repr((_CACHE_VERSION, count, density_per_mm2)).encode())
+    for g in body_geoms(model, body_id):
+        for array in (model.geom_type[g:g + 1], model.geom_size[g], model.geom_pos[g],
+                      model.geom_quat[g]):
+            digest.update(np.ascontiguousarray(array).tobytes())
+        if int(model.geom_type[g]) == mujoco.mjtGeom.mjGEOM_MESH:
+            mesh_id = model.geom_dataid[g]
+            v0, nv = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
+            f0, nf = model.mesh_faceadr[mesh_id], model.mesh_facenum[mesh_id]
+            digest.update(model.mesh_vert[v0:v0 + nv].tobytes())
+            digest.update(model.mesh_face[f0:f0 + nf].tobytes())
+    return digest.hexdigest()
+
+
+def body_plates(model, body_id, count=None, density_per_mm2=None, cache=True):
     """Plates of body `body_id` in its body frame, sized by a target count or density.
 
     count: number of plates on the body. density_per_mm2: plates per mm^2 of surface (the
     paper's unit), i.e. a count of density x area. Give one. The count is met exactly
     (above the coarsest tessellation of the body's geoms): the finest refinement that stays
     within it is found by bisecting the edge length, then its largest triangles are halved.
+    cache: read and write the plate cache (`plate_cache_dir`).
     """
     if (count is None) == (density_per_mm2 is None):
         raise ValueError('give exactly one of count or density_per_mm2')
     if not body_geoms(model, body_id):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body_id)
         raise ValueError(f'body {name!r} has no geoms to make RFT plates from')
-    coarsest = body_triangles(model, body_id, np.inf)
+    if count is not None and (isinstance(count, bool)
+                              or not isinstance(count, (int, np.integer)) or count < 1):
+        raise ValueError(f'plate count must be a positive integer, got {count!r}')
+    if density_per_mm2 is not None and not density_per_mm2 > 0:
+        raise ValueError(f'plate density must be > 0 plates/mm^2, got {density_per_mm2}')
+    path = plate_cache_dir() / f'{_geometry_key(model, body_id, count, density_per_mm2)}.npz'
+    if cache and path.is_file():
+        try:
+            with np.load(path) as stored:
+                return Plates(stored['centroids'], stored['normals'], stored['areas'])
+        except (OSError, KeyError, ValueError):
+            pass  # unreadable entry: make the plates again
+    plates = _make_plates(model, body_id, count, density_per_mm2)
+    if cache:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            partial = path.with_suffix(f'.{os.getpid()}.tmp.npz')
+            np.savez(partial, centroids=plates.centroids, normals=plates.normals,
+                     areas=plates.areas)
+            os.replace(partial, path)
+        except OSError:
+            pass  # a read-only cache only costs time
+    return plates
+
+
+def _make_plates(model, body_id, count, density_per_mm2):
+    meshes = {}
+    if count is not None:
+        meshes = simplified_meshes(model, body_id, count)
+    coarsest = body_triangles(model, body_id, np.inf, meshes)
     area = Plates.from_triangles(coarsest).total_area
     if density_per_mm2 is not None:
-        if not density_per_mm2 > 0:
-            raise ValueError(f'plate density must be > 0 plates/mm^2, got {density_per_mm2}')
         count = max(1, int(round(density_per_mm2 * area * 1e6)))
-    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-        raise ValueError(f'plate count must be a positive integer, got {count!r}')
+        meshes = simplified_meshes(model, body_id, count)
+        coarsest = body_triangles(model, body_id, np.inf, meshes)
     best = coarsest  # the most triangles found that do not exceed `count`
     edge = edge_for_plate_area(area / count)
     fine, coarse = None, None  # edges known to give too many / at most `count` triangles
     for _ in range(14):  # bracket, then bisect in log(edge); counts fall as the edge grows
-        triangles = body_triangles(model, body_id, edge)
+        triangles = body_triangles(model, body_id, edge, meshes)
         if len(triangles) > count:
             fine = edge
         else:

@@ -30,7 +30,9 @@ _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
 
 @dataclass(frozen=True)
 class SceneConfig:
-    """A validated scene. `raw` keeps the whole (overridden) YAML content."""
+    """A validated scene. `raw` keeps the whole (overridden) YAML content. sand_bodies: the
+    names, glob patterns or ('auto',) of rft.bodies; legs: {leg: bodies} or 'auto' (both
+    resolved on the model by the Simulation)."""
     name: str
     description: str
     scenario: str
@@ -56,6 +58,11 @@ class SceneConfig:
     params: dict
     raw: dict
     values: dict  # every schema key's effective value, by dotted path (schema.check_scene)
+    servos: dict  # {joint pattern: {kp, kd, effort} or 'passive'} (robot/joints.py)
+    keyframe: str  # or None
+    initial_positions: dict  # {joint: rad or m}
+    spawn: str  # 'model', 'rest' or 'drop:H' (robot/pose.py)
+    locator: Locator  # where each key came from, for errors found later (e.g. body names)
     robot: dict = None  # robot.base, robot.package_paths (absolute), robot.xacro_args
 
 
@@ -178,18 +185,7 @@ def _validate(raw, path, locator):
         raise locator.error('rft.plate_density_per_mm2', 'give one of rft.plates_per_body '
                             'and rft.plate_density_per_mm2, not both')
     density = values.get('rft.plate_density_per_mm2')
-    bodies = values['rft.bodies']
-    by_body = values['rft.plates']
-    for body in by_body:
-        if body not in bodies:
-            raise locator.error('rft.plates', f'{body!r} is not one of rft.bodies {bodies}')
     legs = values['legs']
-    if legs != 'auto':
-        for leg, leg_bodies in legs.items():
-            for body in leg_bodies:
-                if body not in bodies:
-                    raise locator.error(f'legs.{leg}', f'{body!r} is not one of rft.bodies '
-                                        f'{bodies}')
     dynamic = None
     if 'rft.dynamic.lambda' in values:
         dynamic = {'lambda': values['rft.dynamic.lambda'],
@@ -205,17 +201,16 @@ def _validate(raw, path, locator):
         surface_height=values['sand.surface_height'],
         surface=_subsection(values, 'sand.surface', path),
         zeta_map=_subsection(values, 'sand.zeta_map', path) or None,
-        sand_bodies=tuple(bodies),
+        sand_bodies=tuple(values['rft.bodies']),
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
-        plates_by_body=dict(by_body),
+        plates_by_body=dict(values['rft.plates']),
         normalisation=values['rft.normalisation'],
         low_velocity={'method': values['rft.low_velocity.method'],
                       'rest_speed': values['rft.low_velocity.rest_speed'],
                       'ema_alpha': values['rft.low_velocity.ema_alpha']},
         dynamic=dynamic,
-        legs=({body: (body,) for body in bodies} if legs == 'auto'  # one leg per sand body
-              else {str(k): tuple(v) for k, v in legs.items()}),
+        legs=legs if legs == 'auto' else {str(k): tuple(v) for k, v in legs.items()},
         base_body=values['base_body'],
         publish_rate=values['publish_rate'],
         control_rate=values['control_rate'],
@@ -223,6 +218,11 @@ def _validate(raw, path, locator):
         params=dict(values['params']),
         raw=raw,
         values=values,
+        servos=dict(values['servos']),
+        keyframe=values['robot.keyframe'],
+        initial_positions=dict(values['robot.initial_positions']),
+        spawn=values['robot.spawn'],
+        locator=locator,
         robot={'base': values['robot.base'],
                'package_paths': {name: str(path.parent / Path(folder).expanduser())
                                  for name, folder in values['robot.package_paths'].items()},

@@ -16,6 +16,8 @@ from typing import Callable
 
 import yaml
 
+from ..robot.joints import check_servos
+from ..robot.pose import parse_spawn
 from ..units import zeta_problem
 
 #: The default of a key that must be given.
@@ -63,9 +65,9 @@ def _optional_text(value):
 
 
 def _names(value):
-    """A list of names/patterns, or one name/pattern (-> a one-item list)."""
-    if isinstance(value, str):
-        return [value]
+    """A list of names/patterns, or one text of comma-separated names/patterns."""
+    if isinstance(value, str) and value.strip():
+        return [part.strip() for part in value.split(',') if part.strip()]
     if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
         raise ValueError(f'must be a name or a list of names, got {value!r}')
     return list(value)
@@ -103,6 +105,25 @@ def _legs(value):
         raise ValueError("must be 'auto' or map each leg name to a list of its sand bodies, "
                          f'got {value!r}')
     return {str(k): list(v) for k, v in value.items()}
+
+
+def _servos(value):
+    return check_servos(_mapping(value))
+
+
+def _positions(value):
+    value = _mapping(value)
+    for joint, position in value.items():
+        try:
+            _finite(position)
+        except ValueError as error:
+            raise ValueError(f'{joint}: {error}') from None
+    return value
+
+
+def _spawn(value):
+    parse_spawn(value)
+    return value
 
 
 def _zeta(value):
@@ -237,8 +258,10 @@ KEYS = (
         'maps to.', _low_high),
     Key('rft', 'mapping', '', {}, 'Which bodies feel sand and how they are discretised.',
         _section),
-    Key('rft.bodies', 'list of names', '', REQUIRED, 'The bodies that touch sand (MuJoCo '
-        'body names).', _names),
+    Key('rft.bodies', "'auto', a name or glob, or a list of them", '', 'auto', 'The bodies '
+        "that touch sand: MuJoCo body names, glob patterns ('*_calf', '*foot*') or auto (one "
+        'per kinematic branch: the body with its lowest collision geometry in the initial pose; '
+        'rft_sim_ros/robot/sand_bodies.py). The bodies chosen are printed at start-up.', _names),
     Key('rft.plates_per_body', 'integer >= 1', 'plates', 500, 'Plates on each sand body '
         '(ignored when rft.plate_density_per_mm2 is given).', _count),
     Key('rft.plate_density_per_mm2', 'number > 0', 'plates/mm^2', None, 'Plates per mm^2 '
@@ -262,9 +285,10 @@ KEYS = (
         lambda v: _number(v, minimum=0.0)),
     Key('rft.dynamic.density', 'number > 0', 'kg/m^3', 1600.0, 'Sand bulk density of the '
         'dynamic term.', _positive),
-    Key('legs', 'mapping leg -> list of sand bodies', '', REQUIRED, 'The legs whose summed '
-        'sand wrench is reported (/rft/leg/<leg>/wrench, per-leg metrics); the last body of '
-        "each list is the leg's reference point.", _legs),
+    Key('legs', "'auto' or mapping leg -> list of sand bodies", '', 'auto', 'The legs whose '
+        'summed sand wrench is reported (/rft/<leg>/wrench, per-leg metrics); the last body of '
+        "each list is the leg's reference point. auto: one leg per branch of the kinematic "
+        'tree from the base that holds sand bodies, named after its first body.', _legs),
     Key('base_body', 'text', '', None, 'The body whose pose is /odom and the base metrics '
         '(default: the first body under the world).', _optional_text),
     Key('publish_rate', 'number > 0', 'Hz', 100.0, 'Sim-time rate of published and recorded '
@@ -274,7 +298,12 @@ KEYS = (
     Key('servo_kp', 'number > 0 or null', 'N m/rad or N/m', None, "Stiffness that replaces "
         "every MuJoCo position actuator's kp.",
         lambda v: None if v is None else _positive(v)),
-    Key('robot', 'mapping', '', {}, 'How the robot file is loaded.', _section),
+    Key('servos', "mapping joint pattern -> {kp, kd, effort} or 'passive'", '', {},
+        'Position-interface gains per joint (glob patterns, later ones win): kp N m/rad or '
+        'N/m, kd N m s/rad or N s/m, effort limit N m or N; passive: no interfaces, the joint '
+        'moves freely. Defaults from the robot mass (docs/robots.md).', _servos),
+    Key('robot', 'mapping', '', {}, 'How the robot file is loaded, its initial pose and '
+        'spawn.', _section),
     Key('robot.base', "'floating' or 'fixed'", '', 'floating', 'A URDF root link: free '
         '(6-DOF) or welded to the world (MJCF is used as written).',
         _choice('floating', 'fixed')),
@@ -283,6 +312,14 @@ KEYS = (
         'else the ament index or ROS_PACKAGE_PATH.', _text_mapping),
     Key('robot.xacro_args', 'mapping name -> value', '', {}, 'xacro arguments ($(arg NAME)).',
         _text_mapping),
+    Key('robot.keyframe', 'text or null', '', None, 'Named keyframe of the model for the '
+        'initial pose (held until commands arrive).', _optional_text),
+    Key('robot.initial_positions', 'mapping joint -> number', 'rad or m', {}, 'Joint '
+        'positions of the initial pose, applied after the keyframe.', _positions),
+    Key('robot.spawn', "'model', 'rest' or 'drop:HEIGHT'", 'm', 'model', 'Where the robot '
+        'starts: as the model/scenario puts it; rest = lowered onto the sand and settled '
+        'before the run; drop:H = lowest sand-body point H m above the sand, released.',
+        _spawn),
     Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
         'each can be overridden with `--set NAME=VALUE`.', _mapping),
 )
@@ -374,6 +411,8 @@ def _check_section(content, prefix, locator, values):
                     continue
                 _check_section({}, key.path + '.', locator, values)
                 continue
+            if value is not None:
+                value = key.check(value)  # the form a given value would have ('auto' -> list)
         else:
             try:
                 value = key.check(content[leaf])

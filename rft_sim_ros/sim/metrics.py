@@ -9,7 +9,8 @@ Simulation they came from; `result()` gives (SI units, world frame = odom, z up)
   base_mean_speed_mps          path length of the base positions sampled from the initial
                                state on, / elapsed time;
   final_speed_mps              |base linear velocity| at the last sample;
-  max_depth_m_<body>           deepest point of the sand body's plates below the surface;
+  max_depth_m_<body>           deepest point of the sand body's plates below the sand
+                               surface over it;
   mean_stance_depth_m_<body>   that depth averaged over the samples where it is > 0 (the
                                body in the sand; 0 if it never was);
   mean_force_z_N_<leg>, peak_force_z_N_<leg>
@@ -24,7 +25,7 @@ class GenericMetrics:
 
     def __init__(self, sim):
         engine = sim.engine
-        self._surface = engine.surface_height
+        self._surface = engine.surface
         self._bodies = engine.body_names
         self._owner = np.repeat(np.arange(len(engine.body_ids)), np.diff(engine.plate_start))
         self._plate_body = engine.body_ids[self._owner]
@@ -33,12 +34,14 @@ class GenericMetrics:
         self._times, self._base, self._speed, self._depth, self._force_z = [], [], [], [], []
 
     def depths(self, data):
-        """(bodies,) m: deepest plate of each sand body below the surface (0 if above)."""
-        rows_z = data.xmat[self._plate_body, 6:9]  # third row of each body's rotation
-        z = data.xpos[self._plate_body, 2] + np.einsum('pk,pk->p', rows_z, self._local)
-        lowest = np.full(len(self._bodies), np.inf)
-        np.minimum.at(lowest, self._owner, z)
-        return np.maximum(self._surface - lowest, 0.0)
+        """(bodies,) m: deepest plate of each sand body below the sand surface over it (0 if
+        none is below)."""
+        rotations = data.xmat[self._plate_body].reshape(-1, 3, 3)
+        world = data.xpos[self._plate_body] + np.einsum('pij,pj->pi', rotations, self._local)
+        below = self._surface.height(world[:, 0], world[:, 1]) - world[:, 2]
+        deepest = np.zeros(len(self._bodies))
+        np.maximum.at(deepest, self._owner, below)
+        return deepest
 
     def observe(self, sim, state):
         """Record one snapshot `state` (SimState) of `sim`."""

@@ -106,7 +106,7 @@ def mujoco_log(path):
 
 
 def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True,
-              schedule=(), stop=None):
+              schedule=(), stop=None, log=None):
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
 
     out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
@@ -121,6 +121,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     Ctrl-C): checked at every published state; the summary then says `interrupted` (and the
     object's `reason`, if it has one).
     MuJoCo's messages go to out_dir/mujoco.log (see `mujoco_log`).
+    log: called with each start-up notice of the Simulation (e.g. the sand bodies `auto`
+    chose), before the first step.
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
     part of wall_time_s spent in the recorders; generic_metrics: sim/metrics.py, those of
     every scene, next to the scenario's own `metrics`).
@@ -129,7 +131,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     with mujoco_log(None if out is None else out / 'mujoco.log'):
-        summary, series = _run(scene, duration, recorders, progress, schedule, stop)
+        summary, series = _run(scene, duration, recorders, progress, schedule, stop, log)
     if out is not None:
         (out / 'summary.json').write_text(
             json.dumps(significant(summary), indent=2, default=json_default))
@@ -140,7 +142,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     return summary
 
 
-def _run(scene, duration, recorders, progress, schedule, stop):
+def _run(scene, duration, recorders, progress, schedule, stop, log):
     """The run itself: (summary, time series rows)."""
     bar = None
     loop_started = None
@@ -154,6 +156,8 @@ def _run(scene, duration, recorders, progress, schedule, stop):
         started = time.perf_counter()
         sim = Simulation(scene)
         startup = time.perf_counter() - started
+        for notice in sim.notices if log else ():
+            log(notice)
         generic = GenericMetrics(sim)
         steps = int(round(duration / sim.timestep))
         publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
@@ -218,6 +222,9 @@ def _run(scene, duration, recorders, progress, schedule, stop):
         'real_time_factor': sim_time / wall if wall > 0 else float('inf'),
         'steps': sim.steps,
         'plates_total': sim.engine.plates_total,
+        'sand_bodies': list(sim.sand_bodies),
+        'legs': {leg: list(bodies) for leg, bodies in sim.legs.items()},
+        'notices': list(sim.notices),
         'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
                             for i, name in enumerate(sim.engine.body_names)},
         'plates_active_mean': active_sum / max(1, len(series)),

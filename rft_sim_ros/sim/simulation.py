@@ -19,6 +19,10 @@ import numpy as np
 
 from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
+from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
+from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
+                          set_initial_pose)
+from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
 from ..sand.engine import LowVelocity, SandEngine
 from ..sand.geoms import body_plates
 from ..sand.surface import surface_from_settings
@@ -36,22 +40,6 @@ CHECK_RATE = 100.0
 _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
                                   mujoco.mjtWarning.mjWARN_BADQVEL,
                                   mujoco.mjtWarning.mjWARN_BADQPOS], dtype=int)
-
-
-def position_servos(model):
-    """[(actuator id, joint id)] of MuJoCo `position` actuators acting on a joint: no
-    activation dynamics, a fixed gain kp and an affine bias -kp q (what <position> compiles
-    to; <intvelocity> differs only by its integrator dynamics), in actuator order."""
-    servos = []
-    for a in range(model.nu):
-        kp = model.actuator_gainprm[a, 0]
-        if (model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-                and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
-                and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
-                and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
-                and kp != 0 and model.actuator_biasprm[a, 1] == -kp):
-            servos.append((a, int(model.actuator_trnid[a, 0])))
-    return servos
 
 
 def can_collide(model):
@@ -79,6 +67,7 @@ class Simulation:
 
     def __init__(self, scene):
         self.scene = scene
+        self.notices = []  # what start-up decided for the user (e.g. the auto sand bodies)
         self.scenario = load_scenario(scene)
         robot = scene.robot or {}
         try:
@@ -89,6 +78,9 @@ class Simulation:
             raise SceneError(f'scene {scene.name}: {error}') from None
         spec = self.description.spec
         self.scenario.edit_model(spec)
+        keep_sand_visuals(spec, scene.sand_bodies)
+        spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
+        interface_joints = add_joint_interfaces(spec, scene.servos)
         try:
             self.model = spec.compile()
         except Exception as error:
@@ -105,15 +97,31 @@ class Simulation:
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
-        known = {self.model.body(i).name for i in range(self.model.nbody)}
+        # initial pose: ros2_control initial values of the description, then the scene's
+        self._initial_positions = {**(self.description.initial_positions or {}),
+                                   **scene.initial_positions}
+        self._initial_pose()
         # the body /odom follows: the scene's, else the first body under the world
         self.base_body = scene.base_body or self.model.body(min(1, self.model.nbody - 1)).name
-        for body in (*scene.sand_bodies, self.base_body):
-            if body not in known:
-                raise SceneError(f'scene {scene.name}: body {body!r} is not in the model '
-                                 f'{scene.model_path.name}')
+        try:
+            self._base_id = self.model.body(self.base_body).id
+        except KeyError:
+            raise scene.locator.error('base_body', f'{self.base_body!r} is not a body of '
+                                      f'{scene.model_path.name}') from None
+        try:
+            self.sand_bodies = tuple(resolve_sand_bodies(self.model, self.data,
+                                                         scene.sand_bodies, self._base_id))
+        except ValueError as error:
+            raise scene.locator.error('rft.bodies', str(error)) from None
+        if list(scene.sand_bodies) != list(self.sand_bodies):
+            self.notices.append(f'sand bodies ({", ".join(scene.sand_bodies)}): '
+                                f'{", ".join(self.sand_bodies)}')
+        for body in scene.plates_by_body:
+            if body not in self.sand_bodies:
+                raise scene.locator.error('rft.plates', f'{body!r} is not a sand body '
+                                          f'({", ".join(self.sand_bodies)})')
         plates = {}
-        for body in scene.sand_bodies:
+        for body in self.sand_bodies:
             count = scene.plates_by_body.get(body, scene.plates_per_body)
             plates[body] = body_plates(
                 self.model, self.model.body(body).id, count=count,
@@ -127,31 +135,28 @@ class Simulation:
                                      low_velocity=LowVelocity(**scene.low_velocity))
         except (TypeError, ValueError) as error:
             raise SceneError(f'scene {scene.name}: rft: {error}') from None
-        self._base_id = self.model.body(self.base_body).id
         self._joints = [j for j in range(self.model.njnt)
                         if mujoco.mjtJoint(int(self.model.jnt_type[j]))
                         in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
         self.joint_names = tuple(self.model.joint(j).name for j in self._joints)
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
-        self._leg_names = tuple(scene.legs)
-        self._leg_feet = np.array([self.model.body(bodies[-1]).id
-                                   for bodies in scene.legs.values()], dtype=int)
-        # rows: the engine's body index of every (leg, sand body) pair; membership: (legs, rows)
-        # 0/1 matrix that sums the rows of each leg
-        self._leg_rows = np.array([self.engine.body_names.index(b)
-                                   for bodies in scene.legs.values() for b in bodies], dtype=int)
-        leg_of_row = np.repeat(np.arange(len(scene.legs)),
-                               [len(bodies) for bodies in scene.legs.values()])
-        self._leg_of_row = leg_of_row
-        self._leg_membership = (leg_of_row == np.arange(len(scene.legs))[:, None]).astype(float)
-        self._servos = position_servos(self.model)
+        self._set_legs(scene)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
-            for actuator, _ in self._servos:
+            for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
                 self.model.actuator_biasprm[actuator, 1] = -scene.servo_kp
-        self.servo_joint_names = tuple(self.model.joint(j).name for _, j in self._servos)
-        self._servo_ctrl = np.array([a for a, _ in self._servos], dtype=int)
+        mujoco.mj_forward(self.model, self.data)
+        self.interfaces = JointInterfaces(
+            self.model, self.data, interface_joints, scene.servos, scene.timestep,
+            effort_limits=self.description.effort_limits)
+        self.servo_joint_names = self.interfaces.joint_names
+        self._command_qpos = self.model.jnt_qposadr[
+            [self.model.joint(name).id for name in self.servo_joint_names]].astype(int)
+        try:
+            self._spawn = parse_spawn(scene.spawn)
+        except ValueError as error:
+            raise scene.locator.error('robot.spawn', str(error)) from None
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
         self._check_every = max(1, int(round(
@@ -162,16 +167,83 @@ class Simulation:
         self.steps = 0
         self._start()
 
+    def _initial_pose(self):
+        """The keyframe and initial joint positions of the scene (robot/pose.py)."""
+        try:
+            set_initial_pose(self.model, self.data, self.scene.keyframe, self._initial_positions)
+        except ValueError as error:
+            key = 'robot.keyframe' if 'keyframe' in str(error) else 'robot.initial_positions'
+            raise self.scene.locator.error(key, str(error)) from None
+        mujoco.mj_kinematics(self.model, self.data)
+
+    def _set_legs(self, scene):
+        """Legs: the scene's, or one per branch of the kinematic tree (robot/sand_bodies.py)."""
+        legs = scene.legs
+        if legs == 'auto':
+            legs = legs_from_tree(self.model, self.sand_bodies, self._base_id)
+        for leg, bodies in legs.items():
+            for body in bodies:
+                if body not in self.sand_bodies:
+                    raise scene.locator.error(f'legs.{leg}', f'{body!r} is not a sand body '
+                                              f'({", ".join(self.sand_bodies)})')
+        self.legs = {leg: tuple(bodies) for leg, bodies in legs.items()}
+        self._leg_names = tuple(self.legs)
+        self._leg_feet = np.array([self.model.body(bodies[-1]).id
+                                   for bodies in self.legs.values()], dtype=int)
+        # rows: the engine's body index of every (leg, sand body) pair; membership: (legs, rows)
+        # 0/1 matrix that sums the rows of each leg
+        self._leg_rows = np.array([self.engine.body_names.index(b)
+                                   for bodies in self.legs.values() for b in bodies], dtype=int)
+        leg_of_row = np.repeat(np.arange(len(self.legs)),
+                               [len(bodies) for bodies in self.legs.values()])
+        self._leg_of_row = leg_of_row
+        self._leg_membership = (leg_of_row == np.arange(len(self.legs))[:, None]).astype(float)
+
     def _start(self):
-        """Initial state, fresh command handler, cleared divergence flags."""
+        """Initial state (keyframe, initial positions, scenario, spawn), fresh command
+        handler holding it, cleared divergence flags."""
         self.diverged = None
         self._warnings = self._warning_count()
+        self._initial_pose()
         self.scenario.initialize(self)
+        kind, height = self._spawn
+        if kind != 'model':
+            bodies = [self.model.body(b).id for b in self.sand_bodies]
+            x, y = self.data.xpos[self._base_id, :2]
+            try:  # onto (or above) the sand surface under the base
+                lift_to(self.model, self.data, self._base_id, bodies,
+                        float(self.engine.surface.height(x, y)) + (height or 0.0))
+            except ValueError as error:
+                raise self.scene.locator.error('robot.spawn', str(error)) from None
         mujoco.mj_forward(self.model, self.data)
+        self.interfaces.set_mode('position')
         self.commands = None
-        if self._servos:
-            initial = [self.data.qpos[self.model.jnt_qposadr[j]] for _, j in self._servos]
-            self.commands = CommandHandler(self.servo_joint_names, initial)
+        if self.servo_joint_names:
+            self.commands = CommandHandler(self.servo_joint_names,
+                                           self.data.qpos[self._command_qpos])
+        if kind == 'rest':
+            self._settle()
+
+    def _settle(self):
+        """Spawn 'rest': step, the joints holding their targets, until the base is at rest
+        (robot/pose.py), then start the clock at 0 from there."""
+        if self.commands is not None:
+            self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
+        still, hold = 0, max(1, int(round(REST_HOLD_S / self.timestep)))
+        for _ in range(int(round(SETTLE_LIMIT_S / self.timestep))):
+            self.engine.step()
+            velocity = self.data.qvel[self.model.body_dofadr[self._base_id]:][:3]
+            speed = float(np.linalg.norm(velocity))
+            if not np.isfinite(speed) or speed > RUNAWAY_SPEED:
+                raise SceneError(f'scene {self.scene.name}: spawn rest: the robot did not '
+                                 'settle (diverged)')
+            still = still + 1 if speed < REST_SPEED else 0
+            if still >= hold:
+                break
+        else:
+            self.notices.append(f'spawn rest: still moving after {SETTLE_LIMIT_S:g} s '
+                                f'(base speed {speed:.2g} m/s); starting anyway')
+        self.data.time = 0.0
 
     @property
     def timestep(self):
@@ -222,8 +294,19 @@ class Simulation:
             if problem:
                 self._diverge(problem)
         self.scenario.control(self)
-        if self.commands is not None:
-            self._ctrl[self._servo_ctrl] = self.commands.sample(self.time).positions
+        commands = self.commands
+        if commands is not None:
+            interfaces, efforts = self.interfaces, commands.efforts
+            if efforts is None:
+                if interfaces.mode != 'position':
+                    interfaces.set_mode('position')
+                    self._ctrl[interfaces.effort_actuators] = 0.0
+                self._ctrl[interfaces.position_actuators] = commands.sample(self.time).positions
+            else:
+                if interfaces.mode != 'effort':
+                    interfaces.set_mode('effort')
+                self._ctrl[interfaces.effort_actuators] = efforts
+                commands.track(self.data.qpos[self._command_qpos], self.time)
 
     def _diverge(self, problem, at_time=None):
         at_time = self.time if at_time is None else at_time

@@ -91,7 +91,7 @@ class Scenario(BaseScenario):
         names = sim.engine.body_names
         self._leg_sum = np.zeros((len(LEG_NAMES), len(names)))  # sand body -> its leg
         for row, leg in enumerate(LEG_NAMES):
-            for body in sim.scene.legs[leg]:
+            for body in sim.legs[leg]:
                 self._leg_sum[row, names.index(body)] = 1.0
         self._samples = []
 

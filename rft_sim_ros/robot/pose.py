@@ -1,0 +1,83 @@
+"""A robot's initial pose and where it starts above the sand.
+
+Initial pose: the model's own (qpos0), then a named keyframe (`robot.keyframe`), then single
+joints set by name (`robot.initial_positions`, rad or m; a robot description's ros2_control
+initial values come this way too).
+
+Spawn (`robot.spawn`), for a robot whose root body has a free joint:
+  model       the pose as the model (or scenario) gives it;
+  drop:H      moved vertically so that the lowest point of its sand bodies' geoms is H m above
+              the sand surface, at rest, then released;
+  rest        that lowest point at the surface, released, and settled before the run starts:
+              stepped (joints holding their initial targets) until the base moves slower than
+              REST_SPEED for REST_HOLD_S of sim time (at most SETTLE_LIMIT_S); the run's clock
+              then starts at 0 from that state.
+"""
+import mujoco
+
+from .sand_bodies import collision_geoms, geom_lowest_z
+
+#: spawn 'rest' is settled once the base is slower than this (m/s) for REST_HOLD_S (s).
+REST_SPEED = 1e-3
+REST_HOLD_S = 0.1
+#: spawn 'rest' gives up after this much sim time (s).
+SETTLE_LIMIT_S = 3.0
+
+
+def parse_spawn(text):
+    """'model' | 'rest' | 'drop:H' -> (kind, height m or None); raises ValueError."""
+    if text in ('model', 'rest'):
+        return text, None
+    kind, _, height = str(text).partition(':')
+    try:
+        value = float(height)
+    except ValueError:
+        value = float('nan')
+    if kind != 'drop' or not value >= 0 or value == float('inf'):
+        raise ValueError(f"must be model, rest or drop:HEIGHT (m, >= 0), got {text!r}")
+    return 'drop', value
+
+
+def set_initial_pose(model, data, keyframe=None, initial_positions=None):
+    """Put `keyframe` (name) and then `initial_positions` ({joint: rad or m}) into data.qpos
+    (and the keyframe's qvel, act, ctrl, mocap); raises ValueError naming what is unknown."""
+    if keyframe:
+        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+        if key < 0:
+            names = [model.key(k).name for k in range(model.nkey)]
+            raise ValueError(f'keyframe {keyframe!r} is not in the model (keyframes: '
+                             f'{", ".join(names) or "none"})')
+        mujoco.mj_resetDataKeyframe(model, data, key)
+    for joint, value in (initial_positions or {}).items():
+        try:
+            j = model.joint(joint).id
+        except KeyError:
+            raise ValueError(f'initial position for {joint!r}: no such joint') from None
+        if mujoco.mjtJoint(int(model.jnt_type[j])) not in (mujoco.mjtJoint.mjJNT_HINGE,
+                                                           mujoco.mjtJoint.mjJNT_SLIDE):
+            raise ValueError(f'initial position for {joint!r}: not a hinge or slide joint')
+        data.qpos[model.jnt_qposadr[j]] = value
+
+
+def lowest_point(model, data, bodies):
+    """World z (m) of the lowest point of the geoms of `bodies` (ids; collision geoms where a
+    body has them, else all its geoms), in the current pose (after mj_kinematics)."""
+    lowest = float('inf')
+    for body in bodies:
+        start, count = model.body_geomadr[body], model.body_geomnum[body]
+        geoms = collision_geoms(model, body) or list(range(start, start + max(count, 0)))
+        for geom in geoms:
+            lowest = min(lowest, geom_lowest_z(model, data, geom))
+    return lowest
+
+
+def lift_to(model, data, base, bodies, height):
+    """Move the free root of body `base` vertically so that the lowest point of `bodies` is
+    at world z `height` (m), at rest; raises ValueError without a free root."""
+    root = model.body_rootid[base]
+    joint = model.body_jntadr[root]
+    if joint < 0 or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE:
+        raise ValueError('spawn needs a floating base (a free joint on the root body)')
+    mujoco.mj_kinematics(model, data)
+    data.qpos[model.jnt_qposadr[joint] + 2] += height - lowest_point(model, data, bodies)
+    data.qvel[model.jnt_dofadr[joint]:model.jnt_dofadr[joint] + 6] = 0.0

@@ -1,0 +1,140 @@
+"""Which bodies of a robot touch the sand, and which legs they form, without hand work.
+
+Sand bodies are given as MuJoCo body names, glob patterns (`'*_calf'`, `'*foot*'`, matched
+with fnmatch, case-sensitive) or `auto`:
+
+auto picks, in the initial pose, one body per kinematic branch: the branches are the
+subtrees rooted at each child of the base body (plus the base body itself, alone); in each,
+the body whose collision geoms (contype or conaffinity nonzero) reach lowest (lowest point
+of the geoms' bounding boxes, world z) is that branch's candidate. The candidates kept are
+those whose lowest point lies within AUTO_TOLERANCE of the robot's height (base origin above
+the lowest collision point of all) from the lowest point of all: the feet of a standing
+robot, not a head or a tail held higher.
+
+Legs (for the per-leg wrenches): unless the scene gives them, each branch that holds sand
+bodies is one leg, named after the branch's first body (the child of the base; the base's
+own name for the base), its sand bodies listed from the base outwards, so the last one (the
+deepest in the tree) is the leg's reference point.
+"""
+import fnmatch
+import re
+
+import mujoco
+import numpy as np
+
+from ..sand.geoms import is_collision_geom
+
+#: auto keeps branches whose lowest point is within this fraction of the robot's height of
+#: the lowest point of all.
+AUTO_TOLERANCE = 0.25
+
+
+def collision_geoms(model, body):
+    """Ids of the collision geoms of body `body`."""
+    start, count = model.body_geomadr[body], model.body_geomnum[body]
+    return [g for g in range(start, start + count) if start >= 0 and is_collision_geom(model, g)]
+
+
+def geom_lowest_z(model, data, geom):
+    """World z (m) of the lowest point of geom `geom`'s bounding box in the current pose."""
+    rotation = data.geom_xmat[geom].reshape(3, 3)
+    center, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+    return float(data.geom_xpos[geom, 2] + rotation[2] @ center - np.abs(rotation[2]) @ half)
+
+
+def _name(model, body):
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f'body{body}'
+
+
+def branches(model, base):
+    """{first body of the branch: [bodies of the branch]} for each child of body `base`, and
+    {base: [base]}; bodies in tree order (a parent before its children)."""
+    out = {base: [base]}
+    root_of = {}
+    for body in range(base + 1, model.nbody):
+        parent = int(model.body_parentid[body])
+        if parent == base:
+            root_of[body] = body
+            out[body] = [body]
+        elif parent in root_of:
+            root_of[body] = root_of[parent]
+            out[root_of[body]].append(body)
+    return out
+
+
+def auto_sand_bodies(model, data, base):
+    """Body ids `auto` picks (module docstring), in the current pose (after mj_kinematics)."""
+    lowest = {}
+    for first, bodies in branches(model, base).items():
+        candidates = [(min(geom_lowest_z(model, data, g) for g in collision_geoms(model, b)), b)
+                      for b in bodies if collision_geoms(model, b)]
+        if candidates:
+            lowest[first] = min(candidates)
+    if not lowest:
+        raise ValueError(f'sand bodies auto: the robot has no collision geoms under '
+                         f'{_name(model, base)!r} (contype/conaffinity 0 everywhere); name the '
+                         'sand bodies instead')
+    bottom = min(z for z, _ in lowest.values())
+    height = max(data.xpos[base, 2] - bottom, 0.0)
+    return sorted(b for z, b in lowest.values() if z <= bottom + AUTO_TOLERANCE * height)
+
+
+def match_bodies(names, patterns):
+    """Body names that match `patterns` (names or fnmatch globs): in the patterns' order, a
+    glob's matches in model order; raises ValueError naming a pattern that matches nothing."""
+    chosen = []
+    for pattern in patterns:
+        hits = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        if not hits:
+            raise ValueError(f'sand body {pattern!r} matches no body of the model (bodies: '
+                             f'{", ".join(n for n in names if n)})')
+        chosen += [n for n in hits if n not in chosen]
+    return chosen
+
+
+def resolve_sand_bodies(model, data, patterns, base):
+    """Names of the sand bodies that `patterns` (list of names/globs, or ['auto']) choose."""
+    if list(patterns) == ['auto']:
+        return [_name(model, b) for b in auto_sand_bodies(model, data, base)]
+    names = [_name(model, b) for b in range(model.nbody)]
+    return match_bodies(names, patterns)
+
+
+def legs_from_tree(model, sand_bodies, base):
+    """{leg name: (sand body names, base outwards)} by branch (module docstring)."""
+    ids = {model.body(name).id: name for name in sand_bodies}
+    legs = {}
+    for first, bodies in branches(model, base).items():
+        mine = [ids[b] for b in bodies if b in ids]
+        if mine:
+            legs[_leg_name(_name(model, first))] = tuple(mine)
+    unplaced = set(sand_bodies) - {b for leg in legs.values() for b in leg}
+    for name in sorted(unplaced):  # sand bodies outside the base's subtree: a leg each
+        legs[_leg_name(name)] = (name,)
+    return legs
+
+
+def _leg_name(name):
+    """A body name made usable as a leg (ROS topic token): letters, digits, underscores."""
+    token = re.sub(r'[^A-Za-z0-9_]', '_', name)
+    return token if token[:1].isalpha() else f'leg_{token}'
+
+
+#: conaffinity bit given to the visual geoms of a named sand body that has no collision geom:
+#: no geom has it in contype (so nothing collides with them), but MuJoCo's discardvisual,
+#: which drops geoms with contype = conaffinity = 0, keeps them as the body's sand surface.
+SAND_SURFACE_BIT = 1 << 30
+
+
+def keep_sand_visuals(spec, patterns):
+    """Before compiling with discardvisual: mark the geoms of each sand body that `patterns`
+    (names/globs; not auto, which only looks at collision geoms) name and that has no
+    collision geom, so that its visual geoms stay and carry its plates."""
+    if list(patterns) == ['auto']:
+        return
+    bodies = [b for b in spec.bodies if b.name and any(
+        fnmatch.fnmatchcase(b.name, p) for p in patterns)]
+    for body in bodies:
+        if body.geoms and not any(g.contype or g.conaffinity for g in body.geoms):
+            for geom in body.geoms:
+                geom.conaffinity = SAND_SURFACE_BIT

@@ -1,0 +1,164 @@
+"""An own robot in sand: a vendor-style MJCF quadruped with torque motors, a keyframe and
+dense visual meshes (test/robot_files.py). It loads, its sand bodies and legs are found from
+the kinematic tree, the plate count asked is the count made, it stands in sand under the PD
+position interface, and it moves under position and effort commands."""
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+
+from robot_files import HOME_CALF, HOME_THIGH, write_torque_quadruped
+from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
+from rft_sim_ros.sand import geoms
+from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.sim.simulation import Simulation
+
+CALVES = ('FL_calf', 'FR_calf', 'RL_calf', 'RR_calf')
+
+
+@pytest.fixture(scope='module')
+def robot(tmp_path_factory):
+    folder = tmp_path_factory.mktemp('quadruped')
+    path, triangles = write_torque_quadruped(folder)  # trunk visual: 327,680 triangles
+    assert triangles > 200_000
+    return path
+
+
+def scene(tmp_path, robot_file, **sections):
+    """A scene file for the quadruped: `sections` = YAML text per top-level key."""
+    text = f'name: quadruped\nmodel: {robot_file}\n' + ''.join(
+        f'{key}: {value}\n' for key, value in sections.items())
+    path = tmp_path / 'scene.yaml'
+    path.write_text(text)
+    return load_scene(path)
+
+
+def test_auto_picks_the_lowest_body_of_each_leg_and_names_legs_by_branch(tmp_path, robot):
+    sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 100}',
+                           robot='{keyframe: home}'))
+    assert sim.sand_bodies == CALVES
+    assert sim.legs == {'FL_hip': ('FL_calf',), 'FR_hip': ('FR_calf',),
+                        'RL_hip': ('RL_calf',), 'RR_hip': ('RR_calf',)}
+    assert sim.notices[0] == 'sand bodies (auto): FL_calf, FR_calf, RL_calf, RR_calf'
+    # a robot sitting on its trunk: the trunk is the lowest body of its own branch and the
+    # legs, folded up, are not within the tolerance: auto picks the trunk alone
+    folded = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 100}',
+                              robot='{initial_positions: {FL_thigh_joint: -1.5, '
+                                    'FR_thigh_joint: -1.5, RL_thigh_joint: -1.5, '
+                                    'RR_thigh_joint: -1.5}}'))
+    assert 'trunk' in folded.sand_bodies
+
+
+def test_globs_choose_bodies_and_legs_follow_the_tree(tmp_path, robot):
+    sim = Simulation(scene(tmp_path, robot, rft="{bodies: ['*_thigh', '*_calf'], "
+                                                "plates_per_body: 100}"))
+    assert set(sim.sand_bodies) == {f'{leg}_{part}' for leg in ('FL', 'FR', 'RL', 'RR')
+                                    for part in ('thigh', 'calf')}
+    assert sim.legs['FL_hip'] == ('FL_thigh', 'FL_calf')  # base outwards: calf = foot point
+    with pytest.raises(SceneError, match=r"rft.bodies: sand body '\*foot\*' matches no body"):
+        Simulation(scene(tmp_path, robot, rft="{bodies: '*foot*'}"))
+
+
+def test_plates_come_from_collision_geoms_in_the_count_asked(tmp_path, robot):
+    sim = Simulation(scene(tmp_path, robot, rft="{bodies: [trunk, '*_calf'], "
+                                                "plates_per_body: 300}"))
+    counts = np.diff(sim.engine.plate_start)
+    assert np.all(np.abs(counts - 300) <= 6), counts  # +-2 %
+    trunk = sim.engine.body_names.index('trunk')
+    plates = sim.engine.local_pos[sim.engine.plate_start[trunk]:sim.engine.plate_start[trunk + 1]]
+    # on the collision box (half height 5 cm), not the visual ellipsoid (6 cm)
+    assert np.max(np.abs(plates[:, 2])) == pytest.approx(0.05, abs=1e-9)
+
+
+def test_a_body_with_only_a_dense_visual_mesh_is_simplified_to_the_count(tmp_path,
+                                                                         monkeypatch):
+    shell = trimesh.creation.icosphere(subdivisions=6, radius=1.0)  # 81,920 triangles
+    shell.apply_scale((0.05, 0.03, 0.02))
+    shell.export(tmp_path / 'pebble.obj')
+    (tmp_path / 'pebble.xml').write_text(
+        '<mujoco><asset><mesh name="pebble" file="pebble.obj"/></asset><worldbody>'
+        '<body name="pebble" pos="0 0 0.05"><freejoint/>'
+        '<geom type="mesh" mesh="pebble" contype="0" conaffinity="0" mass="0.2"/>'
+        '</body></worldbody></mujoco>')
+    (tmp_path / 'scene.yaml').write_text(
+        'model: pebble.xml\nrft: {bodies: [pebble], plates_per_body: 500}\n')
+    sim = Simulation(load_scene(tmp_path / 'scene.yaml'))
+    assert abs(sim.engine.plates_total - 500) <= 10
+    assert sim.engine.areas.sum() == pytest.approx(shell.area, rel=0.03)
+    assert len(list(geoms.plate_cache_dir().glob('*.npz'))) > 0
+    monkeypatch.setattr(geoms, '_make_plates', None)  # plates must now come from the cache
+    again = Simulation(load_scene(tmp_path / 'scene.yaml'))
+    np.testing.assert_array_equal(again.engine.local_pos, sim.engine.local_pos)
+    other = load_scene(tmp_path / 'scene.yaml', {'rft.plates_per_body': 400})
+    with pytest.raises(TypeError):  # another count is another key: not in the cache
+        Simulation(other)
+
+
+def test_default_gains_follow_the_mass_and_servos_override_them_by_pattern(tmp_path, robot):
+    sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 50}',
+                           robot='{keyframe: home}',
+                           servos="{'*_calf_joint': {kp: 80, kd: 2}, 'RR_*': {effort: 10}}"))
+    gains = sim.interfaces.gains
+    assert (gains['FL_calf_joint'].kp, gains['FL_calf_joint'].kd) == (80, 2)
+    assert gains['RR_calf_joint'].effort == 10 and gains['FL_calf_joint'].effort == 33.5
+    # thigh: 15 kg x g x reach / 0.05 rad; its reach in the home pose: the foot, 0.279 m below
+    reach = gains['FL_thigh_joint'].kp * 0.05 / (15.0 * 9.81)
+    assert reach == pytest.approx(0.2 * 2 * np.cos(HOME_THIGH), abs=1e-3)
+    pd = sim.model.actuator('pd_FL_thigh_joint').id
+    assert sim.model.actuator_forcerange[pd, 1] == 33.5  # the motor's ctrlrange
+    assert sim.model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+
+
+def _standing(tmp_path, robot, duration_steps):
+    sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 300}',
+                           robot='{keyframe: home, spawn: rest}'))
+    trunk = sim.model.body('trunk').id
+    samples = []
+    for _ in range(duration_steps // 50):
+        sim.step(50)
+        samples.append((sim.time, *sim.data.xpos[trunk], np.linalg.norm(sim.data.qvel[:3])))
+    return sim, np.array(samples)
+
+
+def test_a_torque_motor_robot_stands_in_sand_from_its_keyframe(tmp_path, robot):
+    """Under the PD position interface, from `home`, 10 s: over the last 5 s the base moves
+    slower than 1 mm/s and drifts less than 1 mm."""
+    sim, s = _standing(tmp_path, robot, 10_000)
+    last = s[s[:, 0] >= 5.0]
+    assert last[:, 4].max() < 1e-3
+    assert np.linalg.norm(last[-1, 1:4] - last[0, 1:4]) < 1e-3
+    # it stands on its feet, in the sand: the feet carry the weight
+    assert sim.engine.body_wrenches[:, 2].sum() == pytest.approx(15.0 * 9.81, rel=0.02)
+    joints = sim.data.qpos[sim.model.jnt_qposadr[sim.model.joint('FL_thigh_joint').id]]
+    assert joints == pytest.approx(HOME_THIGH, abs=0.05)
+
+
+def test_it_moves_under_position_and_effort_commands(tmp_path, robot):
+    sim, s = _standing(tmp_path, robot, 500)
+    trunk = sim.model.body('trunk').id
+    standing = sim.data.xpos[trunk, 2]
+    # position: crouch (thigh 0.8 -> 1.0, calf -1.6 -> -2.0): feet 0.279 -> 0.216 m below
+    # the hips, so the base lowers by ~6.3 cm
+    crouch = [0.0, 1.0, -2.0] * 4
+    assert sim.commands.set_positions(crouch, now=sim.time).accepted
+    sim.step(1500)
+    assert standing - sim.data.xpos[trunk, 2] == pytest.approx(0.063, abs=0.01)
+    # effort: the torques the PD holds the crouch with, applied as efforts, keep it there ...
+    holding = sim.data.actuator_force[sim.interfaces.position_actuators].copy()
+    crouched = sim.data.xpos[trunk, 2]
+    assert sim.commands.set_efforts(holding, now=sim.time).accepted
+    sim.step(300)
+    assert sim.interfaces.mode == 'effort'
+    assert abs(sim.data.xpos[trunk, 2] - crouched) < 0.01
+    # ... and zero efforts let it fold (the PD is off in effort mode)
+    sim.commands.set_efforts(np.zeros(12), now=sim.time)
+    sim.step(150)
+    assert crouched - sim.data.xpos[trunk, 2] > 0.03
+    # a trajectory takes over again from where the joints are and brings it back up into
+    # the crouch within 1 s
+    back = TrajectoryCommand(sim.servo_joint_names, [TrajectoryPoint(crouch, 1.0)])
+    assert sim.commands.set_trajectory(back, now=sim.time).accepted
+    sim.step(1500)
+    assert sim.interfaces.mode == 'position'
+    assert sim.data.xpos[trunk, 2] == pytest.approx(crouched, abs=0.01)
+    assert not sim.commands.set_efforts([1.0] * 11, now=sim.time).accepted  # one short
