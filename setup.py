@@ -44,6 +44,9 @@ setup(
         'scipy>=1.10',      # trimesh's convex hulls (mesh geoms: MuJoCo collides their hulls)
         'xacro>=2.0',       # ROS's xacro, from PyPI: robot descriptions without ROS
         'pycollada>=0.8',   # COLLADA (.dae) collision meshes, converted by trimesh
+        # trimesh's quadric decimation: a mesh far finer than its plate count is simplified
+        # to it (sand/geoms.py), in C++ (~1 s for 300k triangles, then cached)
+        'fast-simplification>=0.1',
     ],
     extras_require={
         # Ray: studies on a cluster (`rft-sim sweep --ray`); the test extra includes it so

@@ -2,6 +2,7 @@
 
   rft-sim scenes [SCENE [--set key=value ...]]
   rft-sim run SCENE|ROBOT_FILE [--sand-bodies P[,P...]|auto] [--base floating|fixed]
+                    [--keyframe NAME] [--spawn rest|drop:HEIGHT]
                     [--package-path NAME=DIR ...] [--xacro-arg K=V ...] [--duration S]
                     [--zeta Z] [--timestep DT] [--plates-per-body N] [--set key=value ...]
                     [--set-at T:zeta=Z ...] [--out DIR] [--no-bag] [--plates]
@@ -61,7 +62,8 @@ RUNTIME_SETTINGS = {'zeta': validated_zeta}
 def _scene_overrides(args):
     overrides = dict(parse_assignment(text) for text in args.set or [])
     for option, key in (('zeta', 'zeta'), ('timestep', 'timestep'),
-                        ('plates_per_body', 'rft.plates_per_body'), ('base', 'robot.base')):
+                        ('plates_per_body', 'rft.plates_per_body'), ('base', 'robot.base'),
+                        ('keyframe', 'robot.keyframe'), ('spawn', 'robot.spawn')):
         value = getattr(args, option)
         if value is not None:
             overrides[key] = value
@@ -319,6 +321,11 @@ def build_parser():
                      help='bodies that touch sand (rft.bodies): names, glob patterns or auto')
     run.add_argument('--base', choices=('floating', 'fixed'),
                      help='URDF root link: free (default) or welded to the world')
+    run.add_argument('--keyframe', metavar='NAME',
+                     help="initial pose: the model's keyframe NAME (robot.keyframe)")
+    run.add_argument('--spawn', metavar='rest|drop:HEIGHT|model',
+                     help='where the robot starts (robot.spawn): settled on the sand, its '
+                          'sand bodies HEIGHT m above it, or as the model puts it')
     run.add_argument('--package-path', action='append', metavar='NAME=DIR',
                      help='folder of ROS package NAME for $(find NAME) and package://NAME '
                           '(repeatable; else the ament index or ROS_PACKAGE_PATH)')

@@ -64,6 +64,7 @@ class Probe(Node):
                                  lambda m: self.trajectories.append(m), 100)
         self.trajectory = self.create_publisher(JointTrajectory, topics.JOINT_TRAJECTORY, 10)
         self.positions = self.create_publisher(Float64MultiArray, topics.POSITION_COMMANDS, 10)
+        self.efforts = self.create_publisher(Float64MultiArray, topics.EFFORT_COMMANDS, 10)
         self.clock = self.create_publisher(Clock, topics.CLOCK, 10)
         self.pause = self.create_client(SetBool, '/rft_sim/pause')
         self.step = self.create_client(Trigger, '/rft_sim/step')
@@ -186,6 +187,23 @@ def test_a_trajectory_moves_a_joint_and_a_malformed_one_is_rejected(ros):
     assert ros.spin_until(lambda: any(
         kv.key == 'commands_rejected' and kv.value == '3'
         for m in ros.probe.diagnostics for kv in m.status[0].values), timeout=5.0)
+
+
+def test_efforts_drive_the_joints_and_malformed_ones_are_rejected(ros):
+    """/effort_controller/commands: N m per joint in joint_names order; the servos let go
+    while efforts apply, a position command takes the joints back."""
+    sim = start_sim(ros)
+    assert ros.spin_until(lambda: ros.probe.joint_states)
+    ros.probe.efforts.publish(Float64MultiArray(data=[0.1]))
+    ros.probe.efforts.publish(Float64MultiArray(data=[math.nan, 0.0]))
+    assert ros.spin_until(lambda: sum(sim.runtime.rejections.values()) == 2)
+    assert sim.runtime.rejections == {'array_length': 1, 'not_finite': 1}
+    ros.probe.efforts.publish(Float64MultiArray(data=[0.3, 0.0]))  # N m about +y at the hip
+    assert ros.spin_until(lambda: hip(ros.probe.joint_states[-1]) > 0.1)
+    assert sim.runtime.sim.interfaces.mode == 'effort'
+    ros.probe.positions.publish(Float64MultiArray(data=[0.0, 0.0]))
+    assert ros.spin_until(lambda: abs(hip(ros.probe.joint_states[-1])) < 0.01)
+    assert sim.runtime.sim.interfaces.mode == 'position'
 
 
 def test_pause_step_and_reset_services(ros):

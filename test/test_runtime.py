@@ -196,6 +196,26 @@ def test_position_arrays_follow_the_joint_names_parameter(rig_scene):
     np.testing.assert_allclose(h.sink.states[-1].joint_positions, [0.2, -0.3], atol=0.01)
 
 
+def test_effort_arrays_drive_the_joints_until_a_position_command(rig_scene):
+    """/effort_controller/commands (a Float64MultiArray as rosbags reads it from a bag or
+    DDS): efforts in joint_names order replace the position servos until a position command;
+    a malformed one is rejected with the reason and changes nothing."""
+    h = Harness(rig_scene, joint_names=['knee', 'hip'])
+    h.runtime.tick()
+    result = h.runtime.on_efforts(position_array([0.3]))
+    assert not result.accepted and result.reason.value == 'array_length'
+    assert topics.EFFORT_COMMANDS in h.warnings[0]
+    assert h.runtime.on_efforts(position_array([0.0, 0.3])).accepted  # knee 0, hip 0.3 N m
+    assert h.runtime.sim.commands.efforts.tolist() == [0.3, 0.0]      # servo order
+    h.run(0.4)
+    hip, knee = h.sink.states[-1].joint_positions
+    assert hip > 0.08                           # the torque turns the hip; no servo holds it
+    assert h.sink.states[-1].joint_efforts[0] == pytest.approx(0.3)
+    assert h.runtime.on_positions(position_array([0.0, 0.0])).accepted
+    h.run(0.5)
+    np.testing.assert_allclose(h.sink.states[-1].joint_positions, 0.0, atol=0.01)
+
+
 def test_joint_names_must_name_every_servo_once(rig_scene):
     for bad in (['hip'], ['hip', 'hip'], ['hip', 'knee', 'ankle'], ['hip', 'elbow']):
         with pytest.raises(ValueError, match='joint_names'):

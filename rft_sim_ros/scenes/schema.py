@@ -86,14 +86,17 @@ def _text_mapping(value):
     return {str(k): str(v) for k, v in _mapping(value).items()}
 
 
-def _plates_by_body(value):
-    value = _mapping(value)
-    for body, count in value.items():
-        try:
-            _count(count)
-        except ValueError as error:
-            raise ValueError(f'{body}: {error}') from None
-    return value
+def _mapping_of(check):
+    """A check of a mapping whose every value passes `check` (errors name the entry)."""
+    def checked(value):
+        value = _mapping(value)
+        for name, item in value.items():
+            try:
+                check(item)
+            except ValueError as error:
+                raise ValueError(f'{name}: {error}') from None
+        return value
+    return checked
 
 
 def _legs(value):
@@ -109,16 +112,6 @@ def _legs(value):
 
 def _servos(value):
     return check_servos(_mapping(value))
-
-
-def _positions(value):
-    value = _mapping(value)
-    for joint, position in value.items():
-        try:
-            _finite(position)
-        except ValueError as error:
-            raise ValueError(f'{joint}: {error}') from None
-    return value
 
 
 def _spawn(value):
@@ -267,7 +260,7 @@ KEYS = (
     Key('rft.plate_density_per_mm2', 'number > 0', 'plates/mm^2', None, 'Plates per mm^2 '
         'of body surface instead of a count (replaces rft.plates_per_body).', _positive),
     Key('rft.plates', 'mapping body -> integer', 'plates', {}, 'Per-body plate counts that '
-        'replace the default count.', _plates_by_body),
+        'replace the default count.', _mapping_of(_count)),
     Key('rft.normalisation', "'treers' or 'rft_sim'", '', 'treers', 'Which normalisation of '
         'the RFT coefficients (docs: README, "RFT conventions").', _choice('treers', 'rft_sim')),
     Key('rft.low_velocity', 'mapping', '', {}, 'Treatment of RFT near rest (rft_sim_ros/sand/'
@@ -315,7 +308,7 @@ KEYS = (
     Key('robot.keyframe', 'text or null', '', None, 'Named keyframe of the model for the '
         'initial pose (held until commands arrive).', _optional_text),
     Key('robot.initial_positions', 'mapping joint -> number', 'rad or m', {}, 'Joint '
-        'positions of the initial pose, applied after the keyframe.', _positions),
+        'positions of the initial pose, applied after the keyframe.', _mapping_of(_finite)),
     Key('robot.spawn', "'model', 'rest' or 'drop:HEIGHT'", 'm', 'model', 'Where the robot '
         'starts: as the model/scenario puts it; rest = lowered onto the sand and settled '
         'before the run; drop:H = lowest sand-body point H m above the sand, released.',
