@@ -61,6 +61,8 @@ class SimNode(Node):
             for topic, msgtype in topics.published_topics(list(sim.legs),
                                                           plates=self._plates).items()}
         logger = self.get_logger()
+        for notice in sim.notices:  # e.g. the sand bodies `auto` chose
+            logger.info(notice)
         self.runtime = SimRuntime(
             sim, self, publish_rate=self._declare(parameters.PUBLISH_RATE,
                                                   sim.scene.publish_rate),
