@@ -1,10 +1,12 @@
 """Speed against error for every scene: sweep plates per sand body and timestep, compare each
 scene's main metric with a converged reference (finest plates, smallest timestep), and find
-the runs no other run beats on both wall time and error (the Pareto front)."""
+the runs no other run beats on both wall time and error (the Pareto front). The runs go
+out to all cores on the study machinery's process pool (rft_sim_ros/study/pool.py)."""
 from dataclasses import dataclass
 
 from ..sim.runner import run_scene
 from ..scenes.config import load_scene
+from ..study.pool import map_unordered
 
 
 @dataclass(frozen=True)
@@ -58,26 +60,49 @@ def pareto_front(points, tolerance=1e-6):
     return front
 
 
-def _run(name, plates, timestep, log):
-    scene = load_scene(name, {'rft.plates_per_body': plates, 'timestep': timestep})
-    summary = run_scene(scene, progress=False, plots=False)
-    log(f'{name}: {plates} plates/body, dt {timestep * 1e3:g} ms -> '
-        f'{summary["wall_time_s"] / summary["sim_time_s"]:.3f} s wall per sim s')
-    return summary
-
-
-def speed_against_error(name, sweep, log=lambda line: None):
-    """Runs of scene `name` over `sweep` (a Sweep); returns the rows (plates, timestep, wall
-    s per sim s, metric, relative error vs the reference, default, on_front, stable)."""
+def _points(name, sweep):
+    """(plates, timestep) pairs to run for scene `name`: the reference first, then the grid
+    (with the scene's default) by timestep and plates."""
     default = load_scene(name)
     grid = {(p, t) for p in sweep.plates for t in sweep.timesteps}
     if default.plates_per_body is not None:
         grid.add((default.plates_per_body, default.timestep))
-    reference = _run(name, *sweep.reference, log)
+    return [sweep.reference] + sorted(grid, key=lambda g: (g[1], g[0]))
+
+
+def _run(job):
+    """Run (scene, plates per body, timestep s) headless: its summary."""
+    name, plates, timestep = job
+    scene = load_scene(name, {'rft.plates_per_body': plates, 'timestep': timestep})
+    return run_scene(scene, progress=False, plots=False)
+
+
+def speed_against_error(sweeps, log=lambda line: None, workers=None):
+    """Runs of each scene over its Sweep ({name: Sweep}), on `workers` processes (default:
+    all cores; each run's wall time is its own, measured in its worker). Returns, per scene,
+    the rows (plates, timestep, wall s per sim s, metric, relative error vs the reference,
+    default, on_front, stable) and the reference."""
+    jobs = [(name, *point) for name, sweep in sweeps.items() for point in _points(name, sweep)]
+    summaries = {}
+    for outcome in map_unordered(_run, jobs, workers):
+        name, plates, timestep = job = jobs[outcome.index]
+        if outcome.error is not None:
+            raise RuntimeError(f'{name} {plates} plates/body, dt {timestep:g} s: {outcome.error}')
+        summary = summaries[job] = outcome.value
+        log(f'{name}: {plates} plates/body, dt {timestep * 1e3:g} ms -> '
+            f'{summary["wall_time_s"] / summary["sim_time_s"]:.3f} s wall per sim s')
+    return [_rows(name, sweep, [summaries[(name, *point)] for point in _points(name, sweep)])
+            for name, sweep in sweeps.items()]
+
+
+def _rows(name, sweep, summaries):
+    """The speed-against-error table of scene `name` from its runs' summaries (in _points
+    order: the reference first)."""
+    default = load_scene(name)
+    reference, runs = summaries[0], summaries[1:]
     ref_value = reference['metrics'][sweep.metric]
     rows = []
-    for plates, timestep in sorted(grid, key=lambda g: (g[1], g[0])):
-        summary = _run(name, plates, timestep, log)
+    for (plates, timestep), summary in zip(_points(name, sweep)[1:], runs):
         value = summary['metrics'].get(sweep.metric)
         error = (abs(value - ref_value) / abs(ref_value)
                  if summary['stable'] and value is not None and ref_value else float('inf'))

@@ -6,7 +6,6 @@ as a record with `stable` False and the `reason`; only a worker process that die
 record (the backend then retries the run once). Records hold only JSON-ready data, so they
 cross process and machine boundaries unchanged.
 """
-import math
 import os
 import signal
 import socket
@@ -19,7 +18,7 @@ from ..scenes.config import load_scene
 from ..sim.runner import run_scene
 from ..sim.simulation import Simulation
 
-#: Scenes (with their plate settings) whose kernels this process has warmed.
+#: Scenes whose kernels this process has warmed.
 _warmed = set()
 
 
@@ -40,22 +39,25 @@ class RunTimeout(Exception):
 
 def warm(scene, overrides):
     """Compile or load the numba kernels (and import everything a run needs) once per process
-    per scene, outside any run's timing: build the scene and take two steps."""
-    key = (scene, repr(sorted(overrides.items())))
-    if key in _warmed:
-        return
-    _warmed.add(key)
+    per scene, outside any run's timing: build the scene and take two steps. Returns the
+    time it took (s; 0 when this process had warmed up for the scene already)."""
+    if scene in _warmed:
+        return 0.0
+    _warmed.add(scene)
+    started = time.perf_counter()
     try:
         Simulation(load_scene(scene, overrides)).step(2)
     except Exception:  # noqa: BLE001 - the run itself reports what is wrong
         pass
+    return time.perf_counter() - started
 
 
 def execute(task):
     """Run `task` (a RunTask); return its record: run_id, stable, reason, wall_time_s (s: the
-    whole run in the worker, scene loading included, warm-up excluded), worker (host:pid) and
-    summary (run_scene's summary dict, None when the run raised or timed out)."""
-    warm(task.scene, task.overrides)
+    whole run in the worker, scene loading included, warm-up excluded), warm_s (s spent
+    warming this worker first, 0 after its first run), worker (host:pid) and summary
+    (run_scene's summary dict, None when the run raised or timed out)."""
+    warm_s = warm(task.scene, task.overrides)
     started = time.perf_counter()
     summary, reason = None, None
     try:
@@ -70,7 +72,7 @@ def execute(task):
     if summary is not None:
         summary.pop('machine', None)  # the same for every run: once per study, not per row
     return {'run_id': task.run_id, 'stable': reason is None, 'reason': reason,
-            'wall_time_s': time.perf_counter() - started,
+            'wall_time_s': time.perf_counter() - started, 'warm_s': warm_s,
             'worker': f'{socket.gethostname()}:{os.getpid()}', 'summary': summary}
 
 
@@ -97,5 +99,5 @@ def time_limit(seconds):
 
 def failure_record(run_id, reason):
     """The record of a run that came back without one (its worker died)."""
-    return {'run_id': run_id, 'stable': False, 'reason': reason, 'wall_time_s': math.nan,
-            'worker': None, 'summary': None}
+    return {'run_id': run_id, 'stable': False, 'reason': reason, 'wall_time_s': None,
+            'warm_s': 0.0, 'worker': None, 'summary': None}

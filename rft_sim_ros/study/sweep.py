@@ -33,12 +33,15 @@ TABLE_EVERY_S = 2.0
 @dataclass
 class StudyResult:
     """rows: the table rows in run order; ran / failed: runs executed this time and how many
-    of all rows are not stable; resumed: runs found finished on disk; wall_s: this session."""
+    of all rows are not stable; resumed: runs found finished on disk; wall_s: this session;
+    warm_s: time the workers spent warming up (s, summed); backend: where the runs ran."""
     rows: list
     ran: int
     resumed: int
     failed: int
     wall_s: float
+    warm_s: float
+    backend: str
     plots: list
 
 
@@ -65,7 +68,7 @@ def finished_records(out, study, retry_failed=False):
         if retry_failed and not mark.get('stable'):
             continue
         records[run.run_id] = {**{k: mark.get(k) for k in ('stable', 'reason', 'worker')},
-                               'wall_time_s': mark.get('wall_time_s'),
+                               'wall_time_s': mark.get('wall_time_s'), 'warm_s': 0.0,
                                'run_id': run.run_id, 'summary': saved.get('summary')}
     return records
 
@@ -74,6 +77,7 @@ def _save(out, run, record):
     content = {'study_run': {
         'run_id': run.run_id, 'varied': run.varied, 'repeat': run.repeat,
         'overrides': run.overrides, 'wall_time_s': record['wall_time_s'],
+        'warm_s': record.get('warm_s'),
         'stable': record['stable'], 'reason': record['reason'], 'worker': record['worker']},
         'summary': record['summary']}
     path = _summary_path(out, run.run_id)
@@ -113,6 +117,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     bar = StudyProgress(len(tasks), enabled=progress)
     names = table.columns(study)
     done = failed = 0
+    warm_s = 0.0
     last_table = time.monotonic()
     try:
         for outcome in outcomes:
@@ -120,6 +125,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
             record = outcome.value if outcome.error is None else failure_record(
                 run_id, outcome.error)
             records[run_id] = record
+            warm_s += record['warm_s']
             _save(out, by_id[run_id], record)
             done += 1
             failed += not record['stable']
@@ -137,7 +143,8 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     names_written = plots.plot_study(out, study, rows)
     result = StudyResult(rows=rows, ran=done, resumed=resumed,
                          failed=sum(not r['stable'] for r in rows),
-                         wall_s=time.perf_counter() - started, plots=names_written)
+                         wall_s=time.perf_counter() - started, warm_s=warm_s,
+                         backend=backend, plots=names_written)
     missing = [m for m in study.metrics if all(r[m] is None for r in rows if r['stable'])]
     if missing:
         log(f'no stable run reported {missing}: check the metric names in the run summaries')

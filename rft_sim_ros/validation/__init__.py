@@ -1,6 +1,7 @@
 """`rft-sim validate`: reproduce the RFT-SiM paper's experiments and trends as a report.
 
-Runs the sweeps (`experiments`) over the bundled scenes, checks the paper's trends
+Runs the sweeps (`experiments`) over the bundled scenes on all cores (`cases.run_cases`),
+checks the paper's trends
 (`trends`), draws PNG plots (`plots`) and writes `report.md` (`report`) plus the raw
 figures as `results.json` into an output folder. `--quick` uses coarse plates and fewer
 cases (under a minute); the full run uses the scenes' timesteps and 2000 plates on the
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import experiments, plots, report, trends
-from .cases import FULL, QUICK, Settings
+from .cases import FULL, QUICK, Settings, run_cases
 
 
 @dataclass
@@ -35,20 +36,22 @@ class Results:
     case_count: int
 
 
-def run_validation(out_dir, quick=False, log=print, settings=None):
+def run_validation(out_dir, quick=False, log=print, settings=None, workers=None):
     """Run the validation into `out_dir` (created); return the Results. settings: what to
-    sweep (default: QUICK if `quick` else FULL)."""
+    sweep (default: QUICK if `quick` else FULL); workers: processes the cases run on
+    (default: all cores; the cases are independent runs, their results do not depend on it)."""
     from ..sim.runner import machine_info
     settings = settings or (QUICK if quick else FULL)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    torque = experiments.torque_vs_speed(settings, log)
-    depths = experiments.torque_vs_depth(settings, log)
-    rails = experiments.rail_shapes(settings, log)
-    legs = experiments.leg_vs_zeta(settings, log)
-    hexapod = experiments.hexapod_grid(settings, log)
-    ema = experiments.hexapod_paper_smoothing(settings, log)
+    cases = run_cases({name: getattr(experiments, name)(settings) for name in (
+        'torque_vs_speed', 'torque_vs_depth', 'rail_shapes', 'leg_vs_zeta', 'hexapod_grid',
+        'hexapod_paper_smoothing')}, workers, log)
+    torque, depths, rails = (cases[k] for k in ('torque_vs_speed', 'torque_vs_depth',
+                                                'rail_shapes'))
+    legs, hexapod = cases['leg_vs_zeta'], cases['hexapod_grid']
+    ema = cases['hexapod_paper_smoothing'][None]
     names = [
         plots.torque_vs_angle(out, torque),
         plots.rail_displacement_vs_angle(out, rails, settings.speeds),

@@ -1,5 +1,6 @@
-"""One validation case = one headless run of a bundled scene with overrides; and the sweep
-settings of the quick and the full validation."""
+"""One validation case = one headless run of a bundled scene with overrides; the sweep
+settings of the quick and the full validation; and `run_cases`, which runs many cases on all
+cores (the study machinery's process pool, rft_sim_ros/study/pool.py)."""
 import math
 import time
 from dataclasses import dataclass, field
@@ -7,6 +8,7 @@ from typing import Optional
 
 from ..scenes.config import load_scene
 from ..sim.simulation import Simulation, SimulationDiverged
+from ..study.pool import map_unordered
 
 
 @dataclass(frozen=True)
@@ -49,6 +51,38 @@ class Case:
     stable: bool = True
     reason: Optional[str] = None
     plates_total: int = 0
+
+
+@dataclass(frozen=True)
+class CaseSpec:
+    """A case to run: a label for the log, bundled scene, overrides (as --set) and sim
+    duration (s, None: the scene's)."""
+    label: str
+    scene: str
+    overrides: dict
+    duration: Optional[float] = None
+
+
+def run_spec(spec):
+    """Run a CaseSpec: its Case."""
+    return run_case(spec.scene, spec.overrides, spec.duration)
+
+
+def run_cases(groups, workers=None, log=print):
+    """Run every CaseSpec of `groups` ({group: {key: CaseSpec}}) on `workers` processes
+    (default: all cores), logging each as it finishes; return {group: {key: Case}} in the
+    order given. Raises RuntimeError if a case cannot run (its worker died twice)."""
+    jobs = [(group, key, spec) for group, specs in groups.items() for key, spec in specs.items()]
+    done = {}
+    for outcome in map_unordered(run_spec, [spec for _, _, spec in jobs], workers):
+        group, key, spec = jobs[outcome.index]
+        if outcome.error is not None:
+            raise RuntimeError(f'{spec.label}: {outcome.error}')
+        case = outcome.value
+        state = 'ok' if case.stable else f'UNSTABLE ({case.reason})'
+        log(f'{spec.label:48s} {case.wall_s:6.1f} s  {state}')
+        done[group, key] = case
+    return {group: {key: done[group, key] for key in specs} for group, specs in groups.items()}
 
 
 def run_case(scene, overrides, duration=None):

@@ -1,0 +1,157 @@
+"""Benchmark of the study machinery (`rft-sim sweep`): a 40-run hexapod study on one local
+worker, on all local cores, and on a single-machine Ray cluster; speed-up over one worker
+and the overhead per run; optionally (--reuse) `rft-sim validate --quick` and the quick
+speed-against-error sweep of `rft-sim bench` on one worker and on all cores.
+
+    python -m rft_sim_ros.bench.study_scaling [--out DIR] [--runs 40] [--reuse]
+
+Overhead per run = (study wall time - the runs' own wall times - the workers' warm-up -
+the worker's start) / runs, on one worker: scheduling, result transfer, the per-run summary
+and table writes, the plots at the end. The worker's start (a fresh interpreter importing
+the package, once per worker) is measured apart and reported beside it. Ratios come from runs measured back to back in one invocation; on a shared
+machine the load during each phase is reported (1-minute load average before and after).
+"""
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from ..sim.runner import machine_info
+from ..study import run_study, study_from_mapping
+from ..study.pool import default_workers, map_unordered
+
+
+def hexapod_study(runs):
+    """`runs` hexapod runs of 1 s sim time (0.3 s settle, then walking) over zeta x payload."""
+    payloads = (0.0, 0.5, 1.0, 1.5, 2.0)
+    zetas = [round(1.0 + 0.5 * i, 2) for i in range(max(1, runs // len(payloads)))]
+    return study_from_mapping({
+        'scene': 'hexapod', 'duration': 1.0, 'set': {'settle_time': 0.3},
+        'vary': {'zeta': zetas, 'payload': list(payloads)},
+        'metrics': ['forward_distance_m', 'mean_sinkage_m']})
+
+
+def _noop(item):
+    return item
+
+
+def worker_start_s():
+    """Wall time (s) to start one pool worker (spawn, import the package) and get an answer."""
+    started = time.perf_counter()
+    list(map_unordered(_noop, [0], workers=1))
+    return time.perf_counter() - started
+
+
+def _load():
+    return os.getloadavg()[0]
+
+
+def _timed_study(study, out, start_s=0.0, **backend):
+    load = _load()
+    result = run_study(study, out, progress=False, **backend)
+    walls = [r['wall_time_s'] for r in result.rows]
+    return {'worker_start_s': start_s,'backend': result.backend, 'wall_s': result.wall_s, 'runs': len(result.rows),
+            'failed': result.failed, 'run_wall_sum_s': sum(walls),
+            'run_wall_median_s': statistics.median(walls), 'warm_s': result.warm_s,
+            'overhead_per_run_s': (result.wall_s - sum(walls) - result.warm_s - start_s)
+            / len(walls),
+            'load_before': load, 'load_after': _load(), 'rows': result.rows}
+
+
+def measure_study(runs=40, workers=None):
+    """One worker, `workers` local workers and a local Ray cluster of `workers` CPUs, back to
+    back on the same study; speed-ups over one worker and bit-for-bit agreement."""
+    workers = workers or default_workers()
+    study = hexapod_study(runs)
+    with tempfile.TemporaryDirectory() as scratch:
+        one = _timed_study(study, Path(scratch) / 'one', start_s=worker_start_s(), workers=1)
+        many = _timed_study(study, Path(scratch) / 'many', workers=workers)
+        import ray
+        started = time.perf_counter()
+        ray.init(address='local', include_dashboard=False, num_cpus=workers,
+                 log_to_driver=False, _node_ip_address='127.0.0.1')
+        cluster_start_s = time.perf_counter() - started
+        try:  # the study's wall time excludes the cluster start (a cluster outlives studies)
+            on_ray = _timed_study(study, Path(scratch) / 'ray', ray='local')
+            on_ray['cluster_start_s'] = cluster_start_s
+        finally:
+            ray.shutdown()
+
+    def same(a, b):
+        return [{k: v for k, v in r.items() if k != 'wall_time_s'} for r in a['rows']] == [
+            {k: v for k, v in r.items() if k != 'wall_time_s'} for r in b['rows']]
+
+    result = {'runs': len(study.runs), 'workers': workers, 'one_worker': one,
+              'local': many, 'ray': on_ray,
+              'speedup_local': one['wall_s'] / many['wall_s'],
+              'speedup_ray': one['wall_s'] / on_ray['wall_s'],
+              'overhead_fraction_of_run': one['overhead_per_run_s'] / one['run_wall_median_s'],
+              'identical_local': same(one, many), 'identical_ray': same(one, on_ray)}
+    for phase in (one, many, on_ray):
+        del phase['rows']
+    return result
+
+
+def measure_reuse(workers=None):
+    """Wall time of `rft-sim validate --quick` and of the quick speed-against-error sweep on
+    one worker and on `workers` (default: all cores)."""
+    from ..bench import pareto
+    from ..validation import run_validation
+    workers = workers or default_workers()
+    out = {}
+    with tempfile.TemporaryDirectory() as scratch:
+        for label, count in (('one_worker', 1), ('all_cores', workers)):
+            load = _load()
+            started = time.perf_counter()
+            run_validation(Path(scratch) / label, quick=True, log=lambda line: None,
+                           workers=count)
+            out[f'validate_quick_{label}'] = {'wall_s': time.perf_counter() - started,
+                                              'workers': count, 'load_before': load}
+            load = _load()
+            started = time.perf_counter()
+            pareto.speed_against_error(pareto.QUICK_SWEEPS, workers=count)
+            out[f'pareto_quick_{label}'] = {'wall_s': time.perf_counter() - started,
+                                            'workers': count, 'load_before': load}
+    out['validate_speedup'] = (out['validate_quick_one_worker']['wall_s']
+                               / out['validate_quick_all_cores']['wall_s'])
+    out['pareto_speedup'] = (out['pareto_quick_one_worker']['wall_s']
+                             / out['pareto_quick_all_cores']['wall_s'])
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--out', default='bench/results', help='folder for study_scaling.json')
+    parser.add_argument('--runs', type=int, default=40, help='runs in the hexapod study')
+    parser.add_argument('--reuse', action='store_true',
+                        help='also time validate --quick and the quick speed-against-error '
+                             'sweep on one worker and on all cores')
+    args = parser.parse_args(argv)
+    results = {'machine': machine_info(), 'study': measure_study(args.runs)}
+    if args.reuse:
+        results['reuse'] = measure_reuse()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / 'study_scaling.json').write_text(json.dumps(results, indent=2))
+    s = results['study']
+    print(f'{s["runs"]}-run hexapod study: one worker {s["one_worker"]["wall_s"]:.1f} s, '
+          f'{s["workers"]} workers {s["local"]["wall_s"]:.1f} s (x{s["speedup_local"]:.2f}), '
+          f'Ray {s["ray"]["wall_s"]:.1f} s (x{s["speedup_ray"]:.2f}); overhead per run '
+          f'{1e3 * s["one_worker"]["overhead_per_run_s"]:.0f} ms = '
+          f'{100 * s["overhead_fraction_of_run"]:.1f} % of a run (worker start '
+          f'{s["one_worker"]["worker_start_s"]:.1f} s once); identical results: '
+          f'local {s["identical_local"]}, Ray {s["identical_ray"]}')
+    if args.reuse:
+        r = results['reuse']
+        print(f'validate --quick x{r["validate_speedup"]:.2f}, quick speed-against-error '
+              f'x{r["pareto_speedup"]:.2f} on all cores')
+    print(f'wrote {out / "study_scaling.json"}', file=sys.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
