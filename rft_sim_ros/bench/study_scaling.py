@@ -6,9 +6,9 @@ speed-against-error sweep of `rft-sim bench` on one worker and on all cores.
     python -m rft_sim_ros.bench.study_scaling [--out DIR] [--runs 40] [--reuse]
 
 Overhead per run = (study wall time - the runs' own wall times - the workers' warm-up -
-the worker's start) / runs, on one worker: scheduling, result transfer, the per-run summary
-and table writes, the plots at the end. The worker's start (a fresh interpreter importing
-the package, once per worker) is measured apart and reported beside it. Ratios come from runs measured back to back in one invocation; on a shared
+the worker's start - the final table and plots) / runs, on one worker: scheduling, result
+transfer, the per-run summary and table writes. The once-per-study costs are reported beside
+it: the worker's start (a fresh interpreter importing the package) and the final outputs. Ratios come from runs measured back to back in one invocation; on a shared
 machine the load during each phase is reported (1-minute load average before and after).
 """
 import argparse
@@ -57,8 +57,9 @@ def _timed_study(study, out, start_s=0.0, **backend):
     return {'worker_start_s': start_s,'backend': result.backend, 'wall_s': result.wall_s, 'runs': len(result.rows),
             'failed': result.failed, 'run_wall_sum_s': sum(walls),
             'run_wall_median_s': statistics.median(walls), 'warm_s': result.warm_s,
-            'overhead_per_run_s': (result.wall_s - sum(walls) - result.warm_s - start_s)
-            / len(walls),
+            'outputs_s': result.outputs_s,
+            'overhead_per_run_s': (result.wall_s - sum(walls) - result.warm_s - start_s
+                                   - result.outputs_s) / len(walls),
             'load_before': load, 'load_after': _load(), 'rows': result.rows}
 
 

@@ -10,6 +10,7 @@ warm-up holds there too. Every node needs rft_sim_ros (same version) and any sce
 study names at the same path.
 """
 from .pool import Outcome
+from .spec import StudyError
 
 #: Retries of a task whose worker process died (as the local pool: one).
 RETRIES = 1
@@ -17,15 +18,21 @@ RETRIES = 1
 
 def connect(address):
     """Connect to (or, for 'local', start) a Ray cluster; returns True if this call started
-    Ray in this process (and so should shut it down). Raises RuntimeError without Ray."""
+    Ray in this process (and so should shut it down). Raises StudyError without Ray or when
+    no cluster answers at `address`."""
     try:
         import ray
     except ImportError:
-        raise RuntimeError('--ray needs Ray: pip install "rft_sim_ros[ray]"') from None
+        raise StudyError('--ray needs Ray: pip install "rft_sim_ros[ray]"') from None
     if ray.is_initialized():
         return False
     options = {'include_dashboard': False} if address == 'local' else {}
-    ray.init(address=address, logging_level='WARNING', log_to_driver=False, **options)
+    try:
+        ray.init(address=address, logging_level='WARNING', log_to_driver=False, **options)
+    except (ConnectionError, ValueError, RuntimeError) as error:
+        raise StudyError(f'--ray {address}: no Ray cluster to connect to '
+                         f'({str(error).splitlines()[0]}); start one with `ray start --head` '
+                         "or use --ray local") from None
     return True
 
 

@@ -2,8 +2,8 @@
 
 A study file (YAML):
 
-    scene: hexapod                 # bundled scene name, or a scene YAML path (relative to
-                                   # the study file, or absolute)
+    scene: hexapod                 # bundled scene name, a scene YAML or a robot file
+                                   # (MJCF, URDF, xacro; relative to the study file)
     set: {cycles: 2}               # optional: fixed overrides for every run (as --set)
     duration: 3.0                  # optional: sim time per run, s (default: the scene's)
     vary: {zeta: [1.0, 3.75], payload: [0.0, 1.0]}   # grid: every combination
@@ -46,7 +46,7 @@ class Run:
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study. scene: bundled name or absolute YAML path; fixed: overrides for every
+    """A validated study. scene: bundled name or absolute path of a scene or robot file; fixed: overrides for every
     run; duration: s or None (the scene's); keys: the varied keys in column order."""
     scene: str
     fixed: dict
@@ -80,9 +80,11 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
         raise StudyError(f'{where}: unknown keys {unknown} (known: {sorted(_KNOWN)})')
     scene = raw.get('scene')
     if not isinstance(scene, str) or not scene:
-        raise StudyError(f'{where}: missing scene (a bundled scene name or a scene YAML path)')
-    if scene.endswith(('.yaml', '.yml')) and not Path(scene).is_absolute():
-        scene = str((Path(base) / scene).resolve())
+        raise StudyError(f'{where}: missing scene (a bundled scene name, a scene YAML or a '
+                         'robot file)')
+    beside = Path(base) / scene
+    if not Path(scene).is_absolute() and beside.is_file():  # a file next to the study file
+        scene = str(beside.resolve())
     fixed = raw.get('set') or {}
     if not isinstance(fixed, dict) or not all(isinstance(k, str) for k in fixed):
         raise StudyError(f'{where}: set must map scene keys to values')

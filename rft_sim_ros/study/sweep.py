@@ -34,13 +34,15 @@ TABLE_EVERY_S = 2.0
 class StudyResult:
     """rows: the table rows in run order; ran / failed: runs executed this time and how many
     of all rows are not stable; resumed: runs found finished on disk; wall_s: this session;
-    warm_s: time the workers spent warming up (s, summed); backend: where the runs ran."""
+    warm_s: time the workers spent warming up (s, summed); outputs_s: writing the final
+    table and plots (s); backend: where the runs ran."""
     rows: list
     ran: int
     resumed: int
     failed: int
     wall_s: float
     warm_s: float
+    outputs_s: float
     backend: str
     plots: list
 
@@ -112,7 +114,8 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
         workers = workers or default_workers()
         hard = None if run_timeout is None else 2 * run_timeout + 30
         outcomes = map_unordered(execute, tasks, workers, hard_timeout=hard)
-        backend = f'local ({min(workers, max(1, len(tasks)))} workers)'
+        count = min(workers, max(1, len(tasks)))
+        backend = f'local ({count} worker{"s" if count > 1 else ""})'
     log(f'{len(study.runs)} runs: {resumed} finished before, {len(tasks)} to run on {backend}')
     bar = StudyProgress(len(tasks), enabled=progress)
     names = table.columns(study)
@@ -137,6 +140,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
                 last_table = time.monotonic()
     finally:
         bar.close()
+    finishing = time.perf_counter()
     rows = _rows(study, records)
     table.write_csv(out / 'results.csv', names, rows)
     table.write_npz(out / 'results.npz', names, rows)
@@ -144,7 +148,8 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     result = StudyResult(rows=rows, ran=done, resumed=resumed,
                          failed=sum(not r['stable'] for r in rows),
                          wall_s=time.perf_counter() - started, warm_s=warm_s,
-                         backend=backend, plots=names_written)
+                         outputs_s=time.perf_counter() - finishing, backend=backend,
+                         plots=names_written)
     missing = [m for m in study.metrics if all(r[m] is None for r in rows if r['stable'])]
     if missing:
         log(f'no stable run reported {missing}: check the metric names in the run summaries')
