@@ -171,14 +171,23 @@ def test_cli_sweep(tmp_path, capsys):
     assert main(['sweep', str(path), '--workers', '0']) == 2
 
 
-def test_ray_backend_on_a_local_cluster_matches_the_local_backend(local_study, tmp_path):
+def test_ray_backend_on_a_local_cluster(local_study, tmp_path):
+    """A real single-machine Ray cluster on loopback, dashboard off: the study's rows equal
+    the local backend's bit for bit, and a task whose worker is killed is retried once."""
     import ray  # the test extra installs Ray: this test runs in CI, never skips
+    from rft_sim_ros.study import ray_backend
     study, out, result = local_study
+    here = os.path.dirname(os.path.abspath(__file__))  # Ray workers import die_once from here
     ray.init(address='local', include_dashboard=False, num_cpus=2, log_to_driver=False,
-             _node_ip_address='127.0.0.1')
+             _node_ip_address='127.0.0.1', runtime_env={'env_vars': {'PYTHONPATH': here}})
     try:
         on_ray = run_study(study, tmp_path / 'ray', ray='local', progress=False)
+        items = [(str(tmp_path / f'item{i}'), i == 1) for i in range(2)]
+        outcomes = {o.index: o for o in ray_backend.map_unordered(die_once, items, 'local')}
     finally:
         ray.shutdown()
+    assert on_ray.backend == 'ray (local)'
     assert [{k: v for k, v in r.items() if k != 'wall_time_s'} for r in on_ray.rows] == [
         {k: v for k, v in r.items() if k != 'wall_time_s'} for r in result.rows]
+    assert outcomes[0].value == 'item0' and outcomes[0].error is None
+    assert outcomes[1].value is None and 'WorkerCrashedError' in outcomes[1].error
