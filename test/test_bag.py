@@ -4,12 +4,13 @@ import dataclasses
 import numpy as np
 import pytest
 import yaml
-from rosbags.rosbag2 import WriterError
+from rosbags.rosbag2 import Reader, StoragePlugin, WriterError
 
 from rft_sim_ros.ros import messages, topics
-from rft_sim_ros.ros.bag import BagWriter, TopicInfo, bag_topics, read_messages
+from rft_sim_ros.ros.bag import BagWriter, TopicInfo, _Rosbag2Writer, bag_topics, read_messages
+from rft_sim_ros.ros.cdr import StateEncoder
 from rft_sim_ros.ros.factory import RosbagsFactory
-from rft_sim_ros.ros.stamps import seconds_to_ns
+from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
 from ros_test_support import make_state, messages_equal
 
 LEGS = ('L1', 'R1', 'L2')
@@ -144,3 +145,51 @@ def test_leg_wrench_read_back_gives_vertical_force(recorded):
     forces = [msg.wrench.force.z
               for _, _, msg in read_messages(path, [topics.leg_wrench_topic('L2')])]
     np.testing.assert_array_equal(forces, [s.legs[2].force[2] for s in recorded_states])
+
+
+@pytest.mark.parametrize('legs, time', [(LEGS, 3.0125), ((), 0.0),
+                                        (('a', 'front_left_long_name', 'xy'), 12345.6789)])
+def test_packed_state_topics_are_the_bytes_rosbags_serialises(legs, time):
+    state = make_state(time=time, legs=legs, seed=3)
+    encoder = StateEncoder(state)
+    factory = RosbagsFactory()
+    expected = [(topic, message) for topic, message
+                in messages.state_messages(factory, state, plates=False)]
+    assert encoder.topics == [topic for topic, _ in expected]
+    packed = encoder.encode(state, *split_ns(seconds_to_ns(time)))
+    for (topic, message), data in zip(expected, packed):
+        assert data == bytes(factory.typestore.serialize_cdr(message, message.__msgtype__)), \
+            topic
+
+
+def test_batched_cycles_write_the_file_rosbags_writes_message_by_message(tmp_path):
+    """Enough cycles to close MCAP chunks (1 MiB) on the way: same bytes, same metadata."""
+    recorded_states = states(n=900)
+    batched, plain = tmp_path / 'batched' / 'run', tmp_path / 'plain' / 'run'  # same names
+    with BagWriter(batched, LEGS) as writer:
+        for state in recorded_states:
+            writer.write_state(state)
+    reference = _Rosbag2Writer(plain, version=9,
+                               storage_plugin=StoragePlugin.MCAP)
+    reference.open()
+    factory = RosbagsFactory()
+    connections = {topic: reference.add_connection(topic, msgtype, typestore=factory.typestore)
+                   for topic, msgtype in topics.published_topics(LEGS, plates=False).items()}
+    for state in recorded_states:
+        for topic, message in messages.state_messages(factory, state, plates=False):
+            reference.write(connections[topic], seconds_to_ns(state.time),
+                            factory.typestore.serialize_cdr(message, message.__msgtype__))
+    reference.close()
+    assert (batched / 'run.mcap').read_bytes() == (plain / 'run.mcap').read_bytes()
+    assert (batched / 'metadata.yaml').read_text() == (plain / 'metadata.yaml').read_text()
+    assert bag_topics(batched)[topics.CLOCK].count == 900
+
+
+def test_bag_metadata_names_the_jazzy_distribution(recorded):
+    path, _ = recorded
+    info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['ros_distro'] == 'jazzy'
+    with Reader(path) as reader:   # the copy inside the MCAP file, which ros2 bag reads
+        assert reader.ros_distro == 'jazzy'
+    mcap = next(path.glob('*.mcap')).read_bytes()
+    assert b'ros_distro: jazzy' in mcap and b'ros_distro: rosbags' not in mcap

@@ -5,6 +5,10 @@ with the reason everywhere else. Uses the servo_rig test scene (two position ser
 """
 import math
 import os
+import select
+import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -279,3 +283,53 @@ def test_tripod_gait_publishes_trajectories_in_sim_time(ros):
     assert 0.0 < seconds(message.header.stamp) <= 0.6
     assert len(message.points) == 13 and len(message.points[0].velocities) == 12
     assert seconds(message.points[-1].time_from_start) == pytest.approx(0.24)
+
+
+def _start_executable(module, *arguments):
+    """The console script `module` (its main) as a subprocess on this test's DDS domain."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN_ID), PYTHONUNBUFFERED='1')
+    return subprocess.Popen([sys.executable, '-m', module, '--ros-args', *arguments],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_output(process, words, timeout=120.0):
+    """Read the process's stderr (rclpy logs there) until a line holds `words`."""
+    deadline = time.monotonic() + timeout
+    lines = []
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([process.stderr], [], [], 0.5)
+        if ready:
+            line = process.stderr.readline()
+            if not line:
+                break
+            lines.append(line)
+            if words in line:
+                return lines
+    raise AssertionError(f'{words!r} not logged; output so far: {"".join(lines)}')
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
+                         ids=['SIGINT', 'SIGTERM'])
+def test_nodes_exit_cleanly_on_a_signal_while_publishing(signal_number):
+    """The simulator as fast as it can (a timer callback is publishing almost all the time)
+    and the gait node driving it: a signal to each ends it with status 0, no traceback."""
+    sim = _start_executable('rft_sim_ros.ros.node', '-p', f'scene:={SERVO_RIG}',
+                            '-p', 'real_time_factor:=0.0')
+    gait = _start_executable('rft_sim_ros.ros.gait_node', '-p', 'start_delay:=0.0',
+                             '-p', 'rate:=200.0')
+    try:
+        logged = _wait_for_output(sim, 'publishing every')
+        time.sleep(1.5)  # publishing at full speed; the gait node receives /clock
+        for process in (sim, gait):
+            process.send_signal(signal_number)
+        for name, process in (('sim', sim), ('tripod_gait', gait)):
+            _, stderr = process.communicate(timeout=30)
+            if process is sim:
+                stderr = ''.join(logged) + stderr
+            assert 'Traceback' not in stderr, f'{name}: {stderr}'
+            assert process.returncode == 0, f'{name} exited {process.returncode}: {stderr}'
+    finally:
+        for process in (sim, gait):
+            if process.poll() is None:
+                process.kill()
+                process.communicate()

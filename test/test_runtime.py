@@ -124,9 +124,16 @@ def test_changing_the_real_time_factor_applies_at_once(rig):
     assert rig.runtime.real_time_factor == 2.0
 
 
-def test_publish_rate_is_rounded_to_whole_steps(rig_scene):
-    h = Harness(rig_scene, publish_rate=300.0)   # 1 ms steps: every 3 steps
-    assert h.runtime.publish_period == pytest.approx(0.003)
+def test_publish_rate_is_exact_on_average_with_stamps_on_whole_steps(rig_scene):
+    h = Harness(rig_scene, publish_rate=300.0)   # 1 ms steps: 3.33 per period
+    assert h.runtime.publish_period == pytest.approx(1 / 300)
+    h.run(0.2)
+    times = np.array(h.times())
+    steps = np.round(times / h.sim.timestep)
+    assert np.allclose(times, steps * h.sim.timestep, atol=1e-12)        # on whole steps
+    assert set(np.diff(steps)) == {3, 4}
+    n = len(times) - 1                                                   # cycles after t = 0
+    assert n > 30 and abs(times[-1] - n / 300) <= 0.5 * h.sim.timestep   # the asked rate
     with pytest.raises(ValueError, match='publish_rate'):
         Harness(rig_scene, publish_rate=0.0)
 

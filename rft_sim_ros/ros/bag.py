@@ -6,13 +6,71 @@ messages with `rft_sim_ros.ros.messages` through the rosbags backend, so a bag h
 rclpy node would have published. Timestamps are sim time in integer nanoseconds, the same
 value as each message's stamp. No ROS installation is needed (rosbags is pure Python).
 """
+import struct
 from dataclasses import dataclass
 
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
 from rft_sim_ros.ros import messages, topics
+from rft_sim_ros.ros.cdr import StateEncoder
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
-from rft_sim_ros.ros.stamps import seconds_to_ns
+from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
+
+#: The distribution whose message definitions the bags hold (metadata `ros_distro`).
+ROS_DISTRO = 'jazzy'
+
+#: An MCAP Message record's opcode, length and fixed fields: channel id (uint16), sequence
+#: (uint32), log time and publish time (uint64 ns); the message data follows.
+_MCAP_MESSAGE = struct.Struct('<BQHIQQ')
+_MCAP_MESSAGE_FIELDS = _MCAP_MESSAGE.size - 9  # the record's length counts these
+#: rosbags' McapWriter closes a chunk once it holds more than this many bytes.
+_MCAP_CHUNK_SIZE = 2**20
+
+
+class _Rosbag2Writer(Writer):
+    """rosbags' Writer, with the ROS distribution of the messages (not 'rosbags') in the
+    bag's metadata (metadata.yaml and the MCAP file's copy), and `write_cycle`: the messages
+    of one publish cycle written as one batch."""
+
+    def write_cycle(self, connections, time_ns, payloads):
+        """Record CDR `payloads`, one per connection of `connections`, all at `time_ns`:
+        the records `Writer.write` would append to the MCAP chunks, written together, with
+        the same bookkeeping and chunk boundaries (the tests check the file is the same byte
+        for byte)."""
+        storage = self.storage
+        chunk, parts = None, []
+        for connection, data in zip(connections, payloads):
+            if chunk is None:
+                chunk = storage.chunk
+                offset = chunk.bio.tell()
+                chunk.message_start_time = min(time_ns, chunk.message_start_time)
+                chunk.message_end_time = max(time_ns, chunk.message_end_time)
+            cid = connection.id
+            record = _MCAP_MESSAGE.pack(0x05, _MCAP_MESSAGE_FIELDS + len(data), cid, 0,
+                                        time_ns, time_ns)
+            parts += (record, data)
+            chunk.msgs[cid].append((time_ns, offset))
+            offset += len(record) + len(data)
+            storage.channel_stats[cid] += 1
+            self.counts[cid] += 1
+            if offset > _MCAP_CHUNK_SIZE:  # as Writer.write: close the chunk after this one
+                chunk.bio.write(b''.join(parts))
+                storage.close_chunk()
+                chunk, parts = None, []
+        if parts:
+            chunk.bio.write(b''.join(parts))
+        storage.message_start_time = min(time_ns, storage.message_start_time)
+        storage.message_end_time = max(time_ns, storage.message_end_time)
+        self.min_timestamp = min(time_ns, self.min_timestamp)
+        self.max_timestamp = max(time_ns, self.max_timestamp)
+
+    def close(self):
+        rosbags, ours = 'ros_distro: rosbags', f'ros_distro: {ROS_DISTRO}'
+        close_storage = self.storage.close
+        self.storage.close = lambda version, metadata: close_storage(
+            version, metadata.replace(rosbags, ours))
+        super().close()
+        self.metapath.write_text(self.metapath.read_text().replace(rosbags, ours))
 
 
 class BagWriter:
@@ -27,11 +85,13 @@ class BagWriter:
         self.factory = RosbagsFactory(jazzy_typestore())
         self._plates = plates
         self._types = topics.published_topics(leg_names, plates=plates)
-        self._writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer = _Rosbag2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._connections = {
             topic: self._writer.add_connection(topic, msgtype, typestore=self.factory.typestore)
             for topic, msgtype in self._types.items()}
+        self._encoder = None  # StateEncoder of the states' joints and legs
+        self._encoded = []    # its topics' connections
 
     def write(self, topic, message, time_ns):
         """Record `message` (a rosbags message of the topic's type) at `time_ns` (ns)."""
@@ -44,10 +104,19 @@ class BagWriter:
         self._writer.write(self._connections[topic], time_ns, data)
 
     def write_state(self, state):
-        """Record one publishing cycle of `state` (see `messages.state_messages`)."""
+        """Record one publishing cycle of `state`: the messages of `messages.state_messages`,
+        the fixed-layout ones packed directly (`cdr.StateEncoder`, same bytes)."""
         time_ns = seconds_to_ns(state.time)
-        for topic, message in messages.state_messages(self.factory, state, plates=self._plates):
-            self.write(topic, message, time_ns)
+        if self._encoder is None or not self._encoder.fits(state):
+            self._encoder = StateEncoder(state)
+            unknown = sorted(set(self._encoder.topics) - set(self._connections))
+            if unknown:
+                raise KeyError(f'{unknown} are not topics of this bag: {sorted(self._types)}')
+            self._encoded = [self._connections[topic] for topic in self._encoder.topics]
+        self._writer.write_cycle(self._encoded, time_ns,
+                                 self._encoder.encode(state, *split_ns(time_ns)))
+        if self._plates and state.active_plates is not None:
+            self.write(topics.PLATES, messages.plates_message(self.factory, state), time_ns)
 
     def write_diagnostics(self, state, status):
         """Record /diagnostics for `state` and the run's `messages.RunStatus`."""

@@ -5,7 +5,8 @@
 rclpy node only forwards events to it:
 
 * `tick()` on a wall-clock timer (period `tick_period`): runs the publish cycles that are
-  due (`Pacer`), each one publish period of sim time followed by one state publication,
+  due (`Pacer`), each one publish period of sim time (whole steps, exact rate on average:
+  `PublishSchedule`) followed by one state publication,
   for at most `tick_budget_s` of wall time so the executor stays responsive, then
   /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
   initial state.
@@ -29,6 +30,7 @@ from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_k
 from rft_sim_ros.ros.messages import RunStatus
 from rft_sim_ros.ros.pacing import Pacer
 from rft_sim_ros.control.commands import CommandResult, Reason
+from rft_sim_ros.sim.publishing import PublishSchedule
 from rft_sim_ros.sim.simulation import SimulationDiverged
 from rft_sim_ros.control.throttle import ThrottledLog
 
@@ -54,8 +56,8 @@ def array_order(servo_joints, joint_names):
 class SimRuntime:
     """Drives `sim` for the node and decides what it publishes (see module docstring).
 
-    publish_rate: state publications per second of sim time (rounded to whole steps; the
-    effective value is `publish_period`). joint_names: order of array commands (None: the
+    publish_rate: state publications per second of sim time (on average: each cycle is a
+    whole number of steps, `PublishSchedule`). joint_names: order of array commands (None: the
     scene's commanded joints, Simulation.servo_joint_names). plates: publish active plates. warn, error: log functions (str).
     clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
     diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
@@ -67,8 +69,8 @@ class SimRuntime:
                  tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
         self.sim = sim
         self._sink = sink
-        rate = parameters.publish_rate(publish_rate)
-        self._publish_every = max(1, int(round(1.0 / (rate * sim.timestep))))
+        self._publishing = PublishSchedule(parameters.publish_rate(publish_rate), sim.timestep)
+        self._cycles = 0  # publish cycles run so far
         servo_joints = tuple(sim.servo_joint_names)
         self.joint_names = servo_joints if joint_names is None else tuple(joint_names)
         self._array_order = array_order(servo_joints, self.joint_names)
@@ -91,8 +93,11 @@ class SimRuntime:
 
     @property
     def publish_period(self):
-        """Sim time between state publications, s (a whole number of steps)."""
-        return self._publish_every * self.sim.timestep
+        """Mean sim time between state publications, s (1 / publish_rate)."""
+        return self._publishing.period
+
+    def _next_cycle_steps(self):
+        return self._publishing.steps(self._cycles + 1)
 
     @property
     def real_time_factor(self):
@@ -124,21 +129,24 @@ class SimRuntime:
             self._publish_state()
         now = started
         while (not self.paused and now - started < self._budget
-               and self._pacer.due(now, self.sim.time + self.publish_period)):
+               and self._pacer.due(now, self.sim.time
+                                   + self._next_cycle_steps() * self.sim.timestep)):
             self._cycle()
             now = self._clock()
         self._diagnostics(now)
 
     def _cycle(self):
         """Step one publish period and publish the state, or pause on divergence."""
+        steps = self._next_cycle_steps()
         try:
-            self.sim.step(self._publish_every)
+            self.sim.step(steps)
         except SimulationDiverged as diverged:
             self.diverged = str(diverged)
             self.paused = True
             self._error(f'simulation diverged {self.diverged}; paused, nothing more is '
                         'published until reset')
             return False
+        self._cycles += 1
         self._publish_state()
         return True
 
@@ -246,11 +254,12 @@ class SimRuntime:
             return ServiceResult(False, self._diverged_problem())
         if not self.paused:
             return ServiceResult(False, 'step works while paused: call pause (true) first')
+        before = self.sim.time
         stepped = self._cycle()
         self._diagnostics(self._clock())
         if not stepped:
             return ServiceResult(False, f'simulation diverged {self.diverged}')
-        return ServiceResult(True, f'stepped {self.publish_period:.6g} s to sim time '
+        return ServiceResult(True, f'stepped {self.sim.time - before:.6g} s to sim time '
                                    f'{self.sim.time:.6f} s')
 
     def reset(self):

@@ -158,7 +158,7 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'actadr', 'actuator_force',
     # work space and results
     'damping', 'mass', 'jac', 'memory', 'work', 'flags', 'xi_new',
-    'wrench', 'body_wrenches', 'xfrc_applied', *SolveSpace._fields])
+    'wrench', 'body_wrenches', 'xfrc_applied', 'wrench_sum', *SolveSpace._fields])
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
 
@@ -465,16 +465,28 @@ def _translational_inverse_masses(mass_h, dof_parentid, jac, slots, factor, work
 
 
 @njit(cache=True, error_model='numpy')
-def scatter_wrenches(slots, slot_body, slot_wrench, body_ids, body_wrenches, xfrc_applied):
+def scatter_wrenches(slots, slot_body, slot_wrench, body_ids, body_wrenches, xfrc_applied,
+                     xipos, wrench_sum):
     """Slot wrenches -> per-sand-body wrenches (zero for bodies out of the sand) and
-    mjData.xfrc_applied rows of the sand bodies."""
+    mjData.xfrc_applied rows of the sand bodies; adds each body's wrench to its row of
+    wrench_sum (nb, 6) as [force; torque about the world origin] (xipos: COMs, m, world),
+    so that sums over steps give mean wrenches."""
     body_wrenches[:, :] = 0.0
     for s in range(slots):
         for a in range(6):
             body_wrenches[slot_body[s], a] = slot_wrench[s, a]
     for i in range(body_ids.shape[0]):
+        b = body_ids[i]
         for a in range(6):
-            xfrc_applied[body_ids[i], a] = body_wrenches[i, a]
+            xfrc_applied[b, a] = body_wrenches[i, a]
+        fx, fy, fz = body_wrenches[i, 0], body_wrenches[i, 1], body_wrenches[i, 2]
+        x, y, z = xipos[b, 0], xipos[b, 1], xipos[b, 2]
+        wrench_sum[i, 0] += fx
+        wrench_sum[i, 1] += fy
+        wrench_sum[i, 2] += fz
+        wrench_sum[i, 3] += body_wrenches[i, 3] + y * fz - z * fy
+        wrench_sum[i, 4] += body_wrenches[i, 4] + z * fx - x * fz
+        wrench_sum[i, 5] += body_wrenches[i, 5] + x * fy - y * fx
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
@@ -552,14 +564,24 @@ def _tree_solve(matrix, rhs, dof_parentid):
     return True
 
 
+@njit(cache=True, inline='always')
+def _copy(matrix, vector, matrix_out, vector_out):
+    """matrix_out[:, :] = matrix and vector_out[:] = vector (same shapes), element by element:
+    numpy's slice assignment compiles a shape check whose error message formatting took a
+    quarter of the kernels' compile time."""
+    for i in range(vector.shape[0]):
+        vector_out[i] = vector[i]
+        for j in range(matrix.shape[1]):
+            matrix_out[i, j] = matrix[i, j]
+
+
 @njit(cache=True, error_model='numpy')
 def _checked_solve(matrix, rhs, dof_parentid, factored, solution):
     """x of matrix x = rhs (matrix: tree sparsity as in `_tree_solve`; left unchanged) into
     `solution` (factored: (n, n) work space): `_tree_solve`, kept if it met no small pivot
     and its componentwise backward error is at most BACKWARD_ERROR, else the dense partially
     pivoted `_solve`. Returns solution."""
-    factored[:, :] = matrix
-    solution[:] = rhs
+    _copy(matrix, rhs, factored, solution)
     accurate = _tree_solve(factored, solution, dof_parentid)
     if accurate:
         for i in range(rhs.shape[0]):
@@ -569,8 +591,7 @@ def _checked_solve(matrix, rhs, dof_parentid, factored, solution):
                 scale += abs(matrix[i, j] * solution[j])
             accurate &= abs(residual) <= BACKWARD_ERROR * scale
     if not accurate:
-        factored[:, :] = matrix
-        solution[:] = rhs
+        _copy(matrix, rhs, factored, solution)
         _solve(factored, solution)
     return solution
 
@@ -902,8 +923,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                 dirty[s] = False
         # (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving), slot by slot
         # over the dofs its Jacobian reaches (its kinematic chain) only.
-        system[:, :] = mass_h
-        rhs[:] = momentum
+        _copy(mass_h, momentum, system, rhs)
         for s in range(slots):
             _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], block)
             _add_slot(block, w_moving[s], jac[6 * s:6 * s + 6], chain[s, :chain_count[s]],
@@ -1013,6 +1033,7 @@ def implicit_step(timestep, arrays):
     flags, xi_new = int8_matrix(arrays, a.flags), float_vector(arrays, a.xi_new)
     wrench, body_wrenches = float_matrix(arrays, a.wrench), float_matrix(arrays, a.body_wrenches)
     xfrc_applied = float_matrix(arrays, a.xfrc_applied)
+    wrench_sum = float_matrix(arrays, a.wrench_sum)
     space = SolveSpace(
         int_matrix(arrays, a.chain), int_vector(arrays, a.chain_count),
         float_vector(arrays, a.inverse_mass), float_matrix(arrays, a.w_moving),
@@ -1023,7 +1044,8 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
         float_matrix(arrays, a.block), float_matrix(arrays, a.chain_work))
     if slots == 0:  # no plate in the sand
-        scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
+        scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
+                         wrench_sum)
         return
     rows = jac[:6 * slots + 1]
     prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
@@ -1037,7 +1059,8 @@ def implicit_step(timestep, arrays):
     iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, rows,
                                    space, mass, dof_parentid, qvel, timestep, step, memory,
                                    work, flags, xi_new, wrench)
-    scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied)
+    scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
+                     wrench_sum)
     counters[SOLVES] += abs(iterations)
     counters[UNSETTLED] += iterations < 0
 

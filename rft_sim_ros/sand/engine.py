@@ -128,6 +128,10 @@ class SandEngine:
         self._ema_force = np.zeros((n, 3))
         self._ema_step = np.full(n, -2, dtype=np.int64)
         self.body_wrenches = np.zeros((nb, 6))
+        # per sand body, summed over the steps since `mean_wrenches` last restarted the mean:
+        # [force; torque about the world origin] (coupling.scatter_wrenches)
+        self._wrench_sum = np.zeros((nb, 6))
+        self._sum_since = 0  # the STEPS counter when the sum restarted
         self._views()
         self._load_kernels()
 
@@ -222,6 +226,7 @@ class SandEngine:
             mass=self._mass, jac=self._jac, memory=self._plate_memory, work=self._work,
             flags=self._flags, xi_new=self._xi, wrench=self._slot_wrench,
             body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied,
+            wrench_sum=self._wrench_sum,
             **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
 
     @property
@@ -293,7 +298,8 @@ class SandEngine:
     def _scatter(self, slots):
         """Write the wrenches of the first `slots` slots (zero for the other sand bodies)."""
         coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
-                                  self.body_wrenches, self._xfrc)
+                                  self.body_wrenches, self._xfrc, self._xipos,
+                                  self._wrench_sum)
 
     def _implicit(self):
         """The plates in the sand and their implicit wrenches, written to xfrc_applied
@@ -321,6 +327,23 @@ class SandEngine:
         self._settings[coupling.SURFACE] = surface
         self._settings[coupling.SURFACE_KIND] = kind
         self._counters[:] = 0
+        self._wrench_sum[:] = 0.0
+
+    def mean_wrenches(self):
+        """(nb, 6) mean of each sand body's wrench over the steps since the last call (what
+        a filtered force sensor reports over that window), as [force (N); torque about the
+        world origin (N m)], world axes; then restarts the mean. With no step since, the
+        wrench of the last step."""
+        steps = self._counters[coupling.STEPS] - self._sum_since
+        if steps > 0:
+            mean = self._wrench_sum / steps
+        else:
+            force = self.body_wrenches[:, :3]
+            mean = np.hstack([force, self.body_wrenches[:, 3:]
+                              + np.cross(self._xipos[self.body_ids], force)])
+        self._wrench_sum[:] = 0.0
+        self._sum_since = self._counters[coupling.STEPS]
+        return mean
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas

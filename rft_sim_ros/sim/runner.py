@@ -20,6 +20,7 @@ import numpy as np
 from .. import __version__
 from .metrics import GenericMetrics
 from ..scenes.scenarios import load_scenario
+from .publishing import PublishSchedule
 from .simulation import Simulation, SimulationDiverged
 from .summary import finite, json_default, significant
 
@@ -110,7 +111,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
 
     out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
-    recorders: objects with record(SimState) and close(), fed at the publish rate; an
+    recorders: objects with record(SimState) and close(), fed at the publish rate (mean
+    rate exact, on whole steps: `PublishSchedule`) and at the end; an
     optional start(sim) is called with the Simulation before the first step, and an optional
     wants_plates attribute asks for the active plates in the states.
     schedule: (time_s, action) pairs; action(sim) runs once, when sim time first reaches
@@ -160,7 +162,8 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
             log(notice)
         generic = GenericMetrics(sim)
         steps = int(round(duration / sim.timestep))
-        publish_every = max(1, int(round(1.0 / (scene.publish_rate * sim.timestep))))
+        publishing = PublishSchedule(scene.publish_rate, sim.timestep)
+        cycle, next_publish = 1, publishing.end_step(1)
         with_plates = any(getattr(r, 'wants_plates', False) for r in recorders)
         for recorder in recorders:
             if hasattr(recorder, 'start'):
@@ -178,12 +181,15 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
             if stop is not None and stop.is_set():
                 interrupted = True
                 break
-            chunk = min(publish_every - done % publish_every, steps - done)
+            chunk = min(next_publish - done, steps - done)
             if actions:
                 chunk = min(chunk, actions[0][0] - done)
             sim.step(chunk)
             done += chunk
-            if done % publish_every == 0 or done == steps:
+            if done == next_publish or done == steps:
+                if done == next_publish:
+                    cycle += 1
+                    next_publish = publishing.end_step(cycle)
                 active_sum += sim.engine.plates_active
                 state = sim.state(with_plates=with_plates)
                 series.append(_series_row(state))

@@ -196,7 +196,6 @@ class Simulation:
                                    for bodies in self.legs.values() for b in bodies], dtype=int)
         leg_of_row = np.repeat(np.arange(len(self.legs)),
                                [len(bodies) for bodies in self.legs.values()])
-        self._leg_of_row = leg_of_row
         self._leg_membership = (leg_of_row == np.arange(len(self.legs))[:, None]).astype(float)
 
     def _start(self):
@@ -332,17 +331,19 @@ class Simulation:
         self._start()
 
     def leg_wrenches(self):
-        """Per-leg summed sand wrenches (LegWrench, world axes; see state.py)."""
-        wrenches = self.engine.body_wrenches[self._leg_rows]
+        """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean
+        over the steps since the previous call (`SandEngine.mean_wrenches`), with the torque
+        about the leg's point now."""
+        wrenches = self.engine.mean_wrenches()[self._leg_rows]  # torques about the origin
         points = self.data.xpos[self._leg_feet]
-        levers = self.data.xipos[self.engine.body_ids[self._leg_rows]] - points[self._leg_of_row]
         forces = self._leg_membership @ wrenches[:, :3]
-        torques = self._leg_membership @ (wrenches[:, 3:] + np.cross(levers, wrenches[:, :3]))
+        torques = self._leg_membership @ wrenches[:, 3:] - np.cross(points, forces)
         return tuple(LegWrench(name, force, torque, point) for name, force, torque, point
                      in zip(self._leg_names, forces, torques, points))
 
     def state(self, with_plates=False):
-        """A SimState snapshot of the current state."""
+        """A SimState snapshot of the current state; its leg wrenches are the means over the
+        steps since the previous snapshot (see `leg_wrenches`)."""
         d = self.data
         velocity = np.zeros(6)
         mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_XBODY, self._base_id,

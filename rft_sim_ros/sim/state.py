@@ -13,7 +13,10 @@ import numpy as np
 
 @dataclass(frozen=True)
 class LegWrench:
-    """Summed RFT wrench that the sand applies to one leg (all of the leg's sand bodies).
+    """Summed RFT wrench that the sand applies to one leg (all of the leg's sand bodies),
+    averaged over the steps since the previous snapshot (one publish period): what a
+    filtered foot force sensor reports. An instantaneous sample would alias the force's
+    ripple at the servo update rate into the published series.
 
     force:  (3,) N, world (odom) axes.
     torque: (3,) N m, world (odom) axes, about `point`.
