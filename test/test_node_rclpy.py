@@ -333,3 +333,25 @@ def test_nodes_exit_cleanly_on_a_signal_while_publishing(signal_number):
             if process.poll() is None:
                 process.kill()
                 process.communicate()
+
+
+def test_sim_node_says_it_compiles_and_a_signal_then_still_exits_cleanly(tmp_path):
+    """With an empty numba cache the node says at once that it compiles; SIGINT while it
+    does stops it with status 0 and no traceback."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN_ID), PYTHONUNBUFFERED='1',
+               NUMBA_CACHE_DIR=str(tmp_path))
+    sim = subprocess.Popen([sys.executable, '-m', 'rft_sim_ros.ros.node', '--ros-args',
+                            '-p', f'scene:={SERVO_RIG}'], env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        logged = _wait_for_output(sim, 'compiling kernels, first run only')
+        time.sleep(1.0)
+        sim.send_signal(signal.SIGINT)
+        _, stderr = sim.communicate(timeout=120)
+        stderr = ''.join(logged) + stderr
+        assert 'Traceback' not in stderr, stderr
+        assert sim.returncode == 0, stderr
+    finally:
+        if sim.poll() is None:
+            sim.kill()
+            sim.communicate()

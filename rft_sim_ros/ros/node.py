@@ -19,7 +19,7 @@ from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
 from rft_sim_ros.scenes.config import SceneError, load_scene
-from rft_sim_ros.sim.simulation import Simulation
+from rft_sim_ros.sim.simulation import Simulation, compile_notice
 
 NODE_NAME = 'rft_sim'
 DEFAULT_SCENE = 'hexapod'
@@ -42,7 +42,11 @@ class SimNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         overrides = parameters.scene_overrides(
             self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
-        sim = Simulation(load_scene(self._declare(parameters.SCENE, DEFAULT_SCENE), overrides))
+        scene = load_scene(self._declare(parameters.SCENE, DEFAULT_SCENE), overrides)
+        notice = compile_notice(scene)
+        if notice:
+            self.get_logger().info(notice)
+        sim = Simulation(scene)
         initial = {name: self._declare(name, default) for name, default in (
             (parameters.ZETA, sim.zeta), (parameters.REAL_TIME_FACTOR, 1.0),
             (parameters.PAUSED, False))}

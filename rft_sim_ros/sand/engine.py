@@ -25,6 +25,22 @@ from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
+#: Wall seconds a start takes with an empty numba cache (the kernels compile), measured on the
+#: 2-core VM of the README's figures (`rft-sim bench` start-up); start-up messages quote it.
+COLD_START_S = 30
+
+
+def kernels_cached(method='implicit'):
+    """Whether numba's on-disk cache holds current compiled code of the kernels an engine
+    with low-velocity `method` runs, so that building one compiles nothing (otherwise it
+    compiles for about COLD_START_S: a first run after install, or after an upgrade)."""
+    if method == 'implicit':
+        kernels = (coupling.implicit_sand_step, coupling.implicit_plate_forces)
+    else:
+        kernels = (coupling.gather_plates, coupling.smoothed_wrenches, coupling.scatter_wrenches)
+    # the cache's index of compiled signatures: empty if absent or stale (source changed)
+    return all(kernel._cache._cache_file._load_index() for kernel in kernels)
+
 
 def full_inertia_call(model, data, out):
     """(function, args) that write the dense joint-space inertia M (nv x nv) into `out`:

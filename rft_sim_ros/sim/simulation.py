@@ -23,7 +23,7 @@ from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servo
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
                           set_initial_pose)
 from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
-from ..sand.engine import LowVelocity, SandEngine
+from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.surface import surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
@@ -49,6 +49,14 @@ def can_collide(model):
         return True
     return bool(np.bitwise_or.reduce(model.geom_contype, initial=0)
                 & np.bitwise_or.reduce(model.geom_conaffinity, initial=0))
+
+
+def compile_notice(scene):
+    """The line to show before building `scene` (SceneConfig) when its sand kernels are not
+    in numba's cache yet: 'compiling kernels, first run only, ~N s'; None when cached."""
+    if kernels_cached(scene.low_velocity['method']):
+        return None
+    return f'compiling kernels, first run only, ~{COLD_START_S:.0f} s'
 
 
 class SimulationDiverged(RuntimeError):
