@@ -1,11 +1,13 @@
 """Studies (`rft-sim sweep`): study files expanded into runs, the local process pool (results
 identical to serial runs, a failing run recorded, a killed worker retried, resume) and the
 Ray backend against a real single-machine Ray cluster on loopback."""
+import io
 import json
 import math
 import os
 import shutil
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from rft_sim_ros.cli import main
 from rft_sim_ros.study import StudyError, load_study, run_study, study_from_mapping
 from rft_sim_ros.study.execute import RunTask, execute
 from rft_sim_ros.study.pool import map_unordered
+from rft_sim_ros.study.progress import StudyProgress
 from rft_sim_ros.study.table import read_csv
 
 #: A short plate drop: the plate hits the sand after ~0.14 s and is at rest by 0.4 s.
@@ -158,6 +161,27 @@ def test_a_killed_worker_is_replaced_and_its_item_retried_once(tmp_path):
     outcomes = {o.index: o for o in map_unordered(die_once, items, workers=2)}
     assert [outcomes[i].value for i in range(3)] == ['item0', 'item1', 'item2']
     assert outcomes[3].value is None and 'worker died twice' in outcomes[3].error
+
+
+def sleep_for(seconds):
+    """Sleep `seconds` in a worker; return them."""
+    time.sleep(seconds)
+    return seconds
+
+
+def test_a_hung_worker_is_killed_at_the_hard_limit_and_replaced():
+    outcomes = {o.index: o for o in map_unordered(sleep_for, [60.0, 0.0], workers=1,
+                                                  hard_timeout=1.0)}
+    assert outcomes[0].error.startswith('timeout: killed after 1 s')
+    assert outcomes[1].value == 0.0  # ran on the replacement worker
+
+
+def test_progress_line_counts_and_estimates():
+    progress = StudyProgress(10, stream=io.StringIO())
+    assert not progress.enabled  # not a terminal: quiet
+    progress.started -= 30.0  # 30 s in
+    line = progress.line(3, 1)
+    assert '3/10 done, 1 failed, 7 remaining, 1:10 left' in line
 
 
 def test_cli_sweep(tmp_path, capsys):

@@ -16,6 +16,8 @@ from multiprocessing.connection import wait
 
 #: Attempts per item when its worker dies: the first, and one retry.
 ATTEMPTS = 2
+#: Time a worker may take to start (spawn, imports) before the hard limit starts counting, s.
+START_GRACE_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -36,12 +38,14 @@ def default_workers():
 
 
 def _serve(conn, fn):
-    """Worker loop: receive (index, item), send back (index, ok, value or error text)."""
+    """Worker loop: receive (index, item); send (index, None, None) when fn starts on it, then
+    (index, ok, value or error text)."""
     while True:
         message = conn.recv()
         if message is None:
             return
         index, item = message
+        conn.send((index, None, None))
         try:
             conn.send((index, True, fn(item)))
         except Exception as error:  # noqa: BLE001 - reported to the parent as an Outcome
@@ -58,7 +62,8 @@ class _Worker:
         self.started = None
 
     def give(self, index, item):
-        self.index, self.started = index, time.monotonic()
+        # the hard limit counts from the worker's "started" answer; until then, a grace
+        self.index, self.started = index, time.monotonic() + START_GRACE_S
         self.conn.send((index, item))
 
     def stop(self, kill=False):
@@ -118,6 +123,9 @@ def map_unordered(fn, items, workers=None, hard_timeout=None):
                             queue.appendleft(index)
                         else:
                             yield Outcome(index, error=f'worker died twice (exit code {code})')
+                        continue
+                    if ok is None:  # fn started on the item: the hard limit counts from now
+                        worker.started = time.monotonic()
                         continue
                     worker.index = None
                     yield Outcome(index, value) if ok else Outcome(index, error=value)
