@@ -3,6 +3,7 @@ dense visual meshes (test/robot_files.py). It loads, its sand bodies and legs ar
 the kinematic tree, the plate count asked is the count made, it stands in sand under the PD
 position interface, and it moves under position and effort commands."""
 import json
+from pathlib import Path
 import time
 
 import mujoco
@@ -205,3 +206,25 @@ def test_rft_sim_run_takes_the_robot_file_with_keyframe_and_spawn(robot, tmp_pat
     assert generic['peak_force_z_N_FL_hip'] > 0
     assert main(['run', str(robot), '--spawn', 'hover', '--out', str(tmp_path / 'x')]) == 2
     assert 'robot.spawn: must be model, rest or drop:HEIGHT' in capsys.readouterr().err
+
+
+def test_a_xacro_urdf_robot_gets_its_limits_initial_values_and_feet(tmp_path):
+    """The URDF side (test/robots/sandbot_description): no actuators, so every joint gets a
+    PD position interface limited to the URDF <limit effort>; the robot starts in its
+    ros2_control initial values and holds them; auto finds its four feet; it rests in sand."""
+    package = Path(__file__).parent / 'robots' / 'sandbot_description'
+    xacro = package / 'urdf' / 'sandbot.urdf.xacro'
+    sim = Simulation(load_scene(xacro, {
+        'robot.package_paths': {'sandbot_description': str(package)},
+        'robot.xacro_args': {'hip_effort': '20'}, 'robot.spawn': 'rest',
+        'rft.plates_per_body': 100}))
+    assert sorted(sim.sand_bodies) == ['fl_foot', 'fr_foot', 'rl_foot', 'rr_foot']
+    assert sim.interfaces.gains['fl_hip'].effort == 20.0   # the xacro argument's limit
+    assert sim.interfaces.gains['fl_knee'].effort == 12.0
+    hip = sim.model.jnt_qposadr[sim.model.joint('fl_hip').id]
+    assert sim.data.qpos[hip] == pytest.approx(0.4, abs=0.02)  # ros2_control initial_value
+    base = sim.model.body(sim.base_body).id
+    start = sim.data.xpos[base].copy()
+    sim.step(1000)
+    assert np.linalg.norm(sim.data.xpos[base] - start) < 2e-3  # settled by spawn rest
+    assert sim.data.qpos[hip] == pytest.approx(0.4, abs=0.02)

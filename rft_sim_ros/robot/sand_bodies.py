@@ -4,7 +4,8 @@ Sand bodies are given as MuJoCo body names, glob patterns (`'*_calf'`, `'*foot*'
 with fnmatch, case-sensitive) or `auto`:
 
 auto picks, in the initial pose, one body per kinematic branch: the branches are the
-subtrees rooted at each child of the base body (plus the base body itself, alone); in each,
+subtrees that hang by a joint from the base body's rigid group (the base and the bodies
+welded to it, e.g. a URDF `base` link fixed to the trunk), plus that group itself; in each,
 the body whose collision geoms (contype or conaffinity nonzero) reach lowest (lowest point
 of the geoms' bounding boxes, world z) is that branch's candidate. The candidates kept are
 those whose lowest point lies within AUTO_TOLERANCE of the robot's height (base origin above
@@ -12,8 +13,8 @@ the lowest collision point of all) from the lowest point of all: the feet of a s
 robot, not a head or a tail held higher.
 
 Legs (for the per-leg wrenches): unless the scene gives them, each branch that holds sand
-bodies is one leg, named after the branch's first body (the child of the base; the base's
-own name for the base), its sand bodies listed from the base outwards, so the last one (the
+bodies is one leg, named after the branch's first body (the body that hangs from the base's
+group; the base's own name for the group), its sand bodies listed from the base outwards, so the last one (the
 deepest in the tree) is the leg's reference point.
 """
 import fnmatch
@@ -47,18 +48,25 @@ def _name(model, body):
 
 
 def branches(model, base):
-    """{first body of the branch: [bodies of the branch]} for each child of body `base`, and
-    {base: [base]}; bodies in tree order (a parent before its children)."""
+    """{first body of the branch: [bodies of the branch]}: the base's rigid group (the base
+    and the bodies welded to it without a joint, e.g. a URDF `base` link fixed to the trunk)
+    is one branch, keyed by the base; each subtree hanging from that group by a joint is
+    another, keyed by its first body. Bodies in tree order (a parent before its children)."""
+    rigid = model.body_weldid[base]
     out = {base: [base]}
-    root_of = {}
+    root_of = {base: base}
     for body in range(base + 1, model.nbody):
         parent = int(model.body_parentid[body])
-        if parent == base:
-            root_of[body] = body
-            out[body] = [body]
-        elif parent in root_of:
+        if parent not in root_of:
+            continue  # not below the base
+        if root_of[parent] == base and model.body_weldid[body] == rigid:
+            root_of[body] = base  # welded to the base: part of its group
+        elif root_of[parent] == base:
+            root_of[body] = body  # hangs from the base's group by a joint: a new branch
+            out[body] = []
+        else:
             root_of[body] = root_of[parent]
-            out[root_of[body]].append(body)
+        out[root_of[body]].append(body)
     return out
 
 
