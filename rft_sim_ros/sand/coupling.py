@@ -36,6 +36,7 @@ from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE
                            leading_forces)
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
+from .deformable import mark as mark_footprint
 from .surface import FLAT
 from .surface_kernels import map_factor, surface_height as height_at, surface_top
 
@@ -93,11 +94,12 @@ PLATE_ROWS = LAW_ROWS + 7
 #: (1/0), and the implicit law's rest speed v_reg (m/s), joint damping and actuator velocity
 #: gains (1/0) implicit; then the surface (`surface.SurfaceData`): its kind code, the slope's
 #: gradient dh/dx, dh/dy, the grid's node [0, 0] (x, y) m and 1/spacing (1/m); and the zeta
-#: map: whether there is one (1/0), its cell [0, 0] corner (x, y) m and 1/cell (1/m).
+#: map: whether there is one (1/0), its cell [0, 0] corner (x, y) m and 1/cell (1/m); whether
+#: the grid is deformable sand (1/0: plates below it mark footprints, `deformable.mark`).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SURFACE_KIND, SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
- ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY) = range(21)
-SETTING_COUNT = 21
+ ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY, DEFORM) = range(22)
+SETTING_COUNT = 22
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
@@ -113,6 +115,8 @@ GatherArrays = namedtuple('GatherArrays', [
     'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
     # the surface's grid and block maximum (`surface.SurfaceData`), the zeta map's factors
     'surface_grid', 'surface_block_max', 'zeta_factors',
+    # deformable sand's footprint marks (`deformable.DeformableSand`)
+    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -173,7 +177,9 @@ def gather_plates(arrays):
     whose bounding sphere, lies above the surface (above its highest point within the
     sphere's radius, horizontally) are skipped without touching their plates. A plate's
     depth is the surface height at its (x, y) minus its z (vertical, world axes); a
-    horizontal plane (SURFACE_KIND FLAT) keeps the original arithmetic, bit for bit.
+    horizontal plane (SURFACE_KIND FLAT) keeps the original arithmetic, bit for bit. On
+    deformable sand (DEFORM) every plate below the surface marks its footprint node
+    (`deformable.mark`).
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
     that the depth test reads positions only). A plate below the surface first has
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
@@ -203,6 +209,10 @@ def gather_plates(arrays):
     factors = float_matrix(arrays, a.zeta_factors)
     mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
     m_idx, m_idy = settings[MAP_INV_DX], settings[MAP_INV_DY]
+    deform = settings[DEFORM] != 0.0
+    stamp, lowest = int_matrix(arrays, a.deform_stamp), float_matrix(arrays, a.deform_lowest)
+    pending, deform_state = int_vector(arrays, a.deform_pending), int_vector(arrays, a.deform_state)
+    step = counters[STEPS]
     body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
     body_cluster_start = int_vector(arrays, a.body_cluster_start)
     cluster_plate_start = int_vector(arrays, a.cluster_plate_start)
@@ -264,14 +274,19 @@ def gather_plates(arrays):
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
+                wx = wy = 0.0
                 if flat:
                     depth = surface_height - pz
                 else:
+                    wx = ox + r00 * lx + r01 * ly + r02 * lz
+                    wy = oy + r10 * lx + r11 * ly + r12 * lz
                     depth = height_at(kind, surface_height, gx, gy, grid, gx0, gy0, g_idx,
-                                      g_idy, ox + r00 * lx + r01 * ly + r02 * lz,
-                                      oy + r10 * lx + r11 * ly + r12 * lz) - pz
+                                      g_idy, wx, wy) - pz
                 if depth <= 0.0:
                     continue
+                if deform:
+                    mark_footprint(grid, stamp, lowest, pending, deform_state, gx0, gy0, g_idx,
+                                   g_idy, step, wx, wy, pz)
                 mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
                               cluster_normals[i_c, 2])
                 n_v = (mx * (body_v[0] + body_w[1] * lz - body_w[2] * ly)

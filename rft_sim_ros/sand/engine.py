@@ -20,6 +20,7 @@ from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import coupling
 from .array_table import ArrayTable
+from .deformable import DeformableSand
 from .surface import FLAT, Plane
 from .zeta_map import ZetaMap
 
@@ -108,6 +109,8 @@ class SandEngine:
         self._counters = np.zeros(coupling.COUNTER_COUNT, dtype=np.int64)
         self.surface = Plane(surface_height) if surface is None else surface
         self._set_surface(self.surface.data)
+        self.deformable = isinstance(self.surface, DeformableSand)
+        self._settings[coupling.DEFORM] = self.deformable
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
                               else np.ascontiguousarray(zeta_map.factors, dtype=float))
@@ -220,6 +223,7 @@ class SandEngine:
             cluster_radius=self._cluster_radius, positions=self.local_pos,
             normals=self.local_normal, areas=self.areas, surface_grid=self._surface_grid,
             surface_block_max=self._surface_block_max, zeta_factors=self._zeta_factors,
+            **self._footprint_arrays(),
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
@@ -244,6 +248,16 @@ class SandEngine:
             body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied,
             wrench_sum=self._wrench_sum,
             **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
+
+    def _footprint_arrays(self):
+        """The gather's deformable-sand arrays (1-element placeholders on rigid sand)."""
+        sand = self.surface
+        if self.deformable:
+            return dict(deform_stamp=sand.stamp, deform_lowest=sand.lowest,
+                        deform_pending=sand.pending, deform_state=sand.state)
+        return dict(deform_stamp=np.full((1, 1), -1, dtype=np.int64),
+                    deform_lowest=np.zeros((1, 1)), deform_pending=np.zeros(1, dtype=np.int64),
+                    deform_state=np.zeros(1, dtype=np.int64))
 
     @property
     def zeta(self):
@@ -298,6 +312,8 @@ class SandEngine:
             coupling.gather_plates(self._gather_arrays.table)
             if self._counters[coupling.SLOTS] or had_slots:  # (zeros once the last leave)
                 self._explicit()
+        if self.deformable:  # footprints left by their bodies in this step
+            self.surface.settle(self._counters[coupling.STEPS] - 1)
 
     def _explicit(self):
         """Explicit sand wrenches ('ema' or 'none': coupling.smoothed_wrenches) of the plates

@@ -43,6 +43,7 @@ class SceneConfig:
     surface_height: float
     surface: dict     # sand.surface.* (sand.surface.surface_from_settings), file resolved
     zeta_map: dict    # sand.zeta_map.* (sand.zeta_map.zeta_map_from_settings) or None
+    deformable: dict  # sand.deformable.* (sand.deformable.DeformableSand)
     sand_bodies: tuple
     plates_per_body: int
     plate_density_per_mm2: float
@@ -201,6 +202,7 @@ def _validate(raw, path, locator):
         surface_height=values['sand.surface_height'],
         surface=_subsection(values, 'sand.surface', path),
         zeta_map=_subsection(values, 'sand.zeta_map', path) or None,
+        deformable=_subsection(values, 'sand.deformable', path),
         sand_bodies=tuple(values['rft.bodies']),
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,

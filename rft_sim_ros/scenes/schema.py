@@ -249,6 +249,18 @@ KEYS = (
         'centre.', _pair),
     Key('sand.zeta_map.range', '[low, high]', '', None, 'PNG file: factors that grey 0..1 '
         'maps to.', _low_high),
+    Key('sand.deformable', 'mapping', '', {}, 'Deformable sand: footprints, craters, piles, '
+        'avalanches (docs/terrain.md).', _section),
+    Key('sand.deformable.enabled', 'true or false', '', False, 'Whether the robot changes '
+        'the surface.', _flag),
+    Key('sand.deformable.cell', 'number > 0', 'm', 0.01, 'Side of the square cells of the '
+        'deformable bed (about the plates\' size or larger).', _positive),
+    Key('sand.deformable.repose_deg', 'number in (0, 90)', 'deg', 30.0, 'Angle of repose: '
+        'steeper slopes avalanche.', lambda v: _number(v, positive=True, maximum=89.9)),
+    Key('sand.deformable.size', '[x, y] > 0', 'm', [2.0, 2.0], 'Extent of the deformable bed '
+        '(outside it the surface stays as it is).', lambda v: _pair(v, positive=True)),
+    Key('sand.deformable.center', '[x, y]', 'm', [0.0, 0.0], "World (x, y) of the bed's "
+        'centre.', _pair),
     Key('rft', 'mapping', '', {}, 'Which bodies feel sand and how they are discretised.',
         _section),
     Key('rft.bodies', "'auto', a name or glob, or a list of them", '', 'auto', 'The bodies '

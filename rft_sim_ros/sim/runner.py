@@ -210,7 +210,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         for recorder in recorders:
             recorder.close()
     sim_time = sim.steps * sim.timestep
-    metrics = sim.scenario.metrics(sim) if done else {}
+    metrics = {**sim.scenario.metrics(sim), **sim.terrain_metrics()} if done else {}
     if interrupted:
         reason = (f'interrupted at t = {sim_time:.4f} s of {duration:g} s '
                   f'({getattr(stop, "reason", None) or "stopped on request"})')

@@ -25,6 +25,7 @@ from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, pars
 from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
+from ..sand.deformable import DeformableSand
 from ..sand.surface import surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
@@ -97,6 +98,10 @@ class Simulation:
         try:
             surface = surface_from_settings(scene.surface, scene.surface_height, self.model)
             zeta_map = zeta_map_from_settings(scene.zeta_map)
+            bed = scene.deformable
+            if bed.get('enabled'):
+                surface = DeformableSand(surface, bed['size'], bed['cell'], bed['repose_deg'],
+                                         bed['center'])
         except ValueError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
         if scene.surface.get('type') == 'hfield':  # the sand carries bodies there, not MuJoCo
@@ -333,10 +338,21 @@ class Simulation:
         return None
 
     def reset(self):
-        """Back to the scene's initial state; sim time keeps counting forward."""
+        """Back to the scene's initial state (deformable sand: its pristine surface); sim
+        time keeps counting forward."""
         self._time_offset += self.data.time
         mujoco.mj_resetData(self.model, self.data)
+        self.reset_terrain()
         self._start()
+
+    def reset_terrain(self):
+        """Deformable sand back to its pristine surface (nothing to do on rigid sand)."""
+        if self.engine.deformable:
+            self.engine.surface.reset()
+
+    def terrain_metrics(self):
+        """Deformable sand's summary metrics (`DeformableSand.metrics`); {} on rigid sand."""
+        return self.engine.surface.metrics() if self.engine.deformable else {}
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean

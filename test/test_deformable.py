@@ -1,0 +1,125 @@
+"""Deformable sand: craters and piles that conserve volume, avalanches to the angle of repose,
+footprints a returning body meets, reset, and rest on deformed sand."""
+import numpy as np
+import pytest
+
+from rft_sim_ros.sand.deformable import COUNT, DeformableSand
+from rft_sim_ros.sand.surface import Plane, Slope, block_maximum
+from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.sim.simulation import Simulation
+
+BED = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.5, 0.5]}
+
+
+def _max_slopes(grid, cell):
+    """Largest |height difference| / distance between axis and between diagonal neighbours."""
+    axis = max(np.abs(np.diff(grid, axis=0)).max(), np.abs(np.diff(grid, axis=1)).max()) / cell
+    diagonal = max(np.abs(grid[1:, 1:] - grid[:-1, :-1]).max(),
+                   np.abs(grid[1:, :-1] - grid[:-1, 1:]).max()) / (cell * np.sqrt(2))
+    return axis, diagonal
+
+
+@pytest.mark.parametrize('repose', [25.0, 34.0])
+def test_a_pile_steeper_than_repose_relaxes_to_it_conserving_volume(repose):
+    bed = DeformableSand(Plane(0.1), size=(0.6, 0.6), cell=0.01, repose_deg=repose)
+    bed.grid[30, 30] += 0.08  # a column of sand 8 cm tall, one cell wide
+    bed.grid[10:14, 40:44] += 0.03
+    before = bed.grid.sum()
+    moved = 0.08 + 16 * 0.03
+    bed.relax_all()
+    axis, diagonal = _max_slopes(bed.grid, bed.cell)
+    limit = np.tan(np.radians(repose))
+    assert axis <= limit + 1e-6 and diagonal <= limit + 1e-6
+    assert axis > 0.9 * limit  # a pile at (close to) the angle of repose, not flattened
+    assert abs(bed.grid.sum() - before) <= 1e-9 * moved
+    assert np.array_equal(bed.block_max, block_maximum(bed.grid))
+    assert bed.grid.max() < 0.1 + 0.08
+
+
+def _drop(extra=None, steps=800):
+    sim = Simulation(load_scene('plate_drop', {'duration': 2.0, **BED, **(extra or {})}))
+    sim.step(steps)
+    return sim
+
+
+def _lift(sim, steps=5):
+    """Take the plate out of the sand (teleported 0.3 m up, held there)."""
+    sim.data.qpos[2] = 0.3
+    sim.data.qvel[:] = 0.0
+    sim.model.opt.gravity[2] = 0.0
+    sim.step(steps)
+    sim.model.opt.gravity[2] = -9.81
+
+
+def test_a_dropped_plate_leaves_a_crater_whose_volume_is_piled_around_it():
+    sim = _drop()
+    bed = sim.engine.surface
+    rest_speed = np.linalg.norm(sim.data.qvel[:3])
+    depth = -(sim.data.qpos[2] - 0.001)  # plate bottom below the pristine surface
+    assert rest_speed < 1e-3  # at rest on deformable sand
+    before = bed.displaced_volume()  # (edge nodes its side plates mark in turn, only)
+    assert bed.state[COUNT] > 100  # its footprint nodes are pending
+    _lift(sim)
+    assert bed.state[COUNT] == 0
+    crater, pile = bed.displaced_volume(), bed.piled_volume()
+    assert before < 0.05 * crater
+    assert crater > 0.5 * depth * 0.1 * 0.1  # a 10 x 10 cm footprint about `depth` deep
+    assert abs(crater - pile) <= 1e-9 * crater
+    assert abs(bed.volume_change()) <= 1e-9 * crater
+    assert bed.max_footprint_depth() == pytest.approx(depth, abs=1e-4)
+    # the pile rings the crater: sand above the pristine level just outside the plate
+    ring = bed.grid[[19, 31], 25]
+    assert (ring > 0).all() and bed.grid[25, 25] < 0
+    metrics = sim.terrain_metrics()
+    assert metrics['sand_volume_change_m3'] == bed.volume_change()
+    assert metrics['max_footprint_depth_m'] == bed.max_footprint_depth()
+
+
+def test_a_plate_dropped_again_into_its_footprint_sinks_deeper():
+    """The second drop meets the crater floor, so its depth below the pristine surface is
+    about the crater's depth plus a fresh impact depth."""
+    sim = _drop()
+    first = -(sim.data.qpos[2] - 0.001)
+    crater = sim.engine.surface
+    _lift(sim)
+    floor = -crater.grid[25, 25]
+    sim.data.qpos[:7] = (0.0, 0.0, 0.1 + 0.001, 1, 0, 0, 0)  # the same drop height above 0
+    sim.data.qvel[:] = 0.0
+    sim.step(800)
+    second = -(sim.data.qpos[2] - 0.001)
+    assert floor > 0.5 * first
+    assert second > first + 0.5 * floor
+    assert np.linalg.norm(sim.data.qvel[:3]) < 1e-3
+
+
+def test_reset_restores_the_pristine_surface_exactly():
+    sim = _drop({'sand.surface.type': 'slope', 'sand.surface.angle_deg': 5.0})
+    bed = sim.engine.surface
+    pristine, blocks = bed.pristine.copy(), block_maximum(bed.pristine)
+    _lift(sim)
+    assert not np.array_equal(bed.grid, pristine)
+    sim.reset()
+    assert np.array_equal(bed.grid, pristine) and np.array_equal(bed.block_max, blocks)
+    assert bed.state[COUNT] == 0 and (bed.stamp == -1).all()
+    assert np.array_equal(pristine, Slope(0.0, 5.0).height(*np.meshgrid(
+        bed.origin[0] + bed.cell * np.arange(bed.grid.shape[1]),
+        bed.origin[1] + bed.cell * np.arange(bed.grid.shape[0]))))
+
+
+def test_a_dragged_blade_ploughs_a_trench_and_conserves_volume():
+    sim = Simulation(load_scene('blade_drag', {**BED, 'sand.deformable.size': [1.0, 0.6]}))
+    sim.step(int(round(1.5 / sim.timestep)))  # 2 cm of the stroke
+    bed = sim.engine.surface
+    assert bed.displaced_volume() > 0 and bed.piled_volume() > 0
+    assert abs(bed.volume_change()) <= 1e-9 * bed.displaced_volume()
+    axis, _ = _max_slopes(bed.grid, bed.cell)
+    assert np.isfinite(axis)
+
+
+def test_deformable_keys_are_checked():
+    with pytest.raises(SceneError, match='sand.deformable.enabled: must be true or false'):
+        load_scene('plate_drop', {'sand.deformable.enabled': 'yes'})
+    with pytest.raises(SceneError, match='sand.deformable.cell: must be > 0'):
+        load_scene('plate_drop', {'sand.deformable.cell': 0})
+    with pytest.raises(ValueError, match='at least two cells'):
+        DeformableSand(Plane(), size=(0.01, 1.0), cell=0.01)
