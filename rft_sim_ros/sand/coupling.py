@@ -211,7 +211,8 @@ def gather_plates(arrays):
     m_idx, m_idy = settings[MAP_INV_DX], settings[MAP_INV_DY]
     deform = settings[DEFORM] != 0.0
     stamp, lowest = int_matrix(arrays, a.deform_stamp), float_matrix(arrays, a.deform_lowest)
-    pending, deform_state = int_vector(arrays, a.deform_pending), int_vector(arrays, a.deform_state)
+    pending = int_vector(arrays, a.deform_pending)
+    deform_state = int_vector(arrays, a.deform_state)
     step = counters[STEPS]
     body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
     body_cluster_start = int_vector(arrays, a.body_cluster_start)
@@ -274,19 +275,19 @@ def gather_plates(arrays):
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
-                wx = wy = 0.0
+                plate_x = plate_y = 0.0  # world (x, y), on shaped surfaces only
                 if flat:
                     depth = surface_height - pz
                 else:
-                    wx = ox + r00 * lx + r01 * ly + r02 * lz
-                    wy = oy + r10 * lx + r11 * ly + r12 * lz
+                    plate_x = ox + r00 * lx + r01 * ly + r02 * lz
+                    plate_y = oy + r10 * lx + r11 * ly + r12 * lz
                     depth = height_at(kind, surface_height, gx, gy, grid, gx0, gy0, g_idx,
-                                      g_idy, wx, wy) - pz
+                                      g_idy, plate_x, plate_y) - pz
                 if depth <= 0.0:
                     continue
                 if deform:
                     mark_footprint(grid, stamp, lowest, pending, deform_state, gx0, gy0, g_idx,
-                                   g_idy, step, wx, wy, pz)
+                                   g_idy, step, plate_x, plate_y, pz)
                 mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
                               cluster_normals[i_c, 2])
                 n_v = (mx * (body_v[0] + body_w[1] * lz - body_w[2] * ly)
