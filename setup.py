@@ -65,6 +65,7 @@ setup(
             'rft-sim = rft_sim_ros.cli:main',
             'sim = rft_sim_ros.ros.node:main',
             'tripod_gait = rft_sim_ros.ros.gait_node:main',
+            'trot_gait = rft_sim_ros.ros.trot_gait_node:main',
         ],
     },
 )

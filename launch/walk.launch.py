@@ -1,6 +1,7 @@
 """The hexapod walking in sand over ROS: `rft_sim` (scene hexapod with its built-in gait off,
 so it takes commands from outside) driven by `tripod_gait` over the JointTrajectory topic,
-and, with record:=true, `ros2 bag record` (MCAP, sim-time stamps) of the simulator's topics.
+and, with record:=true, `ros2 bag record` (MCAP, sim-time stamps) of the simulator's topics
+(record.launch.py).
 
   ros2 launch rft_sim_ros walk.launch.py [zeta:=Z] [real_time_factor:=R] [record:=true]
       [bag:=DIR] [scene:=NAME|PATH] [scene_overrides:="[gait=none, payload=1.0]"]
@@ -9,24 +10,11 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import (DeclareLaunchArgument, ExecuteProcess, IncludeLaunchDescription,
-                            OpaqueFunction)
+from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
 from launch.conditions import IfCondition
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-
-#: Everything rft_sim publishes (topics.published_topics), as a `ros2 bag record -e` regex.
-RECORDED_TOPICS = r'^/(clock|joint_states|odom|tf|diagnostics|rft/.+)$'
-
-
-def _recorder(context):
-    command = ['ros2', 'bag', 'record', '-s', 'mcap', '--use-sim-time', '-e', RECORDED_TOPICS]
-    bag = LaunchConfiguration('bag').perform(context).strip()
-    if bag:
-        command += ['-o', bag]
-    return [ExecuteProcess(cmd=command, output='screen',
-                           condition=IfCondition(LaunchConfiguration('record')))]
 
 
 def generate_launch_description():
@@ -37,6 +25,10 @@ def generate_launch_description():
                           ('scene', 'scene_overrides', 'zeta', 'real_time_factor')}.items())
     gait = Node(package='rft_sim_ros', executable='tripod_gait', name='tripod_gait',
                 output='screen', parameters=[{'use_sim_time': True}])
+    record = IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(os.path.join(share, 'launch', 'record.launch.py')),
+        launch_arguments={'bag': LaunchConfiguration('bag')}.items(),
+        condition=IfCondition(LaunchConfiguration('record')))
     return LaunchDescription([
         DeclareLaunchArgument('scene', default_value='hexapod',
                               description='scene with the hexapod (models/hexapod.xml)'),
@@ -51,4 +43,4 @@ def generate_launch_description():
                               description='record the simulator topics with ros2 bag (MCAP)'),
         DeclareLaunchArgument('bag', default_value='',
                               description='bag folder (default: ros2 bag record chooses)'),
-        sim, gait, OpaqueFunction(function=_recorder)])
+        sim, gait, record])

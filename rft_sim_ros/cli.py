@@ -34,7 +34,8 @@ from pathlib import Path
 
 from . import __version__
 from .sim.summary import significant
-from .scenes.config import SceneError, bundled_scenes, load_scene, parse_assignment
+from .scenes.config import (SceneError, bundled_scenes, load_scene, parse_assignment,
+                            robot_overrides)
 from .units import validated_zeta
 
 
@@ -68,31 +69,6 @@ def _scene_overrides(args):
         if value is not None:
             overrides[key] = value
     overrides.update(robot_overrides(args.sand_bodies, args.package_path, args.xacro_arg))
-    return overrides
-
-
-def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
-    """Scene overrides of the robot options: sand_bodies 'A,B*' or 'auto' -> rft.bodies,
-    ['NAME=DIR'] -> robot.package_paths (folders made absolute), ['K=V'] ->
-    robot.xacro_args. Raises SceneError on a malformed item."""
-    overrides = {}
-    if sand_bodies:
-        names = [name.strip() for name in sand_bodies.split(',') if name.strip()]
-        overrides['rft.bodies'] = 'auto' if names == ['auto'] else names
-    for key, items, option in (('robot.package_paths', package_paths, '--package-path'),
-                               ('robot.xacro_args', xacro_args, '--xacro-arg')):
-        if not items:
-            continue
-        mapping = {}
-        for item in items:
-            name, sep, value = item.partition('=')
-            if not sep or not name.strip():
-                raise SceneError(f'{option} expects NAME=VALUE, got {item!r}')
-            mapping[name.strip()] = value.strip()
-        if key == 'robot.package_paths':
-            mapping = {name: str(Path(folder).expanduser().resolve())
-                       for name, folder in mapping.items()}
-        overrides[key] = mapping
     return overrides
 
 

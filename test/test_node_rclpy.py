@@ -27,7 +27,8 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
+from std_msgs.msg import Float64MultiArray, String  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
@@ -36,6 +37,10 @@ from rft_sim_ros.ros.gait_node import TripodGaitNode  # noqa: E402
 from rft_sim_ros.ros.gait_node import main as gait_main  # noqa: E402
 from rft_sim_ros.ros.node import SimNode  # noqa: E402
 from rft_sim_ros.ros.node import main as sim_main  # noqa: E402
+from rft_sim_ros.ros.trot_gait_node import TrotGaitNode  # noqa: E402
+from rft_sim_ros.robot.packages import PackageResolver  # noqa: E402
+from rft_sim_ros.robot.xacro_files import expand_xacro  # noqa: E402
+from rft_sim_ros.scenes.quadruped import JOINT_NAMES as QUADRUPED_JOINTS  # noqa: E402
 from rft_sim_ros.scenes.hexapod import JOINT_NAMES as HEXAPOD_JOINTS  # noqa: E402
 from rft_sim_ros.scenes.config import SceneError  # noqa: E402
 from ros_test_support import SERVO_RIG  # noqa: E402
@@ -355,3 +360,59 @@ def test_sim_node_says_it_compiles_and_a_signal_then_still_exits_cleanly(tmp_pat
         if sim.poll() is None:
             sim.kill()
             sim.communicate()
+
+ROBOTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'robots')
+SANDBOT = os.path.join(ROBOTS, 'sandbot_description', 'urdf', 'sandbot.urdf.xacro')
+SANDBOT_FEET = 'fl_foot,fr_foot,rl_foot,rr_foot'
+
+
+def sandbot_xml():
+    return expand_xacro(SANDBOT, PackageResolver(
+        {'sandbot_description': os.path.join(ROBOTS, 'sandbot_description')}))
+
+
+def robot_sim(ros, **parameters):
+    """rft_sim with no scene: the sandbot robot from `parameters` (model/robot_description)."""
+    overrides = {'sand_bodies': SANDBOT_FEET, 'real_time_factor': 2.0,
+                 'scene_overrides': ['sand.surface_height=-0.25'], **parameters}
+    return ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in overrides.items()]))
+
+
+def test_model_parameter_puts_a_robot_file_in_sand(ros, monkeypatch):
+    monkeypatch.setenv('ROS_PACKAGE_PATH', ROBOTS)
+    node = robot_sim(ros, model=SANDBOT)
+    assert node.runtime.sim.scene.sand_bodies == tuple(SANDBOT_FEET.split(','))
+    assert ros.spin_until(lambda: any('fl_knee' in m.name for m in ros.probe.joint_states))
+
+
+def test_robot_description_parameter_takes_the_xml(ros, monkeypatch):
+    monkeypatch.setenv('ROS_PACKAGE_PATH', ROBOTS)
+    node = robot_sim(ros, robot_description=sandbot_xml())
+    assert node.runtime.sim.scene.name.startswith('robot_description')
+    assert ros.spin_until(lambda: len(ros.probe.clocks) > 3)
+
+
+def test_robot_description_topic_is_waited_for_and_read_latched(ros, monkeypatch):
+    monkeypatch.setenv('ROS_PACKAGE_PATH', ROBOTS)
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    publisher = ros.probe.create_publisher(String, '/robot_description', latched)
+    publisher.publish(String(data='<robot name="broken">'))  # refused, node keeps waiting
+    node = robot_sim(ros)
+    ros.spin_for(0.5)
+    assert node.runtime is None and not ros.probe.clocks
+    publisher.publish(String(data=sandbot_xml()))  # as robot_state_publisher: latched
+    assert ros.spin_until(lambda: node.runtime is not None and len(ros.probe.clocks) > 3)
+    assert 'rr_knee' in node.runtime.sim.joint_names
+
+
+def test_trot_gait_publishes_the_quadruped_joints(ros):
+    ros.add(TrotGaitNode(context=ros.context, parameter_overrides=[
+        Parameter('start_delay', value=0.0), Parameter('rate', value=20)]))
+    for k in range(1, 40):
+        ros.probe.clock.publish(Clock(clock=Time(sec=1, nanosec=k * 10_000_000)))
+        ros.spin_for(0.005)
+    assert ros.spin_until(lambda: len(ros.probe.trajectories) >= 2)
+    message = ros.probe.trajectories[-1]
+    assert tuple(message.joint_names) == QUADRUPED_JOINTS
+    assert len(message.points) == 13 and len(message.points[0].positions) == 12

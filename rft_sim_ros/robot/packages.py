@@ -1,8 +1,8 @@
 """Where ROS packages live: `$(find pkg)`, `package://pkg/...` and `file://...` to paths.
 
 Resolution order for a package name: the `--package-path NAME=DIR` map given by the user,
-the ament index (when ROS 2 is sourced: `ament_index_python` importable), then
-`ROS_PACKAGE_PATH` (folders that are a package, named by their package.xml's <name> or
+the ament index (when ROS 2 is sourced: `ament_index_python` importable), rft_sim_ros
+itself (its share folder, found as `resources` does), then `ROS_PACKAGE_PATH` (folders that are a package, named by their package.xml's <name> or
 their folder name, or that hold packages one level down). The package's own share folder
 is returned (for an installed package) or its source folder.
 """
@@ -10,6 +10,8 @@ import os
 import re
 from pathlib import Path
 from urllib.parse import unquote, urlparse
+
+from .. import resources
 
 
 class PackageNotFound(LookupError):
@@ -61,6 +63,8 @@ class PackageResolver:
                 return Path(get_package_share_directory(name))
             except PackageNotFoundError:
                 pass
+        if name == resources.PACKAGE:  # this package itself, installed or not
+            return resources.share_dir()
         for root in filter(None, os.environ.get('ROS_PACKAGE_PATH', '').split(os.pathsep)):
             root = Path(root)
             for folder in (root, *(sorted(root.iterdir()) if root.is_dir() else ())):

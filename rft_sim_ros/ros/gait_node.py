@@ -1,14 +1,17 @@
-"""The `tripod_gait` node (`ros2 run rft_sim_ros tripod_gait`): drives the hexapod's
-alternating tripod gait (rft_sim_ros.scenes.gaits) over /joint_trajectory_controller/joint_trajectory.
+"""Gait publisher nodes: a built-in gait sent as short JointTrajectory messages over
+/joint_trajectory_controller/joint_trajectory, in sim time.
 
-rclpy wiring around `GaitTrajectories`: on a sim-time timer (`rate` Hz) it publishes a short
-trajectory of future gait targets stamped in sim time, which the simulator (or a real
-joint_trajectory_controller) interpolates. The node runs on sim time (it turns
-use_sim_time on), so it waits for /clock and stops when the simulation is paused.
+`GaitNode` is the rclpy wiring around `GaitTrajectories`: on a sim-time timer (`rate` Hz) it
+publishes a short trajectory of future gait targets stamped in sim time, which the
+simulator (or a real joint_trajectory_controller) interpolates. The node runs on sim time
+(it turns use_sim_time on), so it waits for /clock and stops when the simulation is paused.
+Subclasses name the node, the gait's parameters and how to build the gait.
 
-Parameters (read at start): frequency (Hz, gait cycles per second), stance_fraction,
-step_length (m), step_height (m), ramp_time (s), start_delay (s of sim time after the first
-/clock before walking), rate (Hz of sim time), horizon (s), spacing (s between waypoints).
+`tripod_gait` (`ros2 run rft_sim_ros tripod_gait`): the hexapod's alternating tripod
+(rft_sim_ros.scenes.gaits). Parameters (read at start): frequency (Hz, gait cycles per
+second), stance_fraction, step_length (m), step_height (m), ramp_time (s), and those of
+every gait node: start_delay (s of sim time after the first /clock before walking), rate
+(Hz of sim time), horizon (s), spacing (s between waypoints).
 """
 import sys
 
@@ -23,43 +26,48 @@ from rft_sim_ros.ros.gait_trajectory import GaitTrajectories
 from rft_sim_ros.ros.stamps import NS_PER_S
 from rft_sim_ros.scenes.gaits import make_gait
 
-NODE_NAME = 'tripod_gait'
 QUEUE_DEPTH = 10
 
-#: Parameter -> (default, TripodGait keyword or None for the publisher's own settings,
-#: description).
-PARAMETERS = {
-    'frequency': (1.0, 'frequency_hz', 'gait cycles per second, Hz'),
-    'stance_fraction': (0.5, 'stance_fraction', 'fraction of a cycle a foot is in stance'),
-    'step_length': (0.05, 'step_length_m', 'fore-aft stroke of a foot tip, m'),
-    'step_height': (0.06, 'step_height_m', 'lift of a foot tip in swing, m'),
-    'ramp_time': (0.5, 'ramp_time_s', 'time over which stroke and lift grow from 0, s'),
-    'start_delay': (1.0, None, 'sim time after the first /clock before walking, s'),
-    'rate': (20.0, None, 'trajectories published per second of sim time, Hz'),
-    'horizon': (0.25, None, 'time covered by each trajectory, s'),
-    'spacing': (0.02, None, 'time between waypoints, s'),
+#: Parameters of every gait node: name -> (default, description).
+PUBLISHER_PARAMETERS = {
+    'start_delay': (1.0, 'sim time after the first /clock before walking, s'),
+    'rate': (20.0, 'trajectories published per second of sim time, Hz'),
+    'horizon': (0.25, 'time covered by each trajectory, s'),
+    'spacing': (0.02, 'time between waypoints, s'),
 }
 
 
-class TripodGaitNode(Node):
-    """Publishes tripod-gait trajectories in sim time (see module docstring).
+class GaitNode(Node):
+    """Publishes gait trajectories in sim time (see module docstring).
 
-    Raises ValueError (saying what to fix) if a parameter is out of range.
+    Subclasses set NODE_NAME, GAIT_PARAMETERS ({parameter: (default, gait keyword,
+    description)}) and `make_gait(start_time_s, **keywords)`. Raises ValueError (saying
+    what to fix) if a parameter is out of range.
     """
+    NODE_NAME = None
+    GAIT_PARAMETERS = {}
+
+    @staticmethod
+    def make_gait(start_time_s, **keywords):
+        raise NotImplementedError
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
+        super().__init__(self.NODE_NAME, **kwargs)
         if not self.get_parameter('use_sim_time').value:
             self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, True)])
+        specs = {**{name: (default, description)
+                    for name, (default, _, description) in self.GAIT_PARAMETERS.items()},
+                 **PUBLISHER_PARAMETERS}
         values = {name: float(self.declare_parameter(  # numbers: integers welcome too
                       name, default, ParameterDescriptor(description=description,
                                                          read_only=True,
                                                          dynamic_typing=True)).value)
-                  for name, (default, _, description) in PARAMETERS.items()}
-        gait = {keyword: values[name] for name, (_, keyword, _) in PARAMETERS.items() if keyword}
-        make_gait('tripod', **gait)  # check the gait parameters now (raises ValueError)
+                  for name, (default, description) in specs.items()}
+        gait = {keyword: values[name]
+                for name, (_, keyword, _) in self.GAIT_PARAMETERS.items()}
+        self.make_gait(0.0, **gait)  # check the gait parameters now (raises ValueError)
         self._trajectories = GaitTrajectories(
-            lambda start: make_gait('tripod', start_time_s=start, **gait),
+            lambda start: self.make_gait(start, **gait),
             horizon_s=values['horizon'], spacing_s=values['spacing'],
             start_delay_s=values['start_delay'])
         if not values['rate'] > 0.0:
@@ -75,10 +83,31 @@ class TripodGaitNode(Node):
         if command is not None:
             self._publisher.publish(messages.joint_trajectory_message(self._factory, command))
 
+    @classmethod
+    def main(cls, args=None):
+        """Entry point of `ros2 run rft_sim_ros <NODE_NAME>`; returns the exit status."""
+        return run_node(cls, cls.NODE_NAME, (TypeError, ValueError), args)
+
+
+class TripodGaitNode(GaitNode):
+    """The hexapod's tripod gait (rft_sim_ros.scenes.gaits.TripodGait)."""
+    NODE_NAME = 'tripod_gait'
+    GAIT_PARAMETERS = {
+        'frequency': (1.0, 'frequency_hz', 'gait cycles per second, Hz'),
+        'stance_fraction': (0.5, 'stance_fraction', 'fraction of a cycle a foot is in stance'),
+        'step_length': (0.05, 'step_length_m', 'fore-aft stroke of a foot tip, m'),
+        'step_height': (0.06, 'step_height_m', 'lift of a foot tip in swing, m'),
+        'ramp_time': (0.5, 'ramp_time_s', 'time over which stroke and lift grow from 0, s'),
+    }
+
+    @staticmethod
+    def make_gait(start_time_s, **keywords):
+        return make_gait('tripod', start_time_s=start_time_s, **keywords)
+
 
 def main(args=None):
     """Entry point of `ros2 run rft_sim_ros tripod_gait`; returns the exit status."""
-    return run_node(TripodGaitNode, NODE_NAME, (TypeError, ValueError), args)
+    return TripodGaitNode.main(args)
 
 
 if __name__ == '__main__':

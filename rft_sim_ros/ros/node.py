@@ -4,25 +4,33 @@ This module only connects ROS entities to `rft_sim_ros.ros.runtime.SimRuntime`, 
 every decision (pacing, checks, command dispatch, what to publish when). Interface
 (docs/ros.md): parameters of `rft_sim_ros.ros.parameters`; publishers of
 `topics.published_topics`; subscriptions to the ros2_control command topics; services
-~/pause (std_srvs/SetBool), ~/reset and ~/step (std_srvs/Trigger). The node publishes
+~/pause (std_srvs/SetBool), ~/reset and ~/step (std_srvs/Trigger). The robot comes from the
+parameters scene / model / robot_description, or, with none of them set, from the first
+valid message on /robot_description (rft_sim_ros.ros.robot_source). The node publishes
 /clock itself and must not run on sim time; its timer runs on the steady wall clock.
 """
 import sys
+import tempfile
+from pathlib import Path
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from rft_sim_ros.ros import messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
-from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
+                                          load_node_scene, needs_topic)
+from rft_sim_ros.scenes.config import SceneError
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
 
 NODE_NAME = 'rft_sim'
-DEFAULT_SCENE = 'hexapod'
+#: Where robot_description strings are stored as files for the scene to name.
+DESCRIPTION_FOLDER = Path(tempfile.gettempdir()) / 'rft_sim_ros' / 'robot_description'
 QUEUE_DEPTH = 10
 TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
 
@@ -40,9 +48,43 @@ class SimNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        overrides = parameters.scene_overrides(
+        self.runtime = None
+        self._factory = RclpyFactory()
+        self._robot = {name: self._declare(name, '') for name in (
+            parameters.SCENE, parameters.MODEL, parameters.ROBOT_DESCRIPTION,
+            parameters.SAND_BODIES)}
+        self._overrides = parameters.scene_overrides(
             self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
-        scene = load_scene(self._declare(parameters.SCENE, DEFAULT_SCENE), overrides)
+        if needs_topic(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
+                       self._robot[parameters.ROBOT_DESCRIPTION]):
+            self.get_logger().info(f'no scene, model or robot_description set: waiting for '
+                                   f'the robot on {ROBOT_DESCRIPTION_TOPIC}')
+            latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                 reliability=ReliabilityPolicy.RELIABLE)
+            self._description_subscription = self.create_subscription(
+                self._factory.message_class(ROBOT_DESCRIPTION_TYPE), ROBOT_DESCRIPTION_TOPIC,
+                self._on_robot_description, latched)
+            return
+        self._start(self._robot[parameters.ROBOT_DESCRIPTION])
+
+    def _on_robot_description(self, message):
+        """First /robot_description message: load the robot and start serving it."""
+        if self.runtime is not None:
+            return
+        try:
+            self._start(message.data)
+        except (SceneError, ValueError) as error:
+            self.get_logger().error(f'cannot start from {ROBOT_DESCRIPTION_TOPIC}: {error}; '
+                                    'waiting for another description')
+            return
+        self.destroy_subscription(self._description_subscription)
+
+    def _start(self, robot_description):
+        """Build the simulation the parameters (and `robot_description`, XML or '') ask
+        for, then its publishers, subscriptions, services and timer."""
+        scene = load_node_scene(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
+                                robot_description, self._robot[parameters.SAND_BODIES],
+                                self._overrides, DESCRIPTION_FOLDER)
         notice = compile_notice(scene)
         if notice:
             self.get_logger().info(notice)
@@ -58,7 +100,6 @@ class SimNode(Node):
         joint_names = self._declare(parameters.JOINT_NAMES,
                                     list(sim.servo_joint_names) or Parameter.Type.STRING_ARRAY)
         self._plates = self._declare(parameters.PLATES, False)
-        self._factory = RclpyFactory()
         self._topic_publishers = {
             topic: self.create_publisher(self._factory.message_class(msgtype), topic,
                                          TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH)

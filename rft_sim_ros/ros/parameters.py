@@ -21,6 +21,9 @@ class ParameterSpec:
 
 
 SCENE = 'scene'
+MODEL = 'model'
+ROBOT_DESCRIPTION = 'robot_description'
+SAND_BODIES = 'sand_bodies'
 SCENE_OVERRIDES = 'scene_overrides'
 ZETA = 'zeta'
 REAL_TIME_FACTOR = 'real_time_factor'
@@ -30,7 +33,14 @@ PAUSED = 'paused'
 PLATES = 'plates'
 
 PARAMETERS = (
-    ParameterSpec(SCENE, 'bundled scene name or path to a scene YAML', False),
+    ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
+    ParameterSpec(MODEL, 'robot file (MJCF .xml, URDF .urdf, xacro .xacro) to put in sand; '
+                         "with a scene, it replaces the scene's model", False),
+    ParameterSpec(ROBOT_DESCRIPTION, 'the robot as an XML string (URDF or MJCF), as '
+                                     'robot_state_publisher takes it; unset with scene and model '
+                                     'unset too: read from /robot_description', False),
+    ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.bodies): 'A,B*' names or glob "
+                               "patterns, or 'auto'", False),
     ParameterSpec(SCENE_OVERRIDES, "scene values as 'key=value' strings (as rft-sim run --set)",
                   False),
     ParameterSpec(ZETA, "sand stiffness, N/cm^3, 0 < zeta <= 100 (default: the scene's); "

@@ -116,12 +116,13 @@ def robot_scene(model_path):
     """The scene of a bare robot file (the mapping a scene YAML would hold): scenario
     `external` (the robot holds its pose and takes commands), paper sand (zeta 3.75
     N/cm^3), 1 ms steps, ROBOT_PLATES plates per sand body, the schema's default duration,
-    floating base; the sand bodies come from `rft.bodies` (`rft-sim run --sand-bodies`)."""
+    floating base lowered onto the sand and settled (spawn rest); sand bodies and legs auto
+    unless `rft.bodies` (`rft-sim run --sand-bodies`) names them."""
     return {'name': Path(model_path).name.split('.')[0], 'scenario': 'external',
             'description': f'{Path(model_path).name} in sand (external commands)',
             'model': str(Path(model_path).resolve()), 'timestep': 0.001, 'zeta': 3.75,
             'rft': {'plates_per_body': ROBOT_PLATES}, 'legs': 'auto',
-            'robot': {'base': 'floating'}}
+            'robot': {'base': 'floating', 'spawn': 'rest'}}
 
 
 def parse_assignment(text):
@@ -140,6 +141,31 @@ def parse_assignment(text):
         except ValueError:
             pass
     return key.strip(), parsed
+
+
+def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
+    """Scene overrides of the robot options: sand_bodies 'A,B*' or 'auto' -> rft.bodies,
+    ['NAME=DIR'] -> robot.package_paths (folders made absolute), ['K=V'] ->
+    robot.xacro_args. Raises SceneError on a malformed item."""
+    overrides = {}
+    if sand_bodies:
+        names = [name.strip() for name in sand_bodies.split(',') if name.strip()]
+        overrides['rft.bodies'] = 'auto' if names == ['auto'] else names
+    for key, items, option in (('robot.package_paths', package_paths, '--package-path'),
+                               ('robot.xacro_args', xacro_args, '--xacro-arg')):
+        if not items:
+            continue
+        mapping = {}
+        for item in items:
+            name, sep, value = item.partition('=')
+            if not sep or not name.strip():
+                raise SceneError(f'{option} expects NAME=VALUE, got {item!r}')
+            mapping[name.strip()] = value.strip()
+        if key == 'robot.package_paths':
+            mapping = {name: str(Path(folder).expanduser().resolve())
+                       for name, folder in mapping.items()}
+        overrides[key] = mapping
+    return overrides
 
 
 def apply_overrides(raw, overrides):

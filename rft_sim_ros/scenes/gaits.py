@@ -69,10 +69,41 @@ def _tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_
     return out
 
 
-def _smoothstep(u):
+def smoothstep(u):
     """0 for u <= 0, 1 for u >= 1, 3u^2 - 2u^3 between: continuous value and slope."""
     u = min(max(u, 0.0), 1.0)
     return u * u * (3.0 - 2.0 * u)
+
+
+class GaitClock:
+    """Phases and ramp of a periodic gait: leg phases from frequency_hz, start_time_s and
+    the legs' phase offsets `_offsets` (cycles), stroke scale from ramp_time_s; checks of
+    the values every such gait has."""
+
+    def check_values(self, *others):
+        """Raise ValueError unless frequency_hz > 0, 0 < stance_fraction < 1, step_height_m
+        and ramp_time_s >= 0, and these, step_length_m, start_time_s and the attributes
+        named in `others` are finite."""
+        for key in ('frequency_hz', 'stance_fraction', 'step_length_m', 'step_height_m',
+                    'start_time_s', 'ramp_time_s', *others):
+            if not math.isfinite(getattr(self, key)):
+                raise ValueError(f'{key} must be finite, got {getattr(self, key)}')
+        if self.frequency_hz <= 0.0:
+            raise ValueError(f'frequency_hz must be > 0, got {self.frequency_hz}')
+        if not 0.0 < self.stance_fraction < 1.0:
+            raise ValueError(f'stance_fraction must be in (0, 1), got {self.stance_fraction}')
+        if self.step_height_m < 0.0 or self.ramp_time_s < 0.0:
+            raise ValueError('step_height_m and ramp_time_s must be >= 0')
+
+    def phases(self, t):
+        """(N,) phase of each leg in [0, 1) at time t (s); stance while < stance_fraction."""
+        return np.mod(self.frequency_hz * (t - self.start_time_s) + self._offsets, 1.0)
+
+    def amplitude(self, t):
+        """Stroke and lift scale at time t (s): 0 before start_time_s, 1 after the ramp."""
+        if self.ramp_time_s == 0.0:
+            return 1.0 if t >= self.start_time_s else 0.0
+        return smoothstep((t - self.start_time_s) / self.ramp_time_s)
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +126,7 @@ class StandGait:
 
 
 @dataclass(frozen=True, eq=False)
-class TripodGait(StandGait):
+class TripodGait(GaitClock, StandGait):
     """Alternating tripod gait (RFT-SiM defaults), walking towards +x of base_link.
 
     Each leg has a phase phi = frac(frequency_hz * (t - start_time_s) + phase_offsets[leg]).
@@ -125,18 +156,7 @@ class TripodGait(StandGait):
     ramp_time_s: float = 0.5
 
     def __post_init__(self):
-        numbers = {'frequency_hz': self.frequency_hz, 'stance_fraction': self.stance_fraction,
-                   'step_length_m': self.step_length_m, 'step_height_m': self.step_height_m,
-                   'start_time_s': self.start_time_s, 'ramp_time_s': self.ramp_time_s}
-        for key, value in numbers.items():
-            if not math.isfinite(value):
-                raise ValueError(f'{key} must be finite, got {value}')
-        if self.frequency_hz <= 0.0:
-            raise ValueError(f'frequency_hz must be > 0, got {self.frequency_hz}')
-        if not 0.0 < self.stance_fraction < 1.0:
-            raise ValueError(f'stance_fraction must be in (0, 1), got {self.stance_fraction}')
-        if self.step_height_m < 0.0 or self.ramp_time_s < 0.0:
-            raise ValueError('step_height_m and ramp_time_s must be >= 0')
+        self.check_values()
         if set(self.phase_offsets) != set(self.legs.names):
             raise ValueError(f'phase_offsets must name exactly the legs {self.legs.names}, '
                              f'got {sorted(self.phase_offsets)}')
@@ -148,16 +168,6 @@ class TripodGait(StandGait):
             self.stance_fraction, self.step_length_m, self.step_height_m, self._neutral,
             legs.knee_xyz, legs.mid_length, legs.dactyl_length, legs.dactyl_neutral_angle))
         self._check_workspace()
-
-    def phases(self, t):
-        """(N,) phase of each leg in [0, 1) at time t (s); stance while < stance_fraction."""
-        return np.mod(self.frequency_hz * (t - self.start_time_s) + self._offsets, 1.0)
-
-    def amplitude(self, t):
-        """Stroke and lift scale at time t (s): 0 before start_time_s, 1 after the ramp."""
-        if self.ramp_time_s == 0.0:
-            return 1.0 if t >= self.start_time_s else 0.0
-        return _smoothstep((t - self.start_time_s) / self.ramp_time_s)
 
     def foot_offsets(self, t):
         """Foot targets relative to the neutral feet at time t (s): (dx, dz), each (N,) m,

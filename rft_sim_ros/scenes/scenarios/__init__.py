@@ -42,6 +42,28 @@ class BaseScenario:
                              f'got {value!r}')
         return float(value)
 
+    def choice(self, name, options):
+        """Scene value `name`, one of `options` (SceneError names the problem)."""
+        value = self.params.get(name)
+        if value not in options:
+            raise SceneError(f'scene {self.scene.name}: {name} must be one of {options}, '
+                             f'got {value!r}')
+        return value
+
+    def walking_gait(self, make):
+        """`make(**keywords)` with a walking scene's gait values: frequency (Hz),
+        stance_fraction, step_length and step_height (m), ramp_time (s), starting at
+        settle_time (s); SceneError names a bad value or gait."""
+        try:
+            return make(frequency_hz=self.number('frequency', positive=True),
+                        stance_fraction=self.number('stance_fraction'),
+                        step_length_m=self.number('step_length'),
+                        step_height_m=self.number('step_height', minimum=0.0),
+                        start_time_s=self.number('settle_time', minimum=0.0),
+                        ramp_time_s=self.number('ramp_time', minimum=0.0))
+        except ValueError as error:
+            raise SceneError(f'scene {self.scene.name}: gait: {error}') from None
+
     def duration(self):
         """Sim time (s) the scene needs when its YAML says `duration: auto`."""
         raise SceneError(f'scene {self.scene.name}: duration is auto, but its scenario has '

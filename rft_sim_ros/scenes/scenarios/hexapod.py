@@ -27,11 +27,12 @@ Metrics:
   peak_force_z_N_<leg>  largest vertical sand force on the leg during the walk;
   total_mass_kg         mass of the compiled model.
 """
+from functools import partial
+
 import numpy as np
 
 from ..gaits import make_gait
 from ..hexapod import FOOT_SITES, LEG_NAMES, PAYLOAD_GEOM
-from ..config import SceneError
 from . import BaseScenario
 
 #: Height of base_link above the foot tips in the neutral pose, m (docs/hexapod.md).
@@ -59,22 +60,9 @@ class Scenario(BaseScenario):
         self.cycles = self.number('cycles', positive=True)
         self.frequency = self.number('frequency', positive=True)
         self.stance_fraction = self.number('stance_fraction', minimum=0.0, maximum=1.0)
-        gait = self.params.get('gait')
-        if gait not in GAIT_NAMES:
-            raise SceneError(f'scene {scene.name}: gait must be one of {GAIT_NAMES}, '
-                             f'got {gait!r}')
         self.gait = None
-        if gait == 'tripod':
-            try:
-                self.gait = make_gait(
-                    'tripod', frequency_hz=self.frequency,
-                    stance_fraction=self.stance_fraction,
-                    step_length_m=self.number('step_length'),
-                    step_height_m=self.number('step_height', minimum=0.0),
-                    start_time_s=self.settle_time,
-                    ramp_time_s=self.number('ramp_time', minimum=0.0))
-            except ValueError as error:
-                raise SceneError(f'scene {scene.name}: gait: {error}') from None
+        if self.choice('gait', GAIT_NAMES) == 'tripod':
+            self.gait = self.walking_gait(partial(make_gait, 'tripod'))
         self.walk_time = self.cycles / self.frequency
         self._samples = []
 
