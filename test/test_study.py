@@ -215,3 +215,15 @@ def test_ray_backend_on_a_local_cluster(local_study, tmp_path):
         {k: v for k, v in r.items() if k != 'wall_time_s'} for r in result.rows]
     assert outcomes[0].value == 'item0' and outcomes[0].error is None
     assert outcomes[1].value is None and 'WorkerCrashedError' in outcomes[1].error
+
+
+def test_study_benchmark_pieces():
+    from rft_sim_ros.bench.study_scaling import gaps_between_runs, hexapod_study
+    study = hexapod_study(40)
+    assert len(study.runs) == 40 and study.keys == ('zeta', 'payload')
+    records = {'a': {'worker': 'w1', 'started_at': 10.0, 'finished_at': 11.0},
+               'b': {'worker': 'w1', 'started_at': 11.25, 'finished_at': 12.0},
+               'c': {'worker': 'w2', 'started_at': 10.5, 'finished_at': 11.5},
+               'd': {'worker': 'w2', 'started_at': 11.5, 'finished_at': 13.0},
+               'e': {'worker': None, 'started_at': None, 'finished_at': None}}
+    assert gaps_between_runs(records) == [0.25, 0.0]

@@ -5,10 +5,11 @@ speed-against-error sweep of `rft-sim bench` on one worker and on all cores.
 
     python -m rft_sim_ros.bench.study_scaling [--out DIR] [--runs 40] [--reuse]
 
-Overhead per run = (study wall time - the runs' own wall times - the workers' warm-up -
-the worker's start - the final table and plots) / runs, on one worker: scheduling, result
-transfer, the per-run summary and table writes. The once-per-study costs are reported beside
-it: the worker's start (a fresh interpreter importing the package) and the final outputs. Ratios come from runs measured back to back in one invocation; on a shared
+Overhead per run, on one worker: the time the worker waits between the end of one run and
+the start of the next (the median over the study, from the worker's own clock): result
+transfer, the parent's recording (the run's summary file, the table rewrites) and handing
+out the next run. The once-per-study costs are reported beside it: the worker's start (a
+fresh interpreter importing the package), its warm-up and the final table and plots. Ratios come from runs measured back to back in one invocation; on a shared
 machine the load during each phase is reported (1-minute load average before and after).
 """
 import argparse
@@ -46,20 +47,35 @@ def worker_start_s():
     return time.perf_counter() - started
 
 
+def gaps_between_runs(records):
+    """Per worker, the times (s) between one run's end and the next run's start."""
+    by_worker = {}
+    for record in records.values():
+        if record['started_at'] is not None:
+            by_worker.setdefault(record['worker'], []).append(
+                (record['started_at'], record['finished_at']))
+    gaps = []
+    for spans in by_worker.values():
+        spans.sort()
+        gaps += [start - end for (_, end), (start, _) in zip(spans, spans[1:])]
+    return gaps
+
+
 def _load():
     return os.getloadavg()[0]
 
 
 def _timed_study(study, out, start_s=0.0, **backend):
+    """Run `study` on `backend` into `out`: wall time, the runs' own times, warm-up, final
+    outputs, overhead per run (median gap between runs on a worker), load before/after."""
     load = _load()
     result = run_study(study, out, progress=False, **backend)
     walls = [r['wall_time_s'] for r in result.rows]
-    return {'worker_start_s': start_s,'backend': result.backend, 'wall_s': result.wall_s, 'runs': len(result.rows),
+    return {'backend': result.backend, 'wall_s': result.wall_s, 'runs': len(result.rows),
             'failed': result.failed, 'run_wall_sum_s': sum(walls),
-            'run_wall_median_s': statistics.median(walls), 'warm_s': result.warm_s,
-            'outputs_s': result.outputs_s,
-            'overhead_per_run_s': (result.wall_s - sum(walls) - result.warm_s - start_s
-                                   - result.outputs_s) / len(walls),
+            'run_wall_median_s': statistics.median(walls), 'worker_start_s': start_s,
+            'warm_s': result.warm_s, 'outputs_s': result.outputs_s,
+            'overhead_per_run_s': statistics.median(gaps_between_runs(result.records)),
             'load_before': load, 'load_after': _load(), 'rows': result.rows}
 
 

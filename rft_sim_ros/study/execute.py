@@ -55,9 +55,11 @@ def warm(scene, overrides):
 def execute(task):
     """Run `task` (a RunTask); return its record: run_id, stable, reason, wall_time_s (s: the
     whole run in the worker, scene loading included, warm-up excluded), warm_s (s spent
-    warming this worker first, 0 after its first run), worker (host:pid) and summary
-    (run_scene's summary dict, None when the run raised or timed out)."""
+    warming this worker first, 0 after its first run), started_at / finished_at (the
+    worker's clock, s since the epoch), worker (host:pid) and summary (run_scene's summary
+    dict, None when the run raised or timed out)."""
     warm_s = warm(task.scene, task.overrides)
+    started_at = time.time()
     started = time.perf_counter()
     summary, reason = None, None
     try:
@@ -73,6 +75,7 @@ def execute(task):
         summary.pop('machine', None)  # the same for every run: once per study, not per row
     return {'run_id': task.run_id, 'stable': reason is None, 'reason': reason,
             'wall_time_s': time.perf_counter() - started, 'warm_s': warm_s,
+            'started_at': started_at, 'finished_at': time.time(),
             'worker': f'{socket.gethostname()}:{os.getpid()}', 'summary': summary}
 
 
@@ -100,4 +103,5 @@ def time_limit(seconds):
 def failure_record(run_id, reason):
     """The record of a run that came back without one (its worker died)."""
     return {'run_id': run_id, 'stable': False, 'reason': reason, 'wall_time_s': None,
-            'warm_s': 0.0, 'worker': None, 'summary': None}
+            'warm_s': 0.0, 'started_at': None, 'finished_at': None, 'worker': None,
+            'summary': None}

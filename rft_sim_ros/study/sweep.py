@@ -32,11 +32,13 @@ TABLE_EVERY_S = 2.0
 
 @dataclass
 class StudyResult:
-    """rows: the table rows in run order; ran / failed: runs executed this time and how many
+    """rows: the table rows in run order; records: {run_id: record} of the runs executed
+    now (see execute); ran / failed: runs executed this time and how many
     of all rows are not stable; resumed: runs found finished on disk; wall_s: this session;
     warm_s: time the workers spent warming up (s, summed); outputs_s: writing the final
     table and plots (s); backend: where the runs ran."""
     rows: list
+    records: dict
     ran: int
     resumed: int
     failed: int
@@ -79,7 +81,8 @@ def _save(out, run, record):
     content = {'study_run': {
         'run_id': run.run_id, 'varied': run.varied, 'repeat': run.repeat,
         'overrides': run.overrides, 'wall_time_s': record['wall_time_s'],
-        'warm_s': record.get('warm_s'),
+        'warm_s': record.get('warm_s'), 'started_at': record.get('started_at'),
+        'finished_at': record.get('finished_at'),
         'stable': record['stable'], 'reason': record['reason'], 'worker': record['worker']},
         'summary': record['summary']}
     path = _summary_path(out, run.run_id)
@@ -121,13 +124,14 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     names = table.columns(study)
     done = failed = 0
     warm_s = 0.0
+    executed = {}
     last_table = time.monotonic()
     try:
         for outcome in outcomes:
             run_id = tasks[outcome.index].run_id
             record = outcome.value if outcome.error is None else failure_record(
                 run_id, outcome.error)
-            records[run_id] = record
+            records[run_id] = executed[run_id] = record
             warm_s += record['warm_s']
             _save(out, by_id[run_id], record)
             done += 1
@@ -145,7 +149,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     table.write_csv(out / 'results.csv', names, rows)
     table.write_npz(out / 'results.npz', names, rows)
     names_written = plots.plot_study(out, study, rows)
-    result = StudyResult(rows=rows, ran=done, resumed=resumed,
+    result = StudyResult(rows=rows, records=executed, ran=done, resumed=resumed,
                          failed=sum(not r['stable'] for r in rows),
                          wall_s=time.perf_counter() - started, warm_s=warm_s,
                          outputs_s=time.perf_counter() - finishing, backend=backend,
