@@ -124,11 +124,15 @@ def _from_urdf(root, where, base_dir, resolver, base):
 def _from_mjcf(text, path, where):
     spec = _spec(lambda: (mujoco.MjSpec.from_file(str(path)) if path is not None
                           else mujoco.MjSpec.from_string(text)), where)
-    model = _check_compiles(spec, where)
+    # effort limits read from the spec, not a compiled model: compiling here would also
+    # process every visual mesh (seconds for a vendor model), which the simulation discards
     effort = {}
-    for j in range(model.njnt):
-        if model.jnt_actfrclimited[j]:
-            effort[model.joint(j).name] = float(max(abs(model.jnt_actfrcrange[j])))
+    for joint in spec.joints:
+        limited = joint.actfrclimited == mujoco.mjtLimited.mjLIMITED_TRUE or (
+            joint.actfrclimited == mujoco.mjtLimited.mjLIMITED_AUTO
+            and spec.compiler.autolimits and any(joint.actfrcrange))
+        if limited and joint.name:
+            effort[joint.name] = float(max(abs(joint.actfrcrange)))
     return RobotDescription(spec=spec, kind='mjcf', effort_limits=effort)
 
 
