@@ -15,6 +15,7 @@ are continuous from the pose the robot holds at start.
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from rft_sim_ros.scenes.gaits import GaitClock, foot_path
 
@@ -39,6 +40,26 @@ def leg_forward(hip, knee, l1=THIGH_LENGTH, l2=CALF_LENGTH):
     """Foot centre (x, z), m, relative to the hip-pitch axis for hip pitch and knee (rad)."""
     return (-l1 * np.sin(hip) - l2 * np.sin(hip + knee),
             -l1 * np.cos(hip) - l2 * np.cos(hip + knee))
+
+
+@njit(cache=True)
+def _trot_targets(cycles, offsets, scale, beta, length, height, neutral_x, neutral_z, l1, l2):
+    """Joint targets (rad, per leg abduction 0, hip pitch, knee) `cycles` trot cycles after
+    the start, for legs at phase `offsets` with stroke and lift times `scale`: the foot
+    path, then `leg_inverse` (the path is checked to be reachable beforehand)."""
+    phases = np.empty(offsets.shape[0])
+    for i in range(offsets.shape[0]):
+        phases[i] = (cycles + offsets[i]) % 1.0
+    dx, dz = foot_path(phases, beta, scale * length, scale * height)
+    out = np.zeros(3 * offsets.shape[0])
+    for i in range(offsets.shape[0]):
+        x, z = neutral_x + dx[i], neutral_z + dz[i]
+        knee = -np.arccos(min(max((x * x + z * z - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0),
+                              1.0))
+        out[3 * i + 1] = np.arctan2(-x, -z) + np.arctan2(l2 * np.sin(-knee),
+                                                          l1 + l2 * np.cos(knee))
+        out[3 * i + 2] = knee
+    return out
 
 
 def leg_inverse(x, z, l1=THIGH_LENGTH, l2=CALF_LENGTH):
@@ -79,7 +100,8 @@ class TrotGait(GaitClock):
     def __post_init__(self):
         self.check_values('stand_hip', 'stand_knee')
         object.__setattr__(self, '_offsets', np.array([TROT_PHASES[leg] for leg in LEGS]))
-        object.__setattr__(self, '_neutral', leg_forward(self.stand_hip, self.stand_knee))
+        object.__setattr__(self, '_neutral', tuple(float(v) for v in leg_forward(
+            self.stand_hip, self.stand_knee)))
         phi = np.linspace(0.0, 1.0, 361)
         dx, dz = foot_path(phi, self.stance_fraction, self.step_length_m, self.step_height_m)
         try:
@@ -93,8 +115,7 @@ class TrotGait(GaitClock):
 
     def targets(self, t):
         """Joint position targets (rad), shape (12,), in JOINT_NAMES order, at time t (s)."""
-        scale = self.amplitude(t)
-        dx, dz = foot_path(self.phases(t), self.stance_fraction,
-                           scale * self.step_length_m, scale * self.step_height_m)
-        hip, knee = leg_inverse(self._neutral[0] + dx, self._neutral[1] + dz)
-        return np.stack([np.zeros(len(LEGS)), hip, knee], axis=1).ravel()
+        return _trot_targets(self.frequency_hz * (t - self.start_time_s), self._offsets,
+                             self.amplitude(t), self.stance_fraction, self.step_length_m,
+                             self.step_height_m, self._neutral[0], self._neutral[1],
+                             THIGH_LENGTH, CALF_LENGTH)

@@ -33,7 +33,7 @@ class Scenario(BaseScenario):
 
     def _command_order(self, sim):
         """Command slot of each gait joint (the gait's targets go there; other commanded
-        joints keep their targets)."""
+        joints keep the targets they had when the gait took over)."""
         if sim.commands is None:
             raise SceneError(f'scene {self.scene.name}: the model has no position command '
                              'interface for the gait')
@@ -50,6 +50,6 @@ class Scenario(BaseScenario):
             return
         if self._order is None:
             self._order = self._command_order(sim)
-        targets = sim.commands.sample(sim.time).positions.copy()
-        targets[self._order] = self.gait.targets(sim.data.time)
-        sim.commands.set_positions(targets, now=sim.time)
+            self._targets = sim.commands.sample(sim.time).positions.copy()
+        self._targets[self._order] = self.gait.targets(sim.data.time)
+        sim.commands.set_positions(self._targets, now=sim.time)
