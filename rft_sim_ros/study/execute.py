@@ -33,6 +33,10 @@ class RunTask:
     timeout: float = None
 
 
+#: After a run's time limit, SIGALRM repeats at this interval until the run stops, s.
+REPEAT_S = 0.25
+
+
 class RunTimeout(Exception):
     """The run exceeded its time limit."""
 
@@ -45,10 +49,12 @@ def warm(scene, overrides):
         return 0.0
     _warmed.add(scene)
     started = time.perf_counter()
-    try:
-        Simulation(load_scene(scene, overrides)).step(2)
-    except Exception:  # noqa: BLE001 - the run itself reports what is wrong
-        pass
+    for values in (overrides, {}):  # the run's values; if they fail, the scene's own
+        try:
+            Simulation(load_scene(scene, values)).step(2)
+            break
+        except Exception:  # noqa: BLE001 - the run itself reports what is wrong
+            continue
     return time.perf_counter() - started
 
 
@@ -81,9 +87,11 @@ def execute(task):
 
 @contextmanager
 def time_limit(seconds):
-    """Raise RunTimeout in the block once `seconds` (wall) have passed (None: no limit).
-    Uses SIGALRM, so it acts only in a process's main thread (where both backends run tasks);
-    elsewhere the block runs unlimited and the backend's own limit applies."""
+    """Raise RunTimeout in the block once `seconds` (wall) have passed (None: no limit), and
+    again every REPEAT_S after, in case native code swallowed the first (an exception raised
+    inside a C callback is lost). Uses SIGALRM, so it acts only in a process's main thread
+    (where both backends run tasks); elsewhere the block runs unlimited and the backend's
+    own limit applies."""
     if seconds is None or threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -92,7 +100,7 @@ def time_limit(seconds):
         raise RunTimeout()
 
     previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, max(1e-3, float(seconds)))
+    signal.setitimer(signal.ITIMER_REAL, max(1e-3, float(seconds)), REPEAT_S)
     try:
         yield
     finally:
