@@ -8,6 +8,7 @@
                     [--set-at T:zeta=Z ...] [--out DIR] [--no-bag] [--plates]
   rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
+  rft-sim warmup
   rft-sim sweep STUDY.yaml [--out DIR] [--workers N | --ray auto|ADDRESS] [--resume]
                            [--run-timeout S]
 
@@ -93,6 +94,15 @@ def parse_timed_assignment(text):
     return at, SettingChange(key, value)
 
 
+def say_if_cold():
+    """Before a command that builds a simulation: say at once when the kernels must first be
+    compiled (kernel_cache.notice), instead of leaving a cold start silent."""
+    from .kernel_cache import notice
+    line = notice()
+    if line:
+        print(f'rft-sim: {line}', file=sys.stderr, flush=True)
+
+
 def warn(message):
     """One `rft-sim: warning: ...` line on stderr (the run goes on)."""
     print(f'rft-sim: warning: {message}', file=sys.stderr)
@@ -164,6 +174,7 @@ def cmd_run(args):
     if not args.no_bag and (out / 'bag').exists():
         raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
                          'or pass --no-bag')
+    say_if_cold()
     created = next((folder for folder in reversed((out, *out.parents))
                     if not folder.exists()), None)  # the first folder this run makes
     output_folder(out)
@@ -232,6 +243,7 @@ def cmd_validate(args):
     log = lambda line: print(f'validate: {line}', file=sys.stderr)  # noqa: E731
     args.out = output_folder(args.out or fresh_folder('stability' if args.stability
                                                       else 'validate'))
+    say_if_cold()
     if args.stability:
         from .validation.stability import run_stability
         suite = run_stability(args.out, quick=args.quick, log=log)
@@ -252,6 +264,7 @@ def cmd_validate(args):
 def cmd_bench(args):
     from .bench import run_bench
     args.out = output_folder(args.out or fresh_folder('bench'))
+    say_if_cold()
     results = run_bench(args.out, quick=args.quick,
                         log=lambda line: print(f'bench: {line}', file=sys.stderr))
     cost = results['step_cost']
@@ -278,6 +291,18 @@ def cmd_sweep(args):
           f'{result.failed} not stable; {result.wall_s:.1f} s')
     print(f'wrote {Path(out) / "results.csv"}', file=sys.stderr)
     return 0
+
+
+def cmd_warmup(args):
+    import time
+    from .kernel_cache import cached_kernels, warm_up
+    say_if_cold()
+    started = time.perf_counter()
+    missing = warm_up(log=lambda line: print(line, file=sys.stderr))
+    print(f'{len(cached_kernels()) - len(missing)} of {len(cached_kernels())} kernels cached '
+          f'({time.perf_counter() - started:.1f} s)' + (f'; not cached: {", ".join(missing)}'
+                                                       if missing else ''))
+    return 1 if missing else 0
 
 
 def build_parser():
@@ -323,6 +348,9 @@ def build_parser():
                      help='record the active plates (/rft/plates markers) in the bag')
     run.add_argument('--quiet', action='store_true', help='no progress bar')
     run.set_defaults(func=cmd_run)
+    commands.add_parser(
+        'warmup', help='compile the kernels now (a first run does it otherwise, ~1 min)'
+    ).set_defaults(func=cmd_warmup)
     bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')
     bench.add_argument('--quick', action='store_true', help='few, short measurements')
     bench.add_argument('--out', help='output folder (default: a fresh runs/bench-<time>; '

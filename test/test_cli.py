@@ -201,3 +201,31 @@ def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, sig
         clocks = [m for m in bag.messages() if m[0].topic == '/clock']
     published = round(summary['sim_time_s'] * 100)        # 100 Hz publish rate
     assert abs(len(clocks) - published) <= 1
+
+
+# --- first run: a cold kernel cache is announced at once ---------------------------------------
+
+def test_a_cold_kernel_cache_is_announced_before_compiling(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'empty-cache'))
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--out',
+         str(tmp_path / 'run'), '--quiet'], env=env, stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE, text=True)
+    try:
+        started = time.monotonic()
+        first = child.stderr.readline()
+        waited = time.monotonic() - started
+    finally:
+        child.kill()
+        child.communicate()
+    assert first.startswith('rft-sim: compiling kernels, first run only, ~'), first
+    assert waited < 20  # at start-up (a few s of imports), not after the 30-60 s compile
+
+
+def test_warmup_leaves_every_kernel_cached(capsys):
+    from rft_sim_ros import kernel_cache
+    assert main(['warmup']) == 0
+    total = len(kernel_cache.cached_kernels())
+    assert total >= 20  # the engine's, the law's and the gaits' kernels were all found
+    assert f'{total} of {total} kernels cached' in capsys.readouterr().out
+    assert not kernel_cache.cold() and kernel_cache.notice() is None
