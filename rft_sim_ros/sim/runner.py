@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from .. import __version__
+from ..sand.timestep import timestep_bound, timestep_problem
 from .metrics import GenericMetrics
 from ..scenes.scenarios import load_scenario
 from .publishing import PublishSchedule
@@ -125,6 +126,9 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     MuJoCo's messages go to out_dir/mujoco.log (see `mujoco_log`).
     log: called with each start-up notice of the Simulation (e.g. the sand bodies `auto`
     chose), before the first step.
+    A timestep longer than the sand coupling resolves at the run's largest zeta
+    (sand/timestep.py) is said through log('warning: ...') before the first step, and the
+    run is reported not stable with that reason.
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
     part of wall_time_s spent in the recorders; generic_metrics: sim/metrics.py, those of
     every scene, next to the scenario's own `metrics`).
@@ -161,6 +165,10 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         for notice in sim.notices if log else ():
             log(notice)
         generic = GenericMetrics(sim)
+        zeta_max = max([scene.zeta, *(change['zeta'] for change in changes if 'zeta' in change)])
+        coarse = timestep_problem(sim.engine, sim.timestep, zeta_max)
+        if coarse and log is not None:
+            log(f'warning: {coarse}')
         steps = int(round(duration / sim.timestep))
         publishing = PublishSchedule(scene.publish_rate, sim.timestep)
         cycle, next_publish = 1, publishing.end_step(1)
@@ -211,9 +219,13 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
             recorder.close()
     sim_time = sim.steps * sim.timestep
     metrics = {**sim.scenario.metrics(sim), **sim.terrain_metrics()} if done else {}
+    if reason is None and coarse:
+        reason = coarse
+    stable = reason is None  # neither diverged nor too coarse a timestep
     if interrupted:
-        reason = (f'interrupted at t = {sim_time:.4f} s of {duration:g} s '
-                  f'({getattr(stop, "reason", None) or "stopped on request"})')
+        reason = '; '.join(filter(None, (
+            f'interrupted at t = {sim_time:.4f} s of {duration:g} s '
+            f'({getattr(stop, "reason", None) or "stopped on request"})', reason)))
     summary = {
         'scene': scene.name,
         'description': scene.description,
@@ -221,6 +233,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'zeta_final': sim.zeta,
         'schedule': changes,
         'timestep_s': sim.timestep,
+        'timestep_bound_s': timestep_bound(sim.engine, zeta_max)[0],
         'sim_time_s': sim_time,
         'wall_time_s': wall,
         'recording_time_s': recording,
@@ -240,11 +253,11 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'implicit_solves_per_step': sim.engine.solves / max(1, sim.steps),
         'implicit_unsettled_steps': sim.engine.unsettled_steps,
         'normalisation': scene.normalisation,
-        'stable': reason is None or interrupted,
+        'stable': stable,
         'interrupted': interrupted,
         'reason': reason,
         'metrics': finite(metrics),
-        'generic_metrics': finite(generic.result(stable=reason is None or interrupted)),
+        'generic_metrics': finite(generic.result(stable=stable)),
         'scene_config': scene.raw,
         'machine': machine_info(),
     }
