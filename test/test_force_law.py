@@ -167,3 +167,35 @@ def test_nearly_horizontal_plate_moving_vertically_turns_with_the_scene():
     after = plate_forces([[0, 0, -0.1]], [turn @ n], [1e-4], [[0, 0, 1.0]], ZETA)[0]
     assert np.linalg.norm(before) > 0
     assert np.allclose(after, turn @ before, atol=1e-12)
+
+
+def test_normals_that_are_not_unit_vectors_are_refused():
+    rng = np.random.default_rng(3)
+    normals = rng.normal(size=(1606, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    args = dict(positions=np.full((1606, 3), -0.02), areas=np.full(1606, 1e-4),
+                velocities=rng.normal(size=(1606, 3)), zeta=ZETA)
+    plate_forces(normals=normals, **args)                 # unit: accepted
+    for bad in (normals * 1.01, np.vstack([normals[:-1], [[0.0, 0.0, 0.0]]]),
+                np.vstack([normals[:-1], [[np.nan, 0.0, 1.0]]])):
+        with pytest.raises(ValueError, match='normals must be unit vectors'):
+            plate_forces(normals=bad, **args)
+
+
+@pytest.mark.parametrize('rounding', [1e-17, -1e-17, 0.0])
+def test_a_plate_sliding_in_its_own_plane_trails_whatever_the_rounding(rounding):
+    """One leading rule (force_law.TANGENTIAL) in the reference, the compiled law and the
+    engine: n . v within rounding of 0 is sliding, not leading."""
+    from rft_sim_ros.rft.coefficients import NORMALISATIONS
+    from rft_sim_ros.rft.force_law import TANGENTIAL
+    from rft_sim_ros.rft.kernel import plate_forces_compiled
+    from rft_sim_ros.sand import coupling
+    assert coupling.TANGENTIAL is TANGENTIAL
+    normal = np.array([[1.0, 0.0, 0.0]])
+    velocity = np.array([[rounding, 0.05, 0.0]])          # along the plate's own plane
+    args = (np.array([[0.0, 0.0, -0.02]]), normal, np.array([1e-4]), velocity)
+    assert not plate_forces(*args, zeta=ZETA).any()
+    norm = NORMALISATIONS['treers']
+    assert not plate_forces_compiled(*args, zeta_to_si(ZETA), 0.0, norm.a4, norm.b4, 0.0).any()
+    velocity[0, 0] = 1e-6                                 # a real normal component leads
+    assert plate_forces(*args, zeta=ZETA).any()

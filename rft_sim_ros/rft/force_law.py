@@ -11,7 +11,7 @@ positions m, normals unitless (outward, unit length), areas m^2, velocities m/s,
 acting ON the body. zeta is in N/cm^3 (the paper's unit) and converted once via
 `rft_sim_ros.units`.
 
-Per plate j with depth z = surface_height - p_z > 0 and leading (n . v > 0):
+Per plate j with depth z = surface_height - p_z > 0 and leading (n . v > TANGENTIAL |v|):
     e2 = horizontal projection of n, normalised (of v when the plate is nearly horizontal;
          the other one where that vanishes),
     e1 = e2 x E3, v1 = (v.e1) e1, v23 = v - v1  (v the unit velocity),
@@ -30,6 +30,18 @@ from . import coefficients as co
 
 #: A plate whose outward normal has |n_z| at least this is treated as horizontal (Treers).
 HORIZONTAL_NZ = 1.0 - 1e-3
+
+#: The leading rule, one for this reference, the compiled law and the engine: a plate leads
+#: only if n . v exceeds TANGENTIAL x a speed scale (here and in the compiled law the plate's
+#: speed |v|; in the engine its body's origin speed + radius x angular speed, which bounds
+#: every plate's). A plate sliding in its own plane (n . v = 0 up to rounding, e.g. the end
+#: faces of a blade turning about its long axis) then stays trailing, instead of flipping to
+#: a full RFT force on the rounding's sign.
+TANGENTIAL = 1e-12
+
+#: Normals whose length differs from 1 by more than this are refused: a plate's normal is a
+#: direction, and the flat-plate switch and the cos 2 beta form assume unit length.
+NORMAL_LENGTH_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -51,10 +63,12 @@ def plate_forces(positions, normals, areas, velocities, zeta, surface_height=0.0
     surface_height: z of the horizontal sand surface, m (depth is measured from it).
     normalisation: 'treers' (f1(1) = f23(1) = 1) or 'rft_sim' (the RFT-SiM code's values).
     dynamic: a DynamicTerm to add the rate-dependent stress, or None (rate independent).
-    Returns (N, 3) forces, N. Plates above the surface or trailing (n . v <= 0) feel zero.
+    Returns (N, 3) forces, N. Plates above the surface, trailing or sliding in their own
+    plane (n . v <= TANGENTIAL |v|) feel zero. Raises ValueError for normals that are not
+    unit vectors (within NORMAL_LENGTH_TOLERANCE).
     """
     positions = np.asarray(positions, dtype=float).reshape(-1, 3)
-    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    normals = unit_normals(normals)
     velocities = np.asarray(velocities, dtype=float).reshape(-1, 3)
     areas = np.asarray(areas, dtype=float).reshape(-1)
     norm = co.normalisation(normalisation)
@@ -63,7 +77,8 @@ def plate_forces(positions, normals, areas, velocities, zeta, surface_height=0.0
     forces = np.zeros_like(positions)
     depth = surface_height - positions[:, 2]
     speed = np.linalg.norm(velocities, axis=1)
-    active = (depth > 0.0) & (np.einsum('ij,ij->i', normals, velocities) > 0.0) & (speed > 0.0)
+    active = ((depth > 0.0) & (np.einsum('ij,ij->i', normals, velocities) > TANGENTIAL * speed)
+              & (speed > 0.0))
     if not np.any(active):
         return forces
     n = normals[active]
@@ -90,6 +105,20 @@ def plate_forces(positions, normals, areas, velocities, zeta, surface_height=0.0
         stress = dynamic.lam * dynamic.density * vn_speed ** 2
         forces[active] -= (stress * areas[active])[:, None] * n
     return forces
+
+
+def unit_normals(normals):
+    """`normals` as an (N, 3) float array, checked to be unit vectors (ValueError naming the
+    first that is not: RFT's angles are those of a direction, so a scaled normal would give
+    another force, not a scaled one)."""
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    error = np.abs(np.linalg.norm(normals, axis=1) - 1.0)
+    bad = ~(error <= NORMAL_LENGTH_TOLERANCE)  # NaN included
+    if np.any(bad):
+        j = int(np.argmax(bad))
+        raise ValueError(f'normals must be unit vectors: normal {j} {normals[j].tolist()} has '
+                         f'length {np.linalg.norm(normals[j]):.9g}')
+    return normals
 
 
 def _e2_directions(n, v):

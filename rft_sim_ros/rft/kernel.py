@@ -19,7 +19,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from . import coefficients as co
-from .force_law import HORIZONTAL_NZ
+from .force_law import HORIZONTAL_NZ, TANGENTIAL
 
 _TANH_A3 = float(np.tanh(co._F1_A3))
 _ATANH_B3 = float(np.arctanh(co._F23_B3))
@@ -182,7 +182,8 @@ def leading_forces(count, table, inv_a4, inv_b4, dyn_lam_rho, fx, fy, fz):
 def plate_forces_compiled(positions, normals, areas, velocities, zeta_si, surface_height,
                           a4, b4, dyn_lam_rho):
     """Compiled `force_law.plate_forces`: arrays as there (SI; zeta_si in N/m^3). Returns
-    (N, 3) forces, N. Plates above the surface or trailing (n . v <= 0) feel zero."""
+    (N, 3) forces, N. Plates above the surface or not leading (n . v <= TANGENTIAL |v|) feel
+    zero."""
     n = areas.shape[0]
     table = np.zeros((LAW_ROWS, n))
     for j in range(n):
@@ -190,7 +191,7 @@ def plate_forces_compiled(positions, normals, areas, velocities, zeta_si, surfac
         vx, vy, vz = velocities[j, 0], velocities[j, 1], velocities[j, 2]
         n_v = normals[j, 0] * vx + normals[j, 1] * vy + normals[j, 2] * vz
         speed = np.sqrt(vx * vx + vy * vy + vz * vz)
-        feels = depth > 0.0 and n_v > 0.0 and speed > 0.0
+        feels = depth > 0.0 and n_v > TANGENTIAL * speed and speed > 0.0
         inv = 1.0 / speed if speed > 0.0 else 0.0
         for a in range(3):
             table[NORMAL + a, j] = normals[j, a]

@@ -34,6 +34,7 @@ from numba import njit
 
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
+from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
 from .deformable import mark as mark_footprint
@@ -75,12 +76,6 @@ def cluster_plates(centroids, size=32):
         pending.extend([ranked[half:], ranked[:half]])
     return np.array(order, dtype=np.int64), np.array(starts, dtype=np.int64)
 
-
-#: A plate leads only if n . v exceeds this fraction of its body's speed scale (origin
-#: speed + radius x angular speed): a plate sliding in its own plane (n . v = 0, e.g. the
-#: end faces of a blade turning about its long axis) then stays trailing whatever the
-#: rounding of n . v, instead of flipping to a full RFT force on the rounding's sign.
-TANGENTIAL = 1e-12
 
 #: Rows of the gathered-plate table after the law's (`kernel.NORMAL` ... `kernel.DIRECTION`):
 MOMENT = LAW_ROWS      # r x d, m (3 rows): rows DIRECTION .. MOMENT + 2 are u = [d; r x d]
