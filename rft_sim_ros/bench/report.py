@@ -98,34 +98,36 @@ def markdown(results):
 
 
 def plot_pareto(path, sweeps):
-    """One panel per scene: relative error against wall time per simulated second."""
+    """One panel per scene: relative error against wall time per simulated second; labels
+    (plates per body / dt in ms) on the default and the front first, then on the others
+    where they do not overlap one already placed."""
     columns = 4
     rows = math.ceil(len(sweeps) / columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 4.0 * rows), squeeze=False)
+    floor = 1e-6
     for ax, sweep in zip(axes.flat, sweeps):
-        floor = 1e-6
-        for r in sweep['rows']:
-            error = max(r['relative_error'], floor) if math.isfinite(r['relative_error']) else None
-            if error is None:
-                continue
-            ax.scatter(r['wall_s_per_sim_s'], error, s=60 if r['default'] else 25,
-                       marker='*' if r['default'] else 'o',
+        points = [(r, r['wall_s_per_sim_s'], max(r['relative_error'], floor))
+                  for r in sweep['rows'] if math.isfinite(r['relative_error'])]
+        for r, x, y in points:
+            ax.scatter(x, y, s=70 if r['default'] else 25, marker='*' if r['default'] else 'o',
                        color='tab:red' if r['on_front'] else 'tab:gray', zorder=3)
-            ax.annotate(f'{r["plates_per_body"]}/{r["timestep_s"] * 1e3:g}',
-                        (r['wall_s_per_sim_s'], error), fontsize=6, xytext=(3, 3),
-                        textcoords='offset points')
-        front = sorted((r['wall_s_per_sim_s'], max(r['relative_error'], floor))
-                       for r in sweep['rows'] if r['on_front'] and math.isfinite(r['relative_error']))
+        front = sorted((x, y) for r, x, y in points if r['on_front'])
         if front:
             ax.step(*zip(*front), where='post', color='tab:red', linewidth=1)
         ax.set_xscale('log')
         ax.set_yscale('log')
+        ax.margins(x=0.15, y=0.15)
         ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))  # a short span: 1-2-5 labels
         ax.xaxis.set_minor_formatter(FormatStrFormatter('%g'))
         ax.tick_params(labelsize=7)
-        ax.set_title(f'{sweep["scene"]}', fontsize=9)
+        floored = any(r['relative_error'] < floor for r, _, _ in points)
+        ax.set_title(f'{sweep["scene"]}' + (f' (errors < {floor:g} shown at {floor:g})'
+                                             if floored else ''), fontsize=9)
         ax.set_xlabel('wall s per sim s', fontsize=8)
         ax.set_ylabel('relative error', fontsize=8)
+        ranked = sorted(points, key=lambda p: (not p[0]['default'], not p[0]['on_front']))
+        _label_without_overlap(fig, ax, [(f'{r["plates_per_body"]}/{r["timestep_s"] * 1e3:g}',
+                                          x, y) for r, x, y in ranked])
     for ax in list(axes.flat)[len(sweeps):]:
         ax.axis('off')
     fig.suptitle('Speed against error (labels: plates per body / dt in ms; star: default; '
@@ -133,6 +135,32 @@ def plot_pareto(path, sweeps):
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+#: Where a point's label may go, in points from the point (tried in this order).
+_LABEL_OFFSETS = ((4, 4), (4, -11), (-6, 6), (-6, -12))
+
+
+def _label_without_overlap(fig, ax, labels):
+    """Annotate (text, x, y) in order, each at the first offset where it overlaps neither
+    a label already placed nor the panel's edge; a label with no such place is left out.
+    Returns the placed labels' boxes (display coordinates)."""
+    fig.canvas.draw()  # final limits and transforms
+    renderer = fig.canvas.get_renderer()
+    panel = ax.get_window_extent(renderer)
+    placed = []
+    for text, x, y in labels:
+        for dx, dy in _LABEL_OFFSETS:
+            label = ax.annotate(text, (x, y), xytext=(dx, dy), textcoords='offset points',
+                                fontsize=7, ha='left' if dx > 0 else 'right')
+            box = label.get_window_extent(renderer).expanded(1.05, 1.1)
+            inside = (panel.x0 <= box.x0 and box.x1 <= panel.x1
+                      and panel.y0 <= box.y0 and box.y1 <= panel.y1)
+            if inside and not any(box.overlaps(other) for other in placed):
+                placed.append(box)
+                break
+            label.remove()
+    return placed
 
 
 def plot_scaling(path, scaling):

@@ -1,6 +1,6 @@
 """The RFT-SiM paper's figures that the validation compares against (Brown, Treers, Daltorio,
 "Simulating Robotic Locomotion in Sand: Resistive Force Theory in an Open-Source Physics
-Engine"; shared/reference/facts.md section 4). SI units. Only numbers the text states; the
+Engine"; code github.com/Crab-Lab-CWRU/RFT-SiM; docs/references.md). SI units. Only numbers the text states; the
 paper's plots are not digitised.
 """
 

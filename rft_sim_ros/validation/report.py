@@ -112,8 +112,13 @@ def write(path, r):
          '**Full run**: the scenes\' timesteps, and plates at or above their defaults.'),
         f'Plates per sand body: intruders {s.rail_plates}, articulated leg {s.leg_plates} '
         f'(timestep {1e3 * s.leg_timestep:g} ms), hexapod {s.hexapod_plates}. Paper: '
-        'see `shared/reference/facts.md` section 4; the paper gives few absolute numbers and '
-        'its plots are not digitised, so most comparisons are relative.',
+        'R. W. Brown, L. K. Treers, K. A. Daltorio, "Simulating Robotic Locomotion in Sand: '
+        'Resistive Force Theory in an Open-Source Physics Engine" (code: '
+        'github.com/Crab-Lab-CWRU/RFT-SiM; its figures: `docs/references.md`); the paper gives '
+        'few absolute numbers and '
+        'its plots are not digitised, so most comparisons are relative. The law: 3D RFT of '
+        'Treers et al. 2021 (IEEE RA-L 6(2)) over the generic coefficients of Li et al. 2013 '
+        '(Science 339:1408).',
         '',
         '## Our figures beside the paper\'s',
         '',

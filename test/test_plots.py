@@ -1,0 +1,91 @@
+"""Plots a user reads: titled, legends off the data, nothing clipped, labels that do not
+overlap, axes from zero where a trend is small. Checked on the figures themselves."""
+from types import SimpleNamespace
+
+import matplotlib
+import numpy as np
+import pytest
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+
+from rft_sim_ros.bench import report as bench_report  # noqa: E402
+from rft_sim_ros.validation import plots  # noqa: E402
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures the validation plots would save, kept open for inspection."""
+    kept = []
+    monkeypatch.setattr(plots, '_save', lambda fig, out, name: kept.append(fig) or name)
+    yield kept
+    for fig in kept:
+        plt.close(fig)
+
+
+def _data_points(ax):
+    """(n, 2) display coordinates of every plotted line's points."""
+    points = [line.get_transform().transform(line.get_xydata()) for line in ax.get_lines()
+              if len(line.get_xydata()) > 1 or line.get_marker() not in ('None', None, '')]
+    return np.vstack(points)
+
+
+def _legend_covers(fig, ax):
+    fig.canvas.draw()
+    box = ax.get_legend().get_window_extent(fig.canvas.get_renderer())
+    x, y = _data_points(ax).T
+    return np.any((x > box.x0) & (x < box.x1) & (y > box.y0) & (y < box.y1))
+
+
+def test_torque_plot_is_titled_and_its_legend_leaves_the_curves_free(figures):
+    angle = np.linspace(0.0, np.pi, 181)
+    hump = 2.4 * np.sin(angle) ** 2                      # the shape of the measured curves
+    torque = {speed: SimpleNamespace(series={'angle_rad': angle, 'servo_torque_Nm': hump + 0.1,
+                                             'air_torque_Nm': np.full_like(angle, 0.1)})
+              for speed in (0.5, 1.0, 2.0)}
+    plots.torque_vs_angle(None, torque)
+    fig, = figures
+    ax = fig.axes[0]
+    assert ax.get_title()
+    assert not _legend_covers(fig, ax)
+
+
+def test_rail_speed_plot_is_titled_and_keeps_its_top_series_inside(figures):
+    values = {'flat': 0.1058, 'open_c': 0.0845, 'closed_c': 0.098}
+    rails = {(shape, v): SimpleNamespace(metrics={'carriage_displacement_m': value})
+             for shape, value in values.items() for v in (0.5, 1.0, 2.0)}
+    plots.rail_displacement_vs_speed(None, rails, (0.5, 1.0, 2.0))
+    fig, = figures
+    ax = fig.axes[0]
+    assert ax.get_title()
+    assert ax.get_ylim()[0] == 0 and ax.get_ylim()[1] > 1.05 * 100 * max(values.values())
+    assert not _legend_covers(fig, ax)
+
+
+def test_speed_against_payload_starts_at_zero_and_labels_the_derived_point(figures):
+    payloads, zetas = (0.0, 1.0, 2.277), (3.75, 5.0)
+    hexapod = {(z, p): SimpleNamespace(metrics={'mean_speed_mps': 0.0706 - 0.001 * p})
+               for z in zetas for p in payloads}
+    plots.hexapod_speed_vs_payload(None, hexapod, zetas, payloads)
+    fig, = figures
+    ax = fig.axes[0]
+    assert ax.get_ylim()[0] == 0                          # 3 % looks like 3 %
+    assert any('derived' in text.get_text() for text in ax.get_legend().get_texts())
+    assert not _legend_covers(fig, ax)
+
+
+def test_pareto_labels_do_not_overlap_and_stay_in_their_panel():
+    rng = np.random.default_rng(0)
+    fig, ax = plt.subplots(figsize=(4.6, 4.0))
+    x, y = 10 ** rng.uniform(-2, -1.5, 30), 10 ** rng.uniform(-3, -2.8, 30)  # crowded
+    ax.scatter(x, y)
+    ax.set_xscale('log')
+    ax.set_yscale('log')
+    boxes = bench_report._label_without_overlap(
+        fig, ax, [(f'{1000 + i}/0.25', xi, yi) for i, (xi, yi) in enumerate(zip(x, y))])
+    panel = ax.get_window_extent(fig.canvas.get_renderer())
+    assert 3 <= len(boxes) < 30                           # some placed, the crowd left out
+    for i, box in enumerate(boxes):
+        assert panel.x0 <= box.x0 and box.x1 <= panel.x1
+        assert not any(box.overlaps(other) for other in boxes[i + 1:])
+    plt.close(fig)
