@@ -94,13 +94,15 @@ def parse_timed_assignment(text):
     return at, SettingChange(key, value)
 
 
-def say_if_cold():
-    """Before a command that builds a simulation: say at once when the kernels must first be
-    compiled (kernel_cache.notice), instead of leaving a cold start silent."""
-    from .kernel_cache import notice
-    line = notice()
+def say_if_cold(scene=None):
+    """Before building a simulation of `scene` (SceneConfig; None: a default scene, for the
+    commands that run many): say at once when its kernels must first be compiled
+    (sim.simulation.compile_notice), instead of leaving a cold start silent."""
+    from .sim.simulation import compile_notice
+    line = compile_notice(scene or load_scene('hexapod'))
     if line:
-        print(f'rft-sim: {line}', file=sys.stderr, flush=True)
+        print(f'rft-sim: {line} (`rft-sim warmup` compiles them ahead)', file=sys.stderr,
+              flush=True)
 
 
 def warn(message):
@@ -174,7 +176,7 @@ def cmd_run(args):
     if not args.no_bag and (out / 'bag').exists():
         raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
                          'or pass --no-bag')
-    say_if_cold()
+    say_if_cold(scene)
     created = next((folder for folder in reversed((out, *out.parents))
                     if not folder.exists()), None)  # the first folder this run makes
     output_folder(out)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..kernel_cache import is_cached
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
@@ -39,8 +40,7 @@ def kernels_cached(method='implicit'):
         kernels = (coupling.implicit_sand_step, coupling.implicit_plate_forces)
     else:
         kernels = (coupling.gather_plates, coupling.smoothed_wrenches, coupling.scatter_wrenches)
-    # the cache's index of compiled signatures: empty if absent or stale (source changed)
-    return all(kernel._cache._cache_file._load_index() for kernel in kernels)
+    return all(is_cached(kernel) for kernel in kernels)
 
 
 def full_inertia_call(model, data, out):
