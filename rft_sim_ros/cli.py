@@ -361,7 +361,8 @@ def build_parser():
     validate = commands.add_parser(
         'validate', help="reproduce the RFT-SiM paper's trends as a report with plots")
     validate.add_argument('--quick', action='store_true',
-                          help='coarse plates and fewer cases (about 15 s; the full run about 35 s)')
+                          help='coarse plates and fewer cases: about half a minute on 2 cores '
+                               '(the full run: one to two minutes)')
     validate.add_argument('--out',
                           help='output folder for report.md, results.json and plots '
                                '(default: a fresh runs/validate-<time>; the committed '
