@@ -3,7 +3,8 @@ description on robot_state_publisher (when that package is installed: /robot_des
 /tf of the links), an optional controller node, and with record:=true `ros2 bag record`.
 
   ros2 launch rft_sim_ros robot.launch.py [model:=FILE] [robot_description:=XML]
-      [sand_bodies:="A,B*"|auto] [xacro_args:="[k=v, ...]"] [controller:=NAME|none]
+      [sand_bodies:="A,B*"|auto] [keyframe:=NAME] [xacro_args:="[k=v, ...]"]
+      [controller:=NAME|none]
       [scene_overrides:="[key=value, ...]"] [zeta:=Z] [real_time_factor:=R]
       [record:=true] [bag:=DIR]
 
@@ -37,6 +38,7 @@ ARGUMENTS = {
     'model': (QUADRUPED, 'robot file: MJCF .xml, URDF .urdf or xacro .xacro'),
     'robot_description': ('', 'the robot as an XML string (replaces model)'),
     'sand_bodies': ('', "bodies that touch sand: 'A,B*' names or glob patterns, or auto"),
+    'keyframe': ('', "initial pose: the model's keyframe of this name"),
     'xacro_args': ('[]', "xacro arguments of a xacro model, YAML list of 'k=v' strings"),
     'controller': ('', 'controller executable of rft_sim_ros (default: trot_gait for the '
                        'bundled quadruped, else none)'),
@@ -81,7 +83,7 @@ def _nodes(context):
     if quadruped:  # its scene (sand level, feet), built-in trot off: the controller drives
         parameters.update(scene='quadruped',
                           scene_overrides=['gait=none', *parameters['scene_overrides']])
-    for name in ('sand_bodies', 'zeta'):
+    for name in ('sand_bodies', 'keyframe', 'zeta'):
         if _text(context, name):
             parameters[name] = (yaml.safe_load(_text(context, name)) if name == 'zeta'
                                 else _text(context, name))

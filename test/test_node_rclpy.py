@@ -416,3 +416,21 @@ def test_trot_gait_publishes_the_quadruped_joints(ros):
     message = ros.probe.trajectories[-1]
     assert tuple(message.joint_names) == QUADRUPED_JOINTS
     assert len(message.points) == 13 and len(message.points[0].positions) == 12
+
+
+def test_keyframe_parameter_sets_the_initial_pose(ros, tmp_path):
+    """`keyframe`: a torque-motor MJCF (test/robot_files.py) starts in its `home` keyframe,
+    held by the PD position interface; an unknown keyframe is refused with the reason."""
+    from robot_files import HOME_THIGH, write_torque_quadruped
+    path, _ = write_torque_quadruped(tmp_path, trunk_subdivisions=3)
+    ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('model', value=str(path)), Parameter('keyframe', value='home'),
+        Parameter('real_time_factor', value=2.0)]))
+    assert ros.spin_until(lambda: len([m for m in ros.probe.joint_states
+                                       if 'FL_thigh_joint' in m.name]) > 10)
+    last = ros.probe.joint_states[-1]
+    assert last.position[list(last.name).index('FL_thigh_joint')] == pytest.approx(
+        HOME_THIGH, abs=0.05)
+    with pytest.raises(SceneError, match="robot.keyframe: keyframe 'nope' is not in the model"):
+        SimNode(context=ros.context, parameter_overrides=[
+            Parameter('model', value=str(path)), Parameter('keyframe', value='nope')])

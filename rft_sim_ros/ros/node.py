@@ -55,6 +55,9 @@ class SimNode(Node):
             parameters.SAND_BODIES)}
         self._overrides = parameters.scene_overrides(
             self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
+        keyframe = self._declare(parameters.KEYFRAME, '')
+        if keyframe:
+            self._overrides['robot.keyframe'] = keyframe
         if needs_topic(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
                        self._robot[parameters.ROBOT_DESCRIPTION]):
             self.get_logger().info(f'no scene, model or robot_description set: waiting for '

@@ -24,6 +24,7 @@ SCENE = 'scene'
 MODEL = 'model'
 ROBOT_DESCRIPTION = 'robot_description'
 SAND_BODIES = 'sand_bodies'
+KEYFRAME = 'keyframe'
 SCENE_OVERRIDES = 'scene_overrides'
 ZETA = 'zeta'
 REAL_TIME_FACTOR = 'real_time_factor'
@@ -41,6 +42,8 @@ PARAMETERS = (
                                      'unset too: read from /robot_description', False),
     ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.bodies): 'A,B*' names or glob "
                                "patterns, or 'auto'", False),
+    ParameterSpec(KEYFRAME, "initial pose: the model's keyframe of this name (robot.keyframe), "
+                            'held until commands arrive', False),
     ParameterSpec(SCENE_OVERRIDES, "scene values as 'key=value' strings (as rft-sim run --set)",
                   False),
     ParameterSpec(ZETA, "sand stiffness, N/cm^3, 0 < zeta <= 100 (default: the scene's); "
@@ -48,8 +51,9 @@ PARAMETERS = (
     ParameterSpec(REAL_TIME_FACTOR, 'sim seconds per wall second; 0 = as fast as possible', True),
     ParameterSpec(PUBLISH_RATE, "state messages per second of sim time (default: the scene's)",
                   False),
-    ParameterSpec(JOINT_NAMES, 'joint order of /forward_position_controller/commands '
-                               "(default: the scene's position servos)", False),
+    ParameterSpec(JOINT_NAMES, 'joint order of /forward_position_controller/commands and '
+                               "/effort_controller/commands (default: the scene's commanded "
+                               'joints)', False),
     ParameterSpec(PAUSED, 'stop stepping (sim time and /clock stand still)', True),
     ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
 )
