@@ -51,7 +51,7 @@ def test_inverse_kinematics_inverts_forward():
 
 
 def test_trot_holds_the_pose_then_moves_diagonal_pairs_together():
-    gait = TrotGait(start_time_s=1.0)
+    gait = TrotGait(start_time_s=1.0, frequency_hz=2.0)
     stand = np.tile([0.0, STAND_HIP, STAND_KNEE], 4)
     assert gait.targets(0.5) == pytest.approx(stand)
     for t in np.linspace(1.6, 3.0, 15):

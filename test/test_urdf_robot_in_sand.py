@@ -70,10 +70,11 @@ def test_the_bundled_quadruped_trots_forward_in_sand(tmp_path):
     assert summary['plates_total'] == 4 * 300 and summary['stable']
     metrics = summary['generic_metrics']
     forward = metrics['base_displacement_xyz_m'][0]
-    # each diagonal pair pushes the body 8 cm per half cycle: 0.16 m per cycle, 3 cycles less
-    # the 0.5 s ramp (half the stroke on average over one cycle): 0.4 m without slip; sand
-    # slip keeps it below that, the trot must still carry it more than half way
-    assert 0.2 < forward < 0.4
+    # a stance foot moves back 8 cm in 0.6 of a cycle: without slip the body moves at
+    # 0.08 m x 1.5 Hz / 0.6 = 0.2 m/s, 0.4 m over the 2 s of 3 cycles, less the 0.5 s ramp
+    # (half speed on average): 0.35 m; sand slip keeps it below that, the trot must still
+    # carry it more than half way
+    assert 0.17 < forward < 0.35
     assert all(0.003 < metrics[f'mean_stance_depth_m_{leg}_foot'] < 0.05
                for leg in ('fl', 'fr', 'rl', 'rr'))
 

@@ -18,8 +18,8 @@ class TrotGaitNode(GaitNode):
     """The quadruped's trot (see module docstring)."""
     NODE_NAME = 'trot_gait'
     GAIT_PARAMETERS = {
-        'frequency': (2.0, 'frequency_hz', 'trot cycles per second, Hz'),
-        'stance_fraction': (0.5, 'stance_fraction', 'fraction of a cycle a foot is in stance'),
+        'frequency': (1.5, 'frequency_hz', 'trot cycles per second, Hz'),
+        'stance_fraction': (0.6, 'stance_fraction', 'fraction of a cycle a foot is in stance'),
         'step_length': (0.08, 'step_length_m', 'fore-aft stroke of a foot, m'),
         'step_height': (0.05, 'step_height_m', 'lift of a foot in swing, m'),
         'ramp_time': (0.5, 'ramp_time_s', 'time over which stroke and lift grow from 0, s'),

@@ -86,8 +86,8 @@ class TrotGait(GaitClock):
     ramp_time_s. Raises ValueError if a parameter is out of range or a foot target leaves
     the leg's reach or the knee's range.
     """
-    frequency_hz: float = 2.0
-    stance_fraction: float = 0.5
+    frequency_hz: float = 1.5
+    stance_fraction: float = 0.6
     step_length_m: float = 0.08
     step_height_m: float = 0.05
     start_time_s: float = 0.0
