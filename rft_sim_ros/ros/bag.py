@@ -37,27 +37,26 @@ class _Rosbag2Writer(Writer):
         the records `Writer.write` would append to the MCAP chunks, written together, with
         the same bookkeeping and chunk boundaries (the tests check the file is the same byte
         for byte)."""
-        storage = self.storage
-        chunk, parts = None, []
+        storage, counts, stats = self.storage, self.counts, self.storage.channel_stats
+        pack = _MCAP_MESSAGE.pack
+        chunk = None
         for connection, data in zip(connections, payloads):
             if chunk is None:
-                chunk = storage.chunk
-                offset = chunk.bio.tell()
+                chunk, parts = storage.chunk, []
+                msgs, offset = chunk.msgs, chunk.bio.tell()
                 chunk.message_start_time = min(time_ns, chunk.message_start_time)
                 chunk.message_end_time = max(time_ns, chunk.message_end_time)
-            cid = connection.id
-            record = _MCAP_MESSAGE.pack(0x05, _MCAP_MESSAGE_FIELDS + len(data), cid, 0,
-                                        time_ns, time_ns)
-            parts += (record, data)
-            chunk.msgs[cid].append((time_ns, offset))
-            offset += len(record) + len(data)
-            storage.channel_stats[cid] += 1
-            self.counts[cid] += 1
+            cid, size = connection.id, len(data)
+            parts += (pack(0x05, _MCAP_MESSAGE_FIELDS + size, cid, 0, time_ns, time_ns), data)
+            msgs[cid].append((time_ns, offset))
+            offset += _MCAP_MESSAGE.size + size
+            stats[cid] += 1
+            counts[cid] += 1
             if offset > _MCAP_CHUNK_SIZE:  # as Writer.write: close the chunk after this one
                 chunk.bio.write(b''.join(parts))
                 storage.close_chunk()
-                chunk, parts = None, []
-        if parts:
+                chunk = None
+        if chunk is not None:
             chunk.bio.write(b''.join(parts))
         storage.message_start_time = min(time_ns, storage.message_start_time)
         storage.message_end_time = max(time_ns, storage.message_end_time)
