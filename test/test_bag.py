@@ -8,6 +8,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, WriterError
 
 from rft_sim_ros.ros import messages, topics
 from rft_sim_ros.ros.bag import BagWriter, TopicInfo, _Rosbag2Writer, bag_topics, read_messages
+from rft_sim_ros.ros import cdr
 from rft_sim_ros.ros.cdr import StateEncoder
 from rft_sim_ros.ros.factory import RosbagsFactory
 from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
@@ -193,3 +194,18 @@ def test_bag_metadata_names_the_jazzy_distribution(recorded):
         assert reader.ros_distro == 'jazzy'
     mcap = next(path.glob('*.mcap')).read_bytes()
     assert b'ros_distro: jazzy' in mcap and b'ros_distro: rosbags' not in mcap
+
+
+@pytest.mark.parametrize('status', [
+    messages.RunStatus(scene='hexapod', real_time_factor=11.25),
+    messages.RunStatus(scene='a', real_time_factor=float('nan'), stable=False,
+                       problem='at t = 1.0000 s: runaway speed 2e+03',
+                       commands_rejected={'not_finite': 2, 'unknown_joint': 13}, paused=True),
+    messages.RunStatus(scene='', real_time_factor=0.0, paused=True)])
+def test_packed_diagnostics_are_the_bytes_rosbags_serialises(status):
+    state = make_state(time=7.25, legs=LEGS)
+    factory = RosbagsFactory()
+    message = messages.diagnostics_message(factory, state, status)
+    packed = cdr.diagnostics(messages.diagnostic_fields(state, status),
+                             *split_ns(seconds_to_ns(state.time)))
+    assert packed == bytes(factory.typestore.serialize_cdr(message, message.__msgtype__))

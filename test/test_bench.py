@@ -46,3 +46,12 @@ def test_hexapod_trial_times_the_walk_apart_from_the_drop():
     assert walk['sim_time_s'] == pytest.approx(1.0, abs=1e-3)   # one cycle at 1 Hz
     assert 0.0 < walk['wall_time_s'] < summary['wall_time_s']
     assert walk['real_time_factor'] == pytest.approx(walk['sim_time_s'] / walk['wall_time_s'])
+
+
+def test_hexapod_trial_with_its_bag_records_the_run(tmp_path):
+    from rft_sim_ros.bench.step_cost import hexapod_trial
+    from rft_sim_ros.ros.bag import bag_topics
+    summary, _ = hexapod_trial({'cycles': 1, 'settle_time': 0.4, 'rft.plates_per_body': 100},
+                               bag=tmp_path / 'bag')
+    assert bag_topics(tmp_path / 'bag')['/clock'].count == 140   # 1.4 s at 100 Hz
+    assert 0.0 < summary['recording_time_s'] < summary['wall_time_s']

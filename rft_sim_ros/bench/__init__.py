@@ -7,10 +7,15 @@ then speed against error for every scene (`pareto`), its runs spread over all co
 writes JSON, markdown and PNG. `study_scaling` (a command of its own) measures the study
 machinery: speed-up over one worker, locally and on Ray, and the overhead per run.
 """
+import tempfile
 from pathlib import Path
 
 from ..sim.runner import machine_info
 from . import pareto, report, scaling, startup, step_cost
+
+
+def _median(values):
+    return sorted(values)[len(values) // 2]
 
 
 def run_bench(out, quick=False, log=print):
@@ -20,16 +25,26 @@ def run_bench(out, quick=False, log=print):
     results['step_cost'] = step_cost.hexapod_step_cost(
         chunks=3 if quick else 9, chunk_steps=300 if quick else 1000,
         settle_steps=500 if quick else 2500)
-    log('full hexapod trials')
-    trials = sorted((step_cost.hexapod_trial({'cycles': 1} if quick else None)
-                     for _ in range(1 if quick else 3)),
-                    key=lambda run: run[1]['real_time_factor'])
+    log('full hexapod trials, without and with the bag (alternating)')
+    overrides = {'cycles': 1} if quick else None
+    plain, bagged = [], []
+    with tempfile.TemporaryDirectory() as bags:
+        for i in range(1 if quick else 3):
+            plain.append(step_cost.hexapod_trial(overrides))
+            bagged.append(step_cost.hexapod_trial(overrides, bag=Path(bags) / str(i)))
+    trials = sorted(plain, key=lambda run: run[1]['real_time_factor'])
     trial, walk = trials[len(trials) // 2]  # the run with the median walk
     results['trial'] = {k: trial[k] for k in ('sim_time_s', 'wall_time_s', 'real_time_factor',
                                               'startup_time_s', 'plates_total',
                                               'plates_active_mean')}
     results['trial']['walk'] = walk
     results['trial']['walk_real_time_factors'] = [run[1]['real_time_factor'] for run in trials]
+    results['trial_with_bag'] = {
+        'real_time_factor': _median([run[0]['real_time_factor'] for run in bagged]),
+        'real_time_factors': [run[0]['real_time_factor'] for run in bagged],
+        'recording_fraction': _median([run[0]['recording_time_s'] / run[0]['wall_time_s']
+                                       for run in bagged]),
+        'real_time_factor_without': _median([run[0]['real_time_factor'] for run in plain])}
     log('start-up, cold and warm')
     results['startup'] = startup.startup_times(warm_runs=1 if quick else 3)
     log('cost against plates')

@@ -51,6 +51,14 @@ def markdown(results):
                   f'**{walk["real_time_factor"]:.1f}** (the paper: 0.04). Of {len(factors)} '
                   f'runs, the one with the median walk (their walks\' real-time factors: '
                   f'{", ".join(f"{f:.1f}" for f in factors)}).', '']
+    bag = results.get('trial_with_bag')
+    if bag:
+        lines += [f'The same run as `rft-sim run hexapod` makes it by default, with its rosbag2 '
+                  f'(alternating with the runs above, medians): real-time factor '
+                  f'**{bag["real_time_factor"]:.1f}** with the bag against '
+                  f'{bag["real_time_factor_without"]:.1f} without (`--no-bag`); recording is '
+                  f'{100 * bag["recording_fraction"]:.1f} % of the run\'s wall time (runs: '
+                  f'{", ".join(f"{f:.1f}" for f in bag["real_time_factors"])}).', '']
     start = results.get('startup')
     if start:
         lines += ['## Start-up (import + model + plates + kernels)', '',

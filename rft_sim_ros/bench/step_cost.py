@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from .. import resources
+from ..ros.recording import BagRecorder
 from ..scenes.gaits import make_gait
 from ..sim.runner import run_scene
 from ..scenes.config import load_scene
@@ -80,16 +81,18 @@ def hexapod_step_cost(chunks=9, chunk_steps=1000, overrides=None, settle_steps=2
 
 
 
-def hexapod_trial(overrides=None):
+def hexapod_trial(overrides=None, bag=None):
     """A whole `hexapod` run (drop, settle, gait cycles) timed in two parts of the same run:
     the run's summary, and the wall and sim time (s) of its walk alone, from `settle_time` to
-    the end (the paper's 5 s trial is the walk)."""
+    the end (the paper's 5 s trial is the walk). bag: a new folder to record the run's
+    rosbag2 into, as `rft-sim run` does by default (None: no bag, as `--no-bag`)."""
     scene = load_scene('hexapod', overrides or {})
     params = scene.params
     settle = float(params['settle_time'])
     end = settle + float(params['cycles']) / float(params['frequency'])
     marks = []
-    summary = run_scene(scene, duration=end, progress=False, plots=False,
+    recorders = [BagRecorder(bag, scene)] if bag is not None else []
+    summary = run_scene(scene, duration=end, progress=False, plots=False, recorders=recorders,
                         schedule=[(t, lambda sim: marks.append((time.perf_counter(), sim.time)))
                                   for t in (settle, end)])
     (wall_start, sim_start), (wall_end, sim_end) = marks

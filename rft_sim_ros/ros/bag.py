@@ -11,8 +11,7 @@ from dataclasses import dataclass
 
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
-from rft_sim_ros.ros import messages, topics
-from rft_sim_ros.ros.cdr import StateEncoder
+from rft_sim_ros.ros import cdr, messages, topics
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
 from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
 
@@ -107,7 +106,7 @@ class BagWriter:
         the fixed-layout ones packed directly (`cdr.StateEncoder`, same bytes)."""
         time_ns = seconds_to_ns(state.time)
         if self._encoder is None or not self._encoder.fits(state):
-            self._encoder = StateEncoder(state)
+            self._encoder = cdr.StateEncoder(state)
             unknown = sorted(set(self._encoder.topics) - set(self._connections))
             if unknown:
                 raise KeyError(f'{unknown} are not topics of this bag: {sorted(self._types)}')
@@ -118,9 +117,12 @@ class BagWriter:
             self.write(topics.PLATES, messages.plates_message(self.factory, state), time_ns)
 
     def write_diagnostics(self, state, status):
-        """Record /diagnostics for `state` and the run's `messages.RunStatus`."""
-        self.write(topics.DIAGNOSTICS, messages.diagnostics_message(self.factory, state, status),
-                   seconds_to_ns(state.time))
+        """Record /diagnostics for `state` and the run's `messages.RunStatus` (the bytes of
+        `messages.diagnostics_message`, packed by `cdr.diagnostics`)."""
+        time_ns = seconds_to_ns(state.time)
+        self._writer.write_cycle([self._connections[topics.DIAGNOSTICS]], time_ns,
+                                 [cdr.diagnostics(messages.diagnostic_fields(state, status),
+                                                  *split_ns(time_ns))])
 
     def close(self):
         """Finish the bag (writes the MCAP summary and metadata.yaml)."""

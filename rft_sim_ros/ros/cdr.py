@@ -9,7 +9,9 @@ in the format, the constant strings as prepacked bytes, the numbers packed in on
 The bytes are what rosbags' (and rclpy's) serialiser writes for the messages
 `rft_sim_ros.ros.messages` builds from the same state: little-endian plain CDR (XCDR1) with
 its 4-byte encapsulation header, alignment counted from after that header. The tests check
-this byte for byte. /rft/plates and /diagnostics (variable content) keep the message path.
+this byte for byte. /diagnostics (strings of varying length) is written by `diagnostics`
+(rosbags builds a type's serialiser on its first use, 20 ms); /rft/plates keeps the message
+path.
 """
 import struct
 
@@ -160,3 +162,32 @@ class StateEncoder:
             out.append(wrench.pack(e, sec, nanosec, frame, *leg.force.tolist(),
                                    *leg.torque.tolist()))
         return out
+
+
+def _uint32(buffer, value):
+    """Append a 4-aligned uint32 to `buffer` (its offsets count from after the encapsulation
+    header)."""
+    buffer += b'\x00' * (-(len(buffer) - 4) % 4) + struct.pack('<I', value)
+
+
+def _string(buffer, text):
+    """Append a CDR string (uint32 length with the NUL, bytes, NUL) to `buffer`."""
+    data = text.encode() + b'\x00'
+    _uint32(buffer, len(data))
+    buffer += data
+
+
+def diagnostics(fields, sec, nanosec):
+    """CDR bytes of /diagnostics (diagnostic_msgs/DiagnosticArray, one status) holding
+    `fields` (messages.DiagnosticFields), stamped (sec, nanosec)."""
+    buffer = bytearray(_ENCAPSULATION + struct.pack('<iI', sec, nanosec))
+    _string(buffer, '')                                   # header.frame_id
+    _uint32(buffer, 1)                                    # one status
+    buffer.append(fields.level)                           # its level (byte)
+    for text in (fields.name, fields.message, fields.hardware_id):
+        _string(buffer, text)
+    _uint32(buffer, len(fields.values))
+    for key, value in fields.values:
+        _string(buffer, key)
+        _string(buffer, value)
+    return bytes(buffer)

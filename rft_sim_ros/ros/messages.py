@@ -205,14 +205,42 @@ def plates_message(factory, state):
     return factory.make('visualization_msgs/msg/MarkerArray', markers=[marker])
 
 
-def _key_value(factory, key, value):
+@dataclass(frozen=True)
+class DiagnosticFields:
+    """The content of the one DiagnosticStatus on /diagnostics (`diagnostic_fields`): level
+    (0 OK, 2 ERROR), name, message, hardware_id and the (key, value) texts."""
+    level: int
+    name: str
+    message: str
+    hardware_id: str
+    values: tuple
+
+
+def _text(value):
     if isinstance(value, bool):
-        text = 'true' if value else 'false'
-    elif isinstance(value, float):
-        text = repr(value)
-    else:
-        text = str(value)
-    return factory.make('diagnostic_msgs/msg/KeyValue', key=key, value=text)
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def diagnostic_fields(state, status):
+    """What /diagnostics says about `state` and `status` (see `diagnostics_message`)."""
+    rejected = dict(sorted(status.commands_rejected.items()))
+    values = [('sim_time_s', float(state.time)),
+              ('zeta_n_per_cm3', float(state.zeta)),
+              ('real_time_factor', float(status.real_time_factor)),
+              ('plates_active', int(state.plates_active)),
+              ('stable', bool(status.stable)),
+              ('paused', bool(status.paused)),
+              ('commands_rejected', int(sum(rejected.values())))]
+    values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
+    return DiagnosticFields(
+        level=0 if status.stable else 2,  # OK / ERROR
+        name='rft_sim: simulation',
+        message=status.problem if not status.stable else 'paused' if status.paused else 'running',
+        hardware_id=status.scene,
+        values=tuple((key, _text(value)) for key, value in values))
 
 
 def diagnostics_message(factory, state, status):
@@ -223,22 +251,13 @@ def diagnostics_message(factory, state, status):
     real_time_factor, plates_active, stable, paused, commands_rejected (total) and
     commands_rejected.<reason>.
     """
-    rejected = dict(sorted(status.commands_rejected.items()))
-    values = [('sim_time_s', float(state.time)),
-              ('zeta_n_per_cm3', float(state.zeta)),
-              ('real_time_factor', float(status.real_time_factor)),
-              ('plates_active', int(state.plates_active)),
-              ('stable', bool(status.stable)),
-              ('paused', bool(status.paused)),
-              ('commands_rejected', int(sum(rejected.values())))]
-    values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
+    fields = diagnostic_fields(state, status)
     diagnostic = factory.make(
         'diagnostic_msgs/msg/DiagnosticStatus',
-        level=factory.byte(0 if status.stable else 2),  # OK / ERROR
-        name='rft_sim: simulation',
-        message=status.problem if not status.stable else 'paused' if status.paused else 'running',
-        hardware_id=status.scene,
-        values=[_key_value(factory, key, value) for key, value in values])
+        level=factory.byte(fields.level), name=fields.name, message=fields.message,
+        hardware_id=fields.hardware_id,
+        values=[factory.make('diagnostic_msgs/msg/KeyValue', key=key, value=value)
+                for key, value in fields.values])
     return factory.make('diagnostic_msgs/msg/DiagnosticArray',
                         header=header(factory, state.time, ''), status=[diagnostic])
 
