@@ -317,24 +317,28 @@ def _wait_for_output(process, words, timeout=120.0):
                          ids=['SIGINT', 'SIGTERM'])
 def test_nodes_exit_cleanly_on_a_signal_while_publishing(signal_number):
     """The simulator as fast as it can (a timer callback is publishing almost all the time)
-    and the gait node driving it: a signal to each ends it with status 0, no traceback."""
+    and the gait nodes on its /clock (every console-script node): a signal to each ends it
+    with status 0, no traceback."""
     sim = _start_executable('rft_sim_ros.ros.node', '-p', f'scene:={SERVO_RIG}',
                             '-p', 'real_time_factor:=0.0')
-    gait = _start_executable('rft_sim_ros.ros.gait_node', '-p', 'start_delay:=0.0',
-                             '-p', 'rate:=200.0')
+    processes = {'sim': sim}
+    for name, module in (('tripod_gait', 'rft_sim_ros.ros.gait_node'),
+                         ('trot_gait', 'rft_sim_ros.ros.trot_gait_node')):
+        processes[name] = _start_executable(module, '-p', 'start_delay:=0.0',
+                                            '-p', 'rate:=200.0')
     try:
         logged = _wait_for_output(sim, 'publishing every')
-        time.sleep(1.5)  # publishing at full speed; the gait node receives /clock
-        for process in (sim, gait):
+        time.sleep(1.5)  # publishing at full speed; the gait nodes receive /clock
+        for process in processes.values():
             process.send_signal(signal_number)
-        for name, process in (('sim', sim), ('tripod_gait', gait)):
+        for name, process in processes.items():
             _, stderr = process.communicate(timeout=30)
             if process is sim:
                 stderr = ''.join(logged) + stderr
             assert 'Traceback' not in stderr, f'{name}: {stderr}'
             assert process.returncode == 0, f'{name} exited {process.returncode}: {stderr}'
     finally:
-        for process in (sim, gait):
+        for process in processes.values():
             if process.poll() is None:
                 process.kill()
                 process.communicate()
