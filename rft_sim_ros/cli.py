@@ -217,14 +217,16 @@ class StopRequest(threading.Event):
 class stop_on_signals:
     """Context: SIGINT and SIGTERM set the yielded StopRequest instead of killing the process,
     so the run ends at its next published state with its bag closed and its summary written;
-    a second signal acts as usual (KeyboardInterrupt / termination). Handlers are restored
-    on exit."""
+    a second signal acts as usual (KeyboardInterrupt / termination); a signal that was
+    ignored stays ignored. Handlers are restored on exit."""
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __enter__(self):
         self.stop = StopRequest()
-        self.previous = {number: signal.getsignal(number) for number in self.SIGNALS}
-        for number in self.SIGNALS:
+        # a signal the caller ignores (a background job's SIGINT, nohup) stays ignored
+        self.previous = {number: signal.getsignal(number) for number in self.SIGNALS
+                         if signal.getsignal(number) is not signal.SIG_IGN}
+        for number in self.previous:
             signal.signal(number, self._handle)
         return self.stop
 
@@ -233,8 +235,8 @@ class stop_on_signals:
         self.stop.set()
         print(f'\nrft-sim: {signal.Signals(number).name}: stopping at the next published '
               'state (again to quit at once)', file=sys.stderr)
-        for other in self.SIGNALS:  # the next one stops at once
-            signal.signal(other, self.previous[other])
+        for other, handler in self.previous.items():  # the next one stops at once
+            signal.signal(other, handler)
 
     def __exit__(self, *exc):
         for number, handler in self.previous.items():
@@ -419,6 +421,9 @@ def main(argv=None):
     except (SceneError, ValueError) as error:
         print(f'rft-sim: error: {error}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C outside a run's loop (start-up, or a second one)
+        print('\nrft-sim: interrupted', file=sys.stderr)
+        return 128 + signal.SIGINT
 
 
 if __name__ == '__main__':

@@ -177,6 +177,12 @@ def test_written_summary_has_no_float_noise(tmp_path):
 
 # --- Ctrl-C and SIGTERM on a running `rft-sim run` -------------------------------------------
 
+def _as_in_a_terminal():
+    """The child's SIGINT as a terminal's foreground job has it (a background job, such as
+    this test run may be, inherits SIGINT ignored, which `rft-sim run` respects)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, signum):
     Simulation(load_scene('plate_drop'))  # kernels in numba's cache: the child starts warm
@@ -184,7 +190,7 @@ def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, sig
     child = subprocess.Popen(
         [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '600',
          '--out', str(out), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True)
+        text=True, preexec_fn=_as_in_a_terminal)
     bag_file = out / 'bag' / 'bag.mcap'
     deadline = time.monotonic() + 120
     while not (bag_file.exists() and bag_file.stat().st_size > 0):  # stepping, recording
@@ -231,3 +237,43 @@ def test_warmup_leaves_every_kernel_cached(capsys):
     assert total >= 20  # the engine's, the law's and the gaits' kernels were all found
     assert f'{total} of {total} kernels cached' in capsys.readouterr().out
     assert kernel_cache.uncached() == []
+
+
+def test_an_ignored_sigint_stays_ignored(tmp_path):
+    """A run started as a background job (SIGINT ignored, as `cmd &` in a script) is not
+    stopped by the Ctrl-C meant for the foreground."""
+    out = tmp_path / 'run'
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '1.5',
+         '--out', str(out), '--quiet', '--no-bag'], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    time.sleep(1.0)
+    child.send_signal(signal.SIGINT)
+    stdout, stderr = child.communicate(timeout=120)
+    assert child.returncode == 0, stderr
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['interrupted'] is False and summary['sim_time_s'] == 1.5
+
+
+def test_ctrl_c_twice_quits_at_once_without_a_traceback(tmp_path):
+    """The first Ctrl-C asks the run to stop; a second one right after (while it closes the
+    bag, writes the summary and plots) quits at once: exit 130, no traceback."""
+    Simulation(load_scene('plate_drop'))
+    out = tmp_path / 'run'
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '600',
+         '--out', str(out), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, preexec_fn=_as_in_a_terminal)
+    bag_file = out / 'bag' / 'bag.mcap'
+    deadline = time.monotonic() + 120
+    while not (bag_file.exists() and bag_file.stat().st_size > 0):
+        assert child.poll() is None and time.monotonic() < deadline, child.communicate()
+        time.sleep(0.05)
+    child.send_signal(signal.SIGINT)
+    time.sleep(0.01)
+    if child.poll() is None:
+        child.send_signal(signal.SIGINT)
+    stdout, stderr = child.communicate(timeout=120)
+    assert child.returncode == 130, stderr
+    assert 'Traceback' not in stderr
