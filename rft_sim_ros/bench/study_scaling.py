@@ -9,8 +9,9 @@ Overhead per run, on one worker: the time the worker waits between the end of on
 the start of the next (the median over the study, from the worker's own clock): result
 transfer, the parent's recording (the run's summary file, the table rewrites) and handing
 out the next run. The once-per-study costs are reported beside it: the worker's start (a
-fresh interpreter importing the package), its warm-up and the final table and plots. Ratios come from runs measured back to back in one invocation; on a shared
-machine the load during each phase is reported (1-minute load average before and after).
+fresh interpreter importing the package), its warm-up and the final table and plots.
+Ratios come from runs measured back to back in one invocation; on a shared machine the load
+during each phase is reported (1-minute load average before and after).
 """
 import argparse
 import json

@@ -46,8 +46,9 @@ class Run:
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study. scene: bundled name or absolute path of a scene or robot file; fixed: overrides for every
-    run; duration: s or None (the scene's); keys: the varied keys in column order."""
+    """A validated study. scene: bundled name or absolute path of a scene or robot file;
+    fixed: overrides for every run; duration: s or None (the scene's); keys: the varied keys
+    in column order; runs: the Runs; source: the study file's mapping."""
     scene: str
     fixed: dict
     duration: float
@@ -89,8 +90,9 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
     if not isinstance(fixed, dict) or not all(isinstance(k, str) for k in fixed):
         raise StudyError(f'{where}: set must map scene keys to values')
     duration = raw.get('duration')
-    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
-                                 or not (math.isfinite(duration) and duration > 0)):
+    if duration is not None and (
+            isinstance(duration, bool) or not isinstance(duration, (int, float))
+            or not (math.isfinite(duration) and duration > 0)):
         raise StudyError(f'{where}: duration must be a number of seconds > 0, got {duration!r}')
     repeats = raw.get('repeats', 1)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
