@@ -55,3 +55,12 @@ def test_hexapod_trial_with_its_bag_records_the_run(tmp_path):
                                bag=tmp_path / 'bag')
     assert bag_topics(tmp_path / 'bag')['/clock'].count == 140   # 1.4 s at 100 Hz
     assert 0.0 < summary['recording_time_s'] < summary['wall_time_s']
+
+
+def test_hexapod_step_cost_runs_both_loops():
+    from rft_sim_ros.bench.step_cost import hexapod_step_cost
+    result = hexapod_step_cost(chunks=1, chunk_steps=20, settle_steps=20,
+                               overrides={'rft.plates_per_body': 50})
+    assert result['sand_engine_step_s'] > 0 and result['rigid_step_s'] > 0
+    assert result['ratio_engine_to_rigid'] == pytest.approx(
+        result['sand_engine_step_s'] / result['rigid_step_s'])

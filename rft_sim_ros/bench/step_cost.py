@@ -35,8 +35,9 @@ def hexapod_step_cost(chunks=9, chunk_steps=1000, overrides=None, settle_steps=2
     model, data = _rigid_hexapod(dt)
     gait = make_gait('tripod')
     actuators = np.array([model.actuator(name).id for name in gait.joint_names])
-    servo = sim._servo_ctrl  # the same joints, in the scene's servo order (index arrays in
-    # both loops, so that writing the controls costs the same in both)
+    # the same joints, in the scene's servo order (index arrays in both loops, so that
+    # writing the controls costs the same in both)
+    servo = sim.interfaces.position_actuators
     order = [gait.joint_names.index(name) for name in sim.servo_joint_names]
 
     def targets_from(t0):  # gait targets for the coming chunk, computed outside the timing
