@@ -245,9 +245,14 @@ class stop_on_signals:
 
 def cmd_validate(args):
     log = lambda line: print(f'validate: {line}', file=sys.stderr)  # noqa: E731
-    args.out = output_folder(args.out or fresh_folder('stability' if args.stability
-                                                      else 'validate'))
+    args.out = output_folder(args.out or fresh_folder(
+        'terrain' if args.terrain else 'stability' if args.stability else 'validate'))
     say_if_cold()
+    if args.terrain:
+        from .validation.terrain import run_terrain
+        run_terrain(args.out, quick=args.quick, log=log)
+        print(f'wrote {Path(args.out) / "terrain.md"}', file=sys.stderr)
+        return 0
     if args.stability:
         from .validation.stability import run_stability
         suite = run_stability(args.out, quick=args.quick, log=log)
@@ -373,6 +378,9 @@ def build_parser():
                           help='run the stability suite instead (drops, standing still, '
                                'start/stop, extreme sand, timesteps, divergence): '
                                'stability.md and plots')
+    validate.add_argument('--terrain', action='store_true',
+                          help='run the terrain study instead (slopes, deformable sand, a '
+                               'patch of loose sand, step cost per surface): terrain.md')
     validate.set_defaults(func=cmd_validate)
     sweep = commands.add_parser('sweep', help='run a study: a scene over varied values, '
                                 'on all cores or a Ray cluster (docs/studies.md)')

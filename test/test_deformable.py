@@ -29,7 +29,7 @@ def test_a_pile_steeper_than_repose_relaxes_to_it_conserving_volume(repose):
     bed.relax_all()
     axis, diagonal = _max_slopes(bed.grid, bed.cell)
     limit = np.tan(np.radians(repose))
-    assert axis <= limit + 1e-6 and diagonal <= limit + 1e-6
+    assert axis <= limit * (1 + 2e-3) and diagonal <= limit * (1 + 2e-3)
     assert axis > 0.9 * limit  # a pile at (close to) the angle of repose, not flattened
     assert abs(bed.grid.sum() - before) <= 1e-9 * moved
     assert np.array_equal(bed.block_max, block_maximum(bed.grid))
@@ -123,3 +123,38 @@ def test_deformable_keys_are_checked():
         load_scene('plate_drop', {'sand.deformable.cell': 0})
     with pytest.raises(ValueError, match='at least two cells'):
         DeformableSand(Plane(), size=(0.01, 1.0), cell=0.01)
+
+
+def test_a_deformable_run_saves_its_final_surface_and_reports_its_volume(tmp_path):
+    from rft_sim_ros.sim.runner import run_scene
+    summary = run_scene(load_scene('plate_drop', BED), out_dir=tmp_path, duration=0.3,
+                        progress=False)
+    surface = np.load(tmp_path / 'terrain.npy')
+    assert surface.shape == (51, 51) and (tmp_path / 'terrain.png').is_file()
+    metrics = summary['metrics']
+    assert abs(metrics['sand_volume_change_m3']) < 1e-15
+    assert metrics['max_footprint_depth_m'] >= 0.0
+    rigid = run_scene(load_scene('plate_drop'), out_dir=tmp_path / 'rigid', duration=0.05,
+                      progress=False)
+    assert 'sand_volume_change_m3' not in rigid['metrics']
+    assert not (tmp_path / 'rigid' / 'terrain.npy').exists()
+
+
+@pytest.mark.slow
+def test_terrain_study_runs_and_reports(tmp_path):
+    from rft_sim_ros.validation.terrain import run_terrain
+    results = run_terrain(tmp_path, quick=True, log=lambda line: None)
+    report = (tmp_path / 'terrain.md').read_text()
+    assert 'Slopes' in report and 'Step cost' in report
+    assert abs(results['deformation_hexapod']['deformable']['sand_volume_change_m3']) < 1e-12
+
+
+def test_hexapod_standing_on_deformable_sand_holds_still():
+    sim = Simulation(load_scene('hexapod', {'gait': 'none', 'rft.plates_per_body': 150,
+                                            **BED}))
+    sim.step(int(round(2.0 / sim.timestep)))
+    start = sim.data.qpos[:3].copy()
+    sim.step(int(round(1.0 / sim.timestep)))
+    assert np.linalg.norm(sim.data.qvel[:3]) < 1e-3
+    assert np.linalg.norm(sim.data.qpos[:3] - start) < 1e-3
+    assert abs(sim.engine.surface.volume_change()) < 1e-15

@@ -221,3 +221,16 @@ def test_plate_dropped_on_a_slope_comes_to_rest(angle):
     speed = np.linalg.norm(sim.data.qvel[:3])
     assert speed < 1e-3
     assert abs(sim.data.qpos[0] - x0) < 1e-3 * 0.5  # < 1 mm/s over 0.5 s
+
+
+def test_hexapod_standing_on_a_slope_holds_still():
+    """Stability-suite case on a 10 deg slope (gentler than the stated limit, the angle of
+    repose): the standing hexapod comes to rest and does not creep downhill."""
+    sim = Simulation(load_scene('hexapod', {'gait': 'none', 'rft.plates_per_body': 150,
+                                            'sand.surface.type': 'slope',
+                                            'sand.surface.angle_deg': 10.0}))
+    sim.step(int(round(2.0 / sim.timestep)))
+    start = sim.data.qpos[:3].copy()
+    sim.step(int(round(1.0 / sim.timestep)))
+    assert np.linalg.norm(sim.data.qvel[:3]) < 1e-3
+    assert np.linalg.norm(sim.data.qpos[:3] - start) < 1e-3  # < 1 mm/s of creep

@@ -38,8 +38,8 @@ from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's spee
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
 from .deformable import mark as mark_footprint
-from .surface import FLAT
-from .surface_kernels import map_factor, surface_height as height_at, surface_top
+from .surface import FLAT, SLOPE
+from .surface_kernels import grid_height, map_factor, surface_top
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -194,8 +194,9 @@ def gather_plates(arrays):
     surface_height, zeta_si = settings[SURFACE], settings[ZETA]
     include_trailing = settings[TRAILING] != 0.0
     kind = int(settings[SURFACE_KIND])
-    flat = kind == FLAT
+    flat, slope = kind == FLAT, kind == SLOPE
     gx, gy = settings[SLOPE_X], settings[SLOPE_Y]
+    g_norm = np.sqrt(gx * gx + gy * gy)
     gx0, gy0 = settings[GRID_X0], settings[GRID_Y0]
     g_idx, g_idy = settings[GRID_INV_DX], settings[GRID_INV_DY]
     grid = float_matrix(arrays, a.surface_grid)
@@ -232,8 +233,8 @@ def gather_plates(arrays):
         if flat:
             top = surface_height
         else:
-            top = surface_top(kind, surface_height, gx, gy, grid, block_max, gx0, gy0, g_idx,
-                              g_idy, xpos[b, 0], xpos[b, 1], radii[i])
+            top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max, gx0, gy0,
+                              g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         if xpos[b, 2] - radii[i] >= top:
             continue
         first = k
@@ -256,28 +257,40 @@ def gather_plates(arrays):
                   r02 * wx + r12 * wy + r22 * wz)
         tangential = TANGENTIAL * (np.sqrt(vx0 * vx0 + vy0 * vy0 + vz0 * vz0)
                                    + radii[i] * np.sqrt(wx * wx + wy * wy + wz * wz))
+        # a slope's depth is linear in the body-frame position: surface_height minus
+        # (z - gx x - gy y) = s_0 + s . l
+        s_0 = oz - gx * ox - gy * oy
+        s_x, s_y = r20 - gx * r00 - gy * r10, r21 - gx * r01 - gy * r11
+        s_z = r22 - gx * r02 - gy * r12
         for c in range(body_cluster_start[i], body_cluster_start[i + 1]):
             ccx, ccy, ccz = cluster_center[c, 0], cluster_center[c, 1], cluster_center[c, 2]
-            if not flat:
-                top = surface_top(kind, surface_height, gx, gy, grid, block_max, gx0, gy0,
-                                  g_idx, g_idy, ox + r00 * ccx + r01 * ccy + r02 * ccz,
-                                  oy + r10 * ccx + r11 * ccy + r12 * ccz, cluster_radius[c])
-            if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= top:
-                continue
+            if slope:
+                if (s_0 + s_x * ccx + s_y * ccy + s_z * ccz - cluster_radius[c]
+                        >= surface_height + cluster_radius[c] * g_norm):
+                    continue
+            else:
+                if not flat:
+                    top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max,
+                                      gx0, gy0, g_idx, g_idy,
+                                      ox + r00 * ccx + r01 * ccy + r02 * ccz,
+                                      oy + r10 * ccx + r11 * ccy + r12 * ccz, cluster_radius[c])
+                if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= top:
+                    continue
             j0 = cluster_plate_start[c]
             j1 = cluster_plate_start[c + 1]
             cluster, cluster_normals = positions[j0:j1], normals[j0:j1]  # (no wraparound)
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
-                plate_x = plate_y = 0.0  # world (x, y), on shaped surfaces only
+                plate_x = plate_y = 0.0  # world (x, y), on a grid only
                 if flat:
                     depth = surface_height - pz
+                elif slope:
+                    depth = surface_height - (s_0 + s_x * lx + s_y * ly + s_z * lz)
                 else:
                     plate_x = ox + r00 * lx + r01 * ly + r02 * lz
                     plate_y = oy + r10 * lx + r11 * ly + r12 * lz
-                    depth = height_at(kind, surface_height, gx, gy, grid, gx0, gy0, g_idx,
-                                      g_idy, plate_x, plate_y) - pz
+                    depth = grid_height(grid, gx0, gy0, g_idx, g_idy, plate_x, plate_y) - pz
                 if depth <= 0.0:
                     continue
                 if deform:

@@ -1,9 +1,9 @@
 """Deformable sand: a height grid the robot changes (footprints, craters, piles, avalanches).
 
-`DeformableSand` is a `HeightGrid` (so the kernels read its depth like any height field) over
-a bed of `size` [x, y] m centred on `center`, with square cells of side `cell` m (one node per
-cell; a node's sand column holds height x cell^2 of volume), initialised from a base surface
-(plane, slope, grid) at the nodes. Outside the bed the edge values continue.
+`DeformableSand` is a `HeightGrid` (so the kernels read its depth like any height field)
+over a bed of `size` [x, y] m centred on `center`, with square cells of side `cell` m (one
+node per cell; a node's sand column holds height x cell^2 of volume), initialised from a
+base surface (plane, slope, grid) at the nodes. Outside the bed the edge values continue.
 
 The rule (volume conserving):
 
@@ -11,28 +11,28 @@ The rule (volume conserving):
    four nodes of the cell its centroid lies in (in `coupling.gather_plates`): they are
    "pending" and keep the lowest plate z seen. (Four nodes, not the nearest one, so that a
    body whose plates are no farther apart than a cell leaves no unmarked node inside its
-   footprint; footprints are resolved to one cell.) A pending node's height does not change: a body that is in the
-   sand feels the depth below the surface around it, the very depth the RFT coefficients
-   were measured against (intruders moved through a bed whose free surface is level
-   around them).
+   footprint; footprints are resolved to one cell.) A pending node's height does not change:
+   a body that is in the sand feels the depth below the surface around it, the very depth
+   the RFT coefficients were measured against (intruders moved through a bed whose free
+   surface is level around them).
 2. **Commit.** A pending node that no plate marked in this step has been left by its body:
-   its height drops to the lowest plate z seen (if that is below it); the sand it held,
-   (old - new) x cell^2, is displaced.
+   its height drops to the lowest plate z seen (if that is below it); the sand it held, (old
+   - new) x cell^2, is displaced.
 3. **Deposit.** The displaced volume of a node goes in equal parts to the nearest nodes
    around it (the first ring at Chebyshev distance 1, 2, ... up to `DEPOSIT_REACH` that has
    any) that are neither pending nor just committed: the rim of the footprint. With no such
    node within reach the node keeps its sand (no footprint there).
 4. **Avalanche.** Around the nodes that changed, any pair of neighbouring nodes (axis and
    diagonal neighbours) steeper than the angle of repose exchanges sand until the slope
-   between them is at most tan(repose) (Gauss-Seidel sweeps, each moving half the excess of
-   a pair); pending nodes (under a body) neither give nor take. The window of the sweeps
-   grows while sand flows across its border, and an unsettled window carries over to the next
-   step, so cost follows the nodes under and around intruding bodies, not the bed size.
+   between them is at most tan(repose) (Gauss-Seidel sweeps, each bringing a pair to the
+   limit; settled within `SETTLED` of it); pending nodes (under a body) neither give nor
+   take. The window of the sweeps grows while sand flows across its border, and an unsettled
+   window carries over to the next step, so cost follows the nodes under and around
+   intruding bodies, not the bed size.
 
 Every transfer moves the same amount out of one node and into another, so the bed's volume
-is conserved up to floating-point rounding (sum of height changes x cell^2; tested to 1e-9 of
-the displaced volume). `reset()` restores the pristine surface exactly (a copy).
-"""
+is conserved up to floating-point rounding (sum of height changes x cell^2; tested to 1e-9
+of the displaced volume). `reset()` restores the pristine surface exactly (a copy)."""
 import numpy as np
 from numba import njit
 
@@ -42,8 +42,9 @@ from .surface import BLOCK, HeightGrid
 DEPOSIT_REACH = 100
 #: Sweeps of the avalanche per step at most (the rest carries over to the next step).
 MAX_SWEEPS = 64
-#: Slope excess (m per neighbour distance) below which a pair counts as settled.
-SETTLED = 1e-9
+#: A pair whose height difference exceeds the repose limit by less than this fraction of
+#: the limit counts as settled (slopes end within 0.1 % of tan(repose)).
+SETTLED = 1e-3
 
 #: The small int64 state vector: pending count; avalanche window (inclusive node bounds
 #: i0, i1 (x), j0, j1 (y)) and whether it is open; steps that ended with an unsettled
@@ -272,9 +273,9 @@ def avalanche(grid, stamp, state, rise):
                         continue
                     diff = grid[j, i] - grid[jj, ii]
                     excess = abs(diff) - rise * (1.4142135623730951 if d >= 2 else 1.0)
-                    if excess <= SETTLED:
+                    if excess <= SETTLED * rise:
                         continue
-                    transfer = 0.25 * excess if diff > 0 else -0.25 * excess
+                    transfer = 0.5 * excess if diff > 0 else -0.5 * excess
                     grid[j, i] -= transfer
                     grid[jj, ii] += transfer
                     moved = True

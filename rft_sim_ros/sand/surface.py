@@ -250,5 +250,6 @@ def surface_from_settings(settings, base_height=0.0, model=None):
         return HeightGrid.from_mjcf_hfield(model, settings['geom'])
     if 'file' not in settings or 'size' not in settings:
         raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
-    return HeightGrid.from_file(settings['file'], settings['size'], settings.get('center', (0.0, 0.0)),
+    return HeightGrid.from_file(settings['file'], settings['size'],
+                                settings.get('center', (0.0, 0.0)),
                                 settings.get('height_range'), base_height)

@@ -40,20 +40,13 @@ def grid_top(grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
 
 
 @njit(inline='always')
-def surface_height(kind, level, gx, gy, grid, x0, y0, inv_dx, inv_dy, x, y):
-    """Height of a SLOPE or GRID surface at world (x, y), m."""
-    if kind == SLOPE:
-        return level + gx * x + gy * y
-    return grid_height(grid, x0, y0, inv_dx, inv_dy, x, y)
-
-
-@njit(inline='always')
-def surface_top(kind, level, gx, gy, grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
-    """An upper bound of the surface's height within horizontal distance r of (x, y), m."""
+def surface_top(kind, level, gx, gy, g_norm, grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
+    """An upper bound of the surface's height within horizontal distance r of (x, y), m
+    (g_norm: the slope's |gradient|)."""
     if kind == FLAT:
         return level
     if kind == SLOPE:
-        return level + gx * x + gy * y + r * (gx * gx + gy * gy) ** 0.5
+        return level + gx * x + gy * y + r * g_norm
     return grid_top(grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r)
 
 

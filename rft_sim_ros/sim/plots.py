@@ -36,3 +36,25 @@ def plot_timeseries(path, series, scene, schedule=()):
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def plot_surface(path, surface, window=None):
+    """Map of a height grid's change from its pristine surface (deformable sand: footprints
+    below, piles above), mm, seen from above; `window` (x0, x1, y0, y1) m crops it."""
+    change = 1000.0 * (surface.grid - surface.pristine)
+    ny, nx = change.shape
+    extent = (surface.origin[0], surface.origin[0] + surface.spacing[0] * (nx - 1),
+              surface.origin[1], surface.origin[1] + surface.spacing[1] * (ny - 1))
+    limit = max(float(abs(change).max()), 1e-3)
+    fig, ax = plt.subplots(figsize=(7, 5))
+    image = ax.imshow(change, origin='lower', extent=extent, cmap='RdBu_r', vmin=-limit,
+                      vmax=limit)
+    fig.colorbar(image, ax=ax, label='surface change (mm): footprints < 0 < piles')
+    if window is not None:
+        ax.set_xlim(window[0], window[1])
+        ax.set_ylim(window[2], window[3])
+    ax.set_xlabel('x (m)')
+    ax.set_ylabel('y (m)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -137,7 +137,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     with mujoco_log(None if out is None else out / 'mujoco.log'):
-        summary, series = _run(scene, duration, recorders, progress, schedule, stop, log)
+        summary, series, sim = _run(scene, duration, recorders, progress, schedule, stop,
+                                    log)
     if out is not None:
         (out / 'summary.json').write_text(
             json.dumps(significant(summary), indent=2, default=json_default))
@@ -145,11 +146,16 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         if plots and series:
             from .plots import plot_timeseries
             plot_timeseries(out / 'timeseries.png', series, scene, summary['schedule'])
+        if sim.engine.deformable:  # the final surface: heights (m, world z) and a map
+            np.save(out / 'terrain.npy', sim.engine.surface.grid)
+            if plots:
+                from .plots import plot_surface
+                plot_surface(out / 'terrain.png', sim.engine.surface)
     return summary
 
 
 def _run(scene, duration, recorders, progress, schedule, stop, log):
-    """The run itself: (summary, time series rows)."""
+    """The run itself: (summary, time series rows, the Simulation)."""
     bar = None
     loop_started = None
     interrupted = False
@@ -261,7 +267,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'scene_config': scene.raw,
         'machine': machine_info(),
     }
-    return summary, series
+    return summary, series, sim
 
 
 def _scheduled_steps(schedule, timestep):
