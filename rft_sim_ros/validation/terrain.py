@@ -110,7 +110,7 @@ def step_costs(out, rounds=3, window_s=(1.0, 4.0), chunk=250):
     """Median CPU time of this process per hexapod step (s; CPU time, so that other load
     on the machine does not count) over the walk window, per `cost_cases` label, the cases
     interleaved over `rounds` rounds (one process, one run)."""
-    flat_grid = Path(out) / 'flat_grid.npy'
+    flat_grid = Path(out).resolve() / 'flat_grid.npy'
     np.save(flat_grid, np.zeros((201, 201)))
     cases = cost_cases(flat_grid)
     samples = {label: [] for label, _ in cases}
