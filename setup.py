@@ -41,7 +41,7 @@ setup(
         'numba>=0.59',
         'rosbags>=0.10',
         'matplotlib>=3.7',
-        'scipy>=1.10',      # trimesh's convex hulls (mesh geoms: MuJoCo collides their hulls)
+        'scipy>=1.10',      # trimesh's optional mesh operations (hulls, repairs) on users' meshes
         'xacro>=2.0',       # ROS's xacro, from PyPI: robot descriptions without ROS
         'pycollada>=0.8',   # COLLADA (.dae) collision meshes, converted by trimesh
         # trimesh's quadric decimation: a mesh far finer than its plate count is simplified
@@ -62,7 +62,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'rft-sim = rft_sim_ros.cli:main',
+            'rft-sim = rft_sim_ros.__main__:main',
             'sim = rft_sim_ros.ros.node:main',
             'tripod_gait = rft_sim_ros.ros.gait_node:main',
             'trot_gait = rft_sim_ros.ros.trot_gait_node:main',

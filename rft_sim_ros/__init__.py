@@ -2,11 +2,17 @@
 
 MuJoCo rigid-body dynamics coupled with 3D granular Resistive Force Theory (RFT).
 
-Subpackages
+Subpackages (imports point one way: rft <- sand <- sim -> scenes -> control; the rest on top)
 -----------
-rft  the force law and plate geometry (numpy; no MuJoCo, no ROS)
-sim  MuJoCo coupling, scenes, the step loop, servo commands and gaits (no ROS)
-ros  message building, the rosbag2 writer and the thin rclpy node
+rft         the force law and plate geometry (numpy; no MuJoCo, no ROS)
+sand        the sand engine: plates from MuJoCo geoms, surfaces, compiled coupling, the step
+robot       robot descriptions (MJCF, URDF, xacro) and ros2_control-like joint interfaces
+control     servo commands: trajectories, positions and efforts, validated
+scenes      scene files (schema, config) and the paper's scenarios, robots and gaits
+sim         the simulation loop, runner, state, summary and plots (no ROS)
+study       parameter sweeps on local processes or a Ray cluster
+ros         message building, the rosbag2 writer and the thin rclpy nodes
+bench, validation   `rft-sim bench` and `rft-sim validate`
 """
 
 __version__ = '0.1.0'

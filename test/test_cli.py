@@ -211,6 +211,21 @@ def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, sig
     assert abs(len(clocks) - published) <= 1
 
 
+def test_ctrl_c_while_the_cli_loads_exits_130_without_a_traceback(tmp_path):
+    """A Ctrl-C in the first second, while `rft-sim` is still importing numpy, MuJoCo and
+    numba, ends like any other: one line, exit 130 (the console script's entry guards it)."""
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'rft_sim_ros', 'run', 'plate_drop', '--out',
+         str(tmp_path / 'run'), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, preexec_fn=_as_in_a_terminal)
+    time.sleep(0.3)  # past the interpreter's start, well inside the CLI's imports
+    child.send_signal(signal.SIGINT)
+    stdout, stderr = child.communicate(timeout=120)
+    assert child.returncode == 130, stderr
+    assert 'Traceback' not in stderr and 'interrupted' in stderr
+    assert not (tmp_path / 'run').exists()
+
+
 # --- first run: a cold kernel cache is announced at once ---------------------------------------
 
 def test_a_cold_kernel_cache_is_announced_before_compiling(tmp_path):
