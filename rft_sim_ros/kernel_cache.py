@@ -1,6 +1,6 @@
 """The package's compiled kernels in numba's on-disk cache: which are there, and warming it.
 
-The sand engine's kernels (`rft.kernel`, `sand.coupling`) and the gaits' (`scenes.gaits`,
+The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`) and the gaits' (`scenes.gaits`,
 `scenes.leg_kinematics`) are numba functions compiled with cache=True: the first run after
 an install (or after their source changed) compiles them, which takes tens of seconds; every
 later run loads them from the cache in about a second. `sand.engine.kernels_cached` (and
@@ -14,7 +14,8 @@ import importlib
 
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.coupling',
-                  'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics')
+                  'rft_sim_ros.sand.deformable', 'rft_sim_ros.scenes.gaits',
+                  'rft_sim_ros.scenes.leg_kinematics')
 
 
 def is_cached(kernel):
@@ -55,7 +56,8 @@ def warm_up(log=print):
     from .sim.simulation import Simulation
     runs = (('hexapod', {}),                      # implicit engine step, tripod gait
             ('articulated_leg', {}),              # leg inverse kinematics
-            ('plate_drop', {'rft.low_velocity.method': 'ema'}))  # the explicit path
+            ('plate_drop', {'rft.low_velocity.method': 'ema'}),  # the explicit path
+            ('plate_drop', {'sand.deformable.enabled': True}))  # deformable sand
     for scene, overrides in runs:
         log(f'warmup: {scene} {overrides or ""}'.rstrip())
         Simulation(load_scene(scene, overrides)).step(2)
