@@ -1,8 +1,8 @@
 """The package's compiled kernels in numba's on-disk cache: which are there, and warming it.
 
-The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`) and the gaits' (`scenes.gaits`,
-`scenes.leg_kinematics`) are numba functions compiled with cache=True: the first run after
-an install (or after their source changed) compiles them, which takes tens of seconds; every
+The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`) and the gaits'
+(`scenes.gaits`, `scenes.leg_kinematics`) are numba functions compiled with cache=True: the
+first run after an install (or after their source changed) compiles them, which takes tens of seconds; every
 later run loads them from the cache in about a second. `sand.engine.kernels_cached` (and
 `sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
 kernels one engine needs; `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
