@@ -176,6 +176,23 @@ def test_a_hung_worker_is_killed_at_the_hard_limit_and_replaced():
     assert outcomes[1].value == 0.0  # ran on the replacement worker
 
 
+def thread_settings(names):
+    """The worker's values of the environment variables `names` (None where unset)."""
+    return [os.environ.get(name) for name in names]
+
+
+def test_workers_keep_native_thread_pools_to_one_thread_unless_the_user_says(monkeypatch):
+    """N workers each with a BLAS/OpenMP pool as large as the machine oversubscribe it (a
+    2-worker study ran no faster than one); a value the user set is passed on as it is."""
+    monkeypatch.setenv('MKL_NUM_THREADS', '3')
+    monkeypatch.delenv('OMP_NUM_THREADS', raising=False)
+    monkeypatch.delenv('OPENBLAS_NUM_THREADS', raising=False)
+    names = ['OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS']
+    [outcome] = map_unordered(thread_settings, [names], workers=1)
+    assert outcome.value == ['1', '1', '3']
+    assert 'OMP_NUM_THREADS' not in os.environ  # this process's environment is left alone
+
+
 def test_progress_line_counts_and_estimates():
     progress = StudyProgress(10, stream=io.StringIO())
     assert not progress.enabled  # not a terminal: quiet
