@@ -75,14 +75,15 @@ class BagWriter:
     """A rosbag2 folder at `path` (must not exist yet) recording the simulation's topics.
 
     leg_names: the scene's legs (one wrench topic each). plates: whether /rft/plates is
-    recorded (as the node's parameter of the same meaning). Use as a context manager or call
+    recorded (as the node's parameter of the same meaning). terrain: whether /rft/terrain and
+    /rft/terrain/marker are recorded (`write_terrain`). Use as a context manager or call
     `close()`; the bag is only complete once closed.
     """
 
-    def __init__(self, path, leg_names, *, plates=False):
+    def __init__(self, path, leg_names, *, plates=False, terrain=False):
         self.factory = RosbagsFactory(jazzy_typestore())
         self._plates = plates
-        self._types = topics.published_topics(leg_names, plates=plates)
+        self._types = topics.published_topics(leg_names, plates=plates, terrain=terrain)
         self._writer = _Rosbag2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._connections = {
@@ -115,6 +116,12 @@ class BagWriter:
                                  self._encoder.encode(state, *split_ns(time_ns)))
         if self._plates and state.active_plates is not None:
             self.write(topics.PLATES, messages.plates_message(self.factory, state), time_ns)
+
+    def write_terrain(self, update):
+        """Record a `terrain.TerrainUpdate` (`messages.terrain_messages`) at its sim time."""
+        time_ns = seconds_to_ns(update.time)
+        for topic, message in messages.terrain_messages(self.factory, update):
+            self.write(topic, message, time_ns)
 
     def write_diagnostics(self, state, status):
         """Record /diagnostics for `state` and the run's `messages.RunStatus` (the bytes of

@@ -36,6 +36,14 @@ PLATE_STRESS_FULL_SCALE_DEPTH_M = 0.05
 PLATES_MARKER_NS = 'rft_plates'
 PLATES_MARKER_ID = 0
 
+#: Marker namespace and id of the deformed-sand marker on /rft/terrain/marker.
+TERRAIN_MARKER_NS = 'rft_terrain'
+TERRAIN_MARKER_ID = 0
+#: Height change shown full blue (dug) or full red (piled), m.
+TERRAIN_CHANGE_FULL_SCALE_M = 0.02
+#: sensor_msgs/PointField datatype of float32.
+POINT_FIELD_FLOAT32 = 7
+
 _IDENTITY_WXYZ = (1.0, 0.0, 0.0, 0.0)
 
 
@@ -156,6 +164,40 @@ def leg_wrench_message(factory, state, leg):
                         wrench=wrench)
 
 
+def _marker(factory, t, ns, marker_id, marker_type, points, colors, scale):
+    """visualization_msgs/Marker in odom at sim time `t` (s): `points` (m) with `colors`
+    (ColorRGBA each), `scale` (m); action ADD, or DELETE when there are no points."""
+    no_data = factory.uint8_sequence([])
+    return factory.make(
+        'visualization_msgs/msg/Marker',
+        header=header(factory, t, topics.ODOM_FRAME),
+        ns=ns,
+        id=marker_id,
+        type=marker_type,
+        action=0 if len(points) else 2,  # ADD, or DELETE when there is nothing to show
+        pose=factory.make('geometry_msgs/msg/Pose', position=_point(factory, (0.0, 0.0, 0.0)),
+                          orientation=_quaternion(factory, _IDENTITY_WXYZ)),
+        scale=_vector3(factory, scale),
+        color=factory.make('std_msgs/msg/ColorRGBA', r=1.0, g=1.0, b=1.0, a=1.0),
+        lifetime=factory.make('builtin_interfaces/msg/Duration', sec=0, nanosec=0),
+        frame_locked=False,
+        points=[_point(factory, p) for p in points],
+        colors=colors,
+        texture_resource='',
+        texture=factory.make('sensor_msgs/msg/CompressedImage', header=header(factory, 0.0, ''),
+                             format='', data=no_data),
+        uv_coordinates=[],
+        text='',
+        mesh_resource='',
+        mesh_file=factory.make('visualization_msgs/msg/MeshFile', filename='', data=no_data),
+        mesh_use_embedded_materials=False)
+
+
+def _colors(factory, rgba):
+    return [factory.make('std_msgs/msg/ColorRGBA', r=float(r), g=float(g), b=float(b),
+                         a=float(a)) for r, g, b, a in rgba]
+
+
 def plate_colors(stress_pa, zeta_n_per_cm3):
     """(K, 4) float32 RGBA in [0, 1] (the precision of std_msgs/ColorRGBA): blue at no
     stress to red at stress >= zeta * PLATE_STRESS_FULL_SCALE_DEPTH_M (Pa)."""
@@ -172,37 +214,52 @@ def plates_message(factory, state):
     count = len(plates.areas)
     if count:
         stress = np.linalg.norm(plates.forces, axis=1) / plates.areas
-        colors = [factory.make('std_msgs/msg/ColorRGBA', r=float(r), g=float(g), b=float(b),
-                               a=float(a))
-                  for r, g, b, a in plate_colors(stress, state.zeta)]
+        colors = _colors(factory, plate_colors(stress, state.zeta))
         size = float(np.sqrt(np.mean(plates.areas)))
     else:
         colors, size = [], 0.0
-    no_data = factory.uint8_sequence([])
-    marker = factory.make(
-        'visualization_msgs/msg/Marker',
-        header=header(factory, state.time, topics.ODOM_FRAME),
-        ns=PLATES_MARKER_NS,
-        id=PLATES_MARKER_ID,
-        type=7,  # SPHERE_LIST
-        action=0 if count else 2,  # ADD, or DELETE when no plate is active
-        pose=factory.make('geometry_msgs/msg/Pose', position=_point(factory, (0.0, 0.0, 0.0)),
-                          orientation=_quaternion(factory, _IDENTITY_WXYZ)),
-        scale=_vector3(factory, (size, size, size)),
-        color=factory.make('std_msgs/msg/ColorRGBA', r=1.0, g=1.0, b=1.0, a=1.0),
-        lifetime=factory.make('builtin_interfaces/msg/Duration', sec=0, nanosec=0),
-        frame_locked=False,
-        points=[_point(factory, p) for p in plates.positions],
-        colors=colors,
-        texture_resource='',
-        texture=factory.make('sensor_msgs/msg/CompressedImage', header=header(factory, 0.0, ''),
-                             format='', data=no_data),
-        uv_coordinates=[],
-        text='',
-        mesh_resource='',
-        mesh_file=factory.make('visualization_msgs/msg/MeshFile', filename='', data=no_data),
-        mesh_use_embedded_materials=False)
+    marker = _marker(factory, state.time, PLATES_MARKER_NS, PLATES_MARKER_ID, 7,  # SPHERE_LIST
+                     plates.positions, colors, (size, size, size))
     return factory.make('visualization_msgs/msg/MarkerArray', markers=[marker])
+
+
+def terrain_cloud_message(factory, update):
+    """sensor_msgs/PointCloud2 in odom of a `terrain.TerrainUpdate`: one row of
+    `update.points`, fields x, y, z (float32, m, little-endian, 12 bytes a point), dense."""
+    points = np.ascontiguousarray(update.points, dtype='<f4').reshape(-1, 3)
+    fields = [factory.make('sensor_msgs/msg/PointField', name=name, offset=4 * k,
+                           datatype=POINT_FIELD_FLOAT32, count=1)
+              for k, name in enumerate('xyz')]
+    return factory.make('sensor_msgs/msg/PointCloud2',
+                        header=header(factory, update.time, topics.ODOM_FRAME),
+                        height=1, width=len(points), fields=fields, is_bigendian=False,
+                        point_step=12, row_step=12 * len(points),
+                        data=factory.uint8_sequence(np.frombuffer(points.tobytes(), np.uint8)),
+                        is_dense=True)
+
+
+def terrain_colors(change_m):
+    """(M, 4) float32 RGBA: grey for no change, to full blue at a dip of
+    TERRAIN_CHANGE_FULL_SCALE_M or deeper, to full red at a pile that high or higher."""
+    s = np.clip(np.asarray(change_m, dtype=float) / TERRAIN_CHANGE_FULL_SCALE_M, -1.0, 1.0)
+    grey = 0.5 * (1.0 - np.abs(s))
+    return np.column_stack([grey + np.maximum(s, 0.0), grey, grey + np.maximum(-s, 0.0),
+                            np.ones_like(s)]).astype(np.float32)
+
+
+def terrain_marker_message(factory, update):
+    """visualization_msgs/Marker (POINTS, odom) of the nodes of a `terrain.TerrainUpdate`
+    that differ from the pristine surface, coloured by height change (`terrain_colors`),
+    each a square one node spacing wide; DELETE when the surface is pristine."""
+    return _marker(factory, update.time, TERRAIN_MARKER_NS, TERRAIN_MARKER_ID, 8,  # POINTS
+                   update.deformed, _colors(factory, terrain_colors(update.change)),
+                   (update.spacing, update.spacing, 0.0))
+
+
+def terrain_messages(factory, update):
+    """[(topic, message)] of a terrain publication: the cloud and the marker."""
+    return [(topics.TERRAIN, terrain_cloud_message(factory, update)),
+            (topics.TERRAIN_MARKER, terrain_marker_message(factory, update))]
 
 
 @dataclass(frozen=True)

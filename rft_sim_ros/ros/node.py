@@ -4,7 +4,7 @@ This module only connects ROS entities to `rft_sim_ros.ros.runtime.SimRuntime`, 
 every decision (pacing, checks, command dispatch, what to publish when). Interface
 (docs/ros.md): parameters of `rft_sim_ros.ros.parameters`; publishers of
 `topics.published_topics`; subscriptions to the ros2_control command topics; services
-~/pause (std_srvs/SetBool), ~/reset and ~/step (std_srvs/Trigger). The robot comes from the
+~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger). The robot comes from the
 parameters scene / model / robot_description, or, with none of them set, from the first
 valid message on /robot_description (rft_sim_ros.ros.robot_source). The node publishes
 /clock itself and must not run on sim time; its timer runs on the steady wall clock.
@@ -23,6 +23,7 @@ from rft_sim_ros.ros import messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.ros.terrain import DEFAULT_RATE, TerrainFeed
 from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
                                           load_node_scene, needs_topic)
 from rft_sim_ros.scenes.config import SceneError
@@ -36,7 +37,8 @@ TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
 
 #: Numeric parameters accept integers too (`ros2 param set /rft_sim zeta 2`); their values
 #: are checked by `parameters`, not by rclpy's static typing.
-_ANY_NUMBER = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE)
+_ANY_NUMBER = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE,
+               parameters.TERRAIN_RATE)
 
 
 class SimNode(Node):
@@ -103,11 +105,13 @@ class SimNode(Node):
         joint_names = self._declare(parameters.JOINT_NAMES,
                                     list(sim.servo_joint_names) or Parameter.Type.STRING_ARRAY)
         self._plates = self._declare(parameters.PLATES, False)
+        terrain = TerrainFeed(sim.engine.surface,
+                              self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE))
         self._topic_publishers = {
             topic: self.create_publisher(self._factory.message_class(msgtype), topic,
                                          TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH)
-            for topic, msgtype in topics.published_topics(list(sim.legs),
-                                                          plates=self._plates).items()}
+            for topic, msgtype in topics.published_topics(
+                list(sim.legs), plates=self._plates, terrain=terrain.active).items()}
         logger = self.get_logger()
         for notice in sim.notices:  # e.g. the sand bodies `auto` chose
             logger.info(notice)
@@ -115,7 +119,7 @@ class SimNode(Node):
             sim, self, publish_rate=self._declare(parameters.PUBLISH_RATE,
                                                   sim.scene.publish_rate),
             joint_names=joint_names, real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
-            paused=initial[parameters.PAUSED], plates=self._plates,
+            paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
             warn=logger.warning, error=logger.error)
         self.create_subscription(self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE),
                                  topics.JOINT_TRAJECTORY, self.runtime.on_trajectory,
@@ -134,6 +138,8 @@ class SimNode(Node):
                             lambda req, res: self._answer(self.runtime.reset(), res))
         self.create_service(trigger, '~/step',
                             lambda req, res: self._answer(self.runtime.step(), res))
+        self.create_service(trigger, '~/reset_terrain',
+                            lambda req, res: self._answer(self.runtime.reset_terrain(), res))
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(self.runtime.tick_period, self._tick,
@@ -155,6 +161,11 @@ class SimNode(Node):
     def write_state(self, state):
         """Publish one cycle of `state` (SimState)."""
         for topic, message in messages.state_messages(self._factory, state, plates=self._plates):
+            self._topic_publishers[topic].publish(message)
+
+    def write_terrain(self, update):
+        """Publish the sand surface of `update` (terrain.TerrainUpdate)."""
+        for topic, message in messages.terrain_messages(self._factory, update):
             self._topic_publishers[topic].publish(message)
 
     def write_diagnostics(self, state, status):

@@ -32,6 +32,7 @@ PUBLISH_RATE = 'publish_rate'
 JOINT_NAMES = 'joint_names'
 PAUSED = 'paused'
 PLATES = 'plates'
+TERRAIN_RATE = 'terrain_rate'
 
 PARAMETERS = (
     ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
@@ -56,6 +57,8 @@ PARAMETERS = (
                                'joints)', False),
     ParameterSpec(PAUSED, 'stop stepping (sim time and /clock stand still)', True),
     ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
+    ParameterSpec(TERRAIN_RATE, 'sand surface publications (/rft/terrain, /rft/terrain/marker) '
+                                'per second of sim time at most; only when it changed', False),
 )
 
 SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -94,11 +97,12 @@ def parameter_problem(name, value):
     return None
 
 
-def publish_rate(value):
-    """`value` (Hz of sim time) as a float; raises ValueError unless finite and > 0."""
+def publish_rate(value, name=PUBLISH_RATE):
+    """`value` (Hz of sim time) as a float; raises ValueError unless finite and > 0.
+    name: the parameter, for the message (publish_rate or terrain_rate)."""
     number = _number(value)
     if number is None or number <= 0.0:
-        raise ValueError(f'publish_rate must be a finite number > 0 Hz, got {value!r}')
+        raise ValueError(f'{name} must be a finite number > 0 Hz, got {value!r}')
     return number
 
 

@@ -2,7 +2,8 @@
 
 `BagRecorder` is a run_scene recorder: every state it is given is one publish cycle of the
 node (the same `BagWriter.write_state` messages), and /diagnostics follows the node's rule
-(`rft_sim_ros.ros.diagnostics`) counted in sim seconds, so a headless bag holds the topics
+(`rft_sim_ros.ros.diagnostics`) counted in sim seconds, and the sand surface follows the
+node's rule (`rft_sim_ros.ros.terrain`, at its default rate), so a headless bag holds the topics
 and types that `ros2 bag record` of the node holds. If the run diverges, a last /diagnostics
 (level ERROR, the reason as message) is stamped with the last recorded state's time.
 """
@@ -11,6 +12,7 @@ import time
 from rft_sim_ros.ros.bag import BagWriter
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, status_key
 from rft_sim_ros.ros.messages import RunStatus
+from rft_sim_ros.ros.terrain import TerrainFeed
 
 
 class BagRecorder:
@@ -30,13 +32,16 @@ class BagRecorder:
         self._schedule = DiagnosticsSchedule(diagnostics_period_s)
         self._clock = clock
         self._sim = None
+        self._terrain = None
         self._started = None
         self._last = None
 
     def start(self, sim):
         """Called by run_scene with the Simulation before its first step."""
         self._sim = sim
-        self._writer = BagWriter(self._path, list(sim.legs), plates=self.wants_plates)
+        self._terrain = TerrainFeed(sim.engine.surface)
+        self._writer = BagWriter(self._path, list(sim.legs), plates=self.wants_plates,
+                                 terrain=self._terrain.active)
         self._started = (sim.time, self._clock())
 
     def _status(self, state):
@@ -50,18 +55,27 @@ class BagRecorder:
                          commands_rejected=rejected)
 
     def record(self, state):
-        """One publish cycle of `state` (SimState), plus /diagnostics when due."""
+        """One publish cycle of `state` (SimState), plus the sand surface and /diagnostics
+        when due."""
         self._writer.write_state(state)
+        update = self._terrain.update(state.time)
+        if update is not None:
+            self._writer.write_terrain(update)
         self._last = state
         status = self._status(state)
         if self._schedule.due(state.time, status_key(state, status)):
             self._writer.write_diagnostics(state, status)
 
     def close(self):
-        """Report a divergence on /diagnostics, then finish the bag (an empty one if the run
-        never started)."""
+        """Record the surface's last changes (whatever the rate: the bag ends with the final
+        surface) and a divergence on /diagnostics, then finish the bag (an empty one if the
+        run never started)."""
         if self._writer is None:
             self._writer = BagWriter(self._path, [], plates=self.wants_plates)
+        if self._last is not None:
+            update = self._terrain.update(self._last.time, due=True)
+            if update is not None:
+                self._writer.write_terrain(update)
         if self._sim is not None and self._sim.diverged and self._last is not None:
             self._writer.write_diagnostics(self._last, self._status(self._last))
         self._writer.close()

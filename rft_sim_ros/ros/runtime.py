@@ -14,7 +14,11 @@ rclpy node only forwards events to it:
   `sim.commands` at the current sim time; bad ones are rejected with a throttled warning
   naming the problem and counted per reason (reported on /diagnostics). Never raises.
 * `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused.
-* `pause(flag)`, `reset()`, `step()`: the services, each answering a `ServiceResult`.
+* `pause(flag)`, `reset()`, `step()`, `reset_terrain()`: the services, each answering a
+  `ServiceResult`.
+
+With a `terrain.TerrainFeed`, each state publication is followed by the sand surface when it
+is due and changed (the sink's `write_terrain(TerrainUpdate)`).
 
 A diverging simulation (SimulationDiverged) is logged as an error, reported on /diagnostics
 (level ERROR) and pauses the runtime; nothing is published for the failed cycle, and it can
@@ -58,14 +62,15 @@ class SimRuntime:
 
     publish_rate: state publications per second of sim time (on average: each cycle is a
     whole number of steps, `PublishSchedule`). joint_names: order of array commands (None: the
-    scene's commanded joints, Simulation.servo_joint_names). plates: publish active plates. warn, error: log functions (str).
+    scene's commanded joints, Simulation.servo_joint_names). plates: publish active plates.
+    terrain: a `terrain.TerrainFeed` of the sim's surface, or None. warn, error: log functions (str).
     clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
     diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
     rejected-command warnings (one line per reason and topic per period).
     """
 
     def __init__(self, sim, sink, *, publish_rate, joint_names=None, real_time_factor=1.0,
-                 paused=False, plates=False, warn=print, error=print, clock=time.monotonic,
+                 paused=False, plates=False, terrain=None, warn=print, error=print, clock=time.monotonic,
                  tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
         self.sim = sim
         self._sink = sink
@@ -75,6 +80,7 @@ class SimRuntime:
         self.joint_names = servo_joints if joint_names is None else tuple(joint_names)
         self._array_order = array_order(servo_joints, self.joint_names)
         self.plates = bool(plates)
+        self._terrain = terrain
         self._clock = clock
         self._error = error
         self._warn = ThrottledLog(warn, warn_period_s, clock=clock)
@@ -153,6 +159,9 @@ class SimRuntime:
     def _publish_state(self):
         self.last_state = self.sim.state(with_plates=self.plates)
         self._sink.write_state(self.last_state)
+        update = self._terrain.update(self.sim.time) if self._terrain is not None else None
+        if update is not None:
+            self._sink.write_terrain(update)
 
     def _diagnostics(self, now):
         status = self.status()
@@ -270,3 +279,12 @@ class SimRuntime:
         self._pacer.restart(self._clock(), self.sim.time)
         return ServiceResult(True, f'reset at sim time {self.sim.time:.6f} s '
                                    f'({"paused" if self.paused else "running"})')
+
+    def reset_terrain(self):
+        """std_srvs/Trigger `reset_terrain`: deformable sand back to its pristine surface,
+        nothing else changes (sim time, robot, commands); published with the next state."""
+        if not self.sim.engine.deformable:
+            return ServiceResult(True, 'the sand of this scene is not deformable: nothing to '
+                                       'reset')
+        self.sim.reset_terrain()
+        return ServiceResult(True, f'sand surface reset at sim time {self.sim.time:.6f} s')

@@ -15,6 +15,8 @@ ODOM = '/odom'
 TF = '/tf'
 PLATES = '/rft/plates'
 DIAGNOSTICS = '/diagnostics'
+TERRAIN = '/rft/terrain'
+TERRAIN_MARKER = '/rft/terrain/marker'
 
 #: Command topics of a ros2_control stack, so existing gait controllers drive the sim unchanged.
 JOINT_TRAJECTORY = '/joint_trajectory_controller/joint_trajectory'
@@ -27,6 +29,8 @@ ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 TF_TYPE = 'tf2_msgs/msg/TFMessage'
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
+POINT_CLOUD_TYPE = 'sensor_msgs/msg/PointCloud2'
+MARKER_TYPE = 'visualization_msgs/msg/Marker'
 DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
 POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
@@ -54,11 +58,12 @@ def leg_wrench_topic(leg):
     return f'/rft/{_checked_leg(leg)}/wrench'
 
 
-def published_topics(leg_names, *, plates):
+def published_topics(leg_names, *, plates, terrain=False):
     """{topic: message type} of everything the simulation publishes.
 
     leg_names: legs of the scene (one wrench topic each). plates: whether the active plates
-    are published as markers on /rft/plates.
+    are published as markers on /rft/plates. terrain: whether the sand surface is published
+    (grid surfaces: `rft_sim_ros.ros.terrain`) on /rft/terrain and /rft/terrain/marker.
     """
     topics = {
         CLOCK: CLOCK_TYPE,
@@ -74,4 +79,7 @@ def published_topics(leg_names, *, plates):
         topics[topic] = WRENCH_TYPE
     if plates:
         topics[PLATES] = MARKER_ARRAY_TYPE
+    if terrain:
+        topics[TERRAIN] = POINT_CLOUD_TYPE
+        topics[TERRAIN_MARKER] = MARKER_TYPE
     return topics

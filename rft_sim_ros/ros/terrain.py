@@ -1,0 +1,80 @@
+"""What of the sand surface is published, and when (ROS-free; the node and the bag recorder
+share it).
+
+`TerrainFeed` watches a simulation's sand surface. Only grid surfaces are published (a
+height grid, an MJCF hfield, deformable sand); a plane or a slope is the same analytic surface
+all run long and publishes nothing, at no cost. The first call publishes every node of the
+grid; later calls, at most `rate` per second of sim time, publish the nodes whose height
+changed since the last publication (footprints, piles, a terrain reset) and nothing when none
+did. Heights in m, world z; x, y in m in the odom frame (the MuJoCo world frame).
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rft_sim_ros.ros.parameters import TERRAIN_RATE, publish_rate
+from rft_sim_ros.sand.surface import HeightGrid
+
+#: Default publications per second of sim time (the node's `terrain_rate`, the bags' rate).
+DEFAULT_RATE = 2.0
+
+
+@dataclass(frozen=True)
+class TerrainUpdate:
+    """One publication of the surface at sim time `time` (s).
+
+    points: (N, 3) float32 x, y, z (m, odom) of the nodes changed since the last publication
+    (every node the first time). deformed: (M, 3) float32 nodes whose height differs from
+    the pristine surface; change: (M,) their height change, m (negative: dug, positive:
+    piled). spacing: the grid's node spacing, m (the smaller of x and y)."""
+    time: float
+    points: np.ndarray
+    deformed: np.ndarray
+    change: np.ndarray
+    spacing: float
+
+
+class TerrainFeed:
+    """Decides the terrain publications of `surface` (see module docstring).
+
+    surface: the simulation's sand surface (`sim.engine.surface`). rate: publications per
+    second of sim time at most."""
+
+    def __init__(self, surface, rate=DEFAULT_RATE):
+        self._surface = surface if isinstance(surface, HeightGrid) else None
+        self._period = 1.0 / publish_rate(rate, TERRAIN_RATE)
+        self._published = None  # heights at the last publication
+        self._next = -math.inf
+
+    @property
+    def active(self):
+        """Whether this surface is published at all (grids only)."""
+        return self._surface is not None
+
+    def update(self, time, due=False):
+        """The `TerrainUpdate` due at sim time `time` (s), or None (nothing due or changed).
+        due: publish the changes now whatever the rate (e.g. the last state of a run)."""
+        if self._surface is None or (time < self._next and not due):
+            return None
+        grid = self._surface.grid
+        if self._published is None:
+            changed = np.ones(grid.shape, dtype=bool)
+        else:
+            changed = grid != self._published
+            if not changed.any():
+                return None
+        self._published = grid.copy()
+        self._next = time + self._period
+        pristine = getattr(self._surface, 'pristine', grid)
+        deformed = grid != pristine
+        return TerrainUpdate(float(time), self._points(changed), self._points(deformed),
+                             (grid - pristine)[deformed], float(min(self._surface.spacing)))
+
+    def _points(self, nodes):
+        """(N, 3) float32 x, y, z of the grid nodes where `nodes` is True."""
+        surface = self._surface
+        j, i = np.nonzero(nodes)
+        return np.column_stack([surface.origin[0] + i * surface.spacing[0],
+                                surface.origin[1] + j * surface.spacing[1],
+                                surface.grid[j, i]]).astype(np.float32)
