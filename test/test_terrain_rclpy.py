@@ -1,0 +1,77 @@
+"""The sand surface over rclpy: /rft/terrain and /rft/terrain/marker of a deformable scene,
+the ~/reset_terrain service, and nothing published for a plane.
+
+Runs where ROS 2 Jazzy is sourced; skipped with the reason everywhere else."""
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy', reason='ROS 2 Jazzy (rclpy) is not installed here')
+for _package in ('std_srvs.srv', 'sensor_msgs.msg', 'visualization_msgs.msg'):
+    pytest.importorskip(_package, reason=f'ROS 2 package {_package} is not installed here')
+
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import PointCloud2  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+from visualization_msgs.msg import Marker  # noqa: E402
+
+from rft_sim_ros.ros import topics  # noqa: E402
+from rft_sim_ros.ros.node import SimNode  # noqa: E402
+from ros_test_support import SERVO_RIG  # noqa: E402
+from test_node_rclpy import Ros  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+#: A 0.5 m x 0.5 m deformable bed of 1 cm cells (51 x 51 nodes) under the dropped plate.
+BED = ['sand.deformable.enabled=true', 'sand.deformable.size=[0.5, 0.5]']
+
+
+@pytest.fixture
+def ros():
+    session = Ros()
+    yield session
+    session.close()
+
+
+def points(cloud):
+    return np.frombuffer(bytes(cloud.data), dtype='<f4').reshape(-1, 3)
+
+
+def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(ros):
+    clouds, markers = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 100)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
+    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
+        Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=5.0)]))
+    assert ros.spin_until(lambda: clouds and markers)
+    first = clouds[0]
+    assert first.header.frame_id == topics.ODOM_FRAME and first.width == 51 * 51
+    assert np.all(points(first)[:, 2] == 0.0)           # the pristine bed at surface height 0
+    assert markers[0].action == Marker.DELETE            # nothing deformed yet
+    assert ros.spin_until(lambda: sim.runtime.sim.time > 0.4, timeout=20.0)
+    assert ros.call(ros.probe.pause, SetBool.Request(data=True)).success
+    sim.runtime.sim.data.qpos[2] = 0.3                   # take the plate out of its footprint
+    sim.runtime.sim.data.qvel[:] = 0.0
+    assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
+    assert ros.spin_until(lambda: markers[-1].action == Marker.ADD, timeout=20.0)
+    footprint = points(clouds[-1])
+    assert 0 < len(footprint) < 51 * 51 and footprint[:, 2].min() < -1e-3  # a crater
+    assert len(markers[-1].points) == len(markers[-1].colors) > 0
+    answer = ros.call(reset_terrain, Trigger.Request())
+    assert answer.success and 'reset' in answer.message
+    count = len(clouds)
+    assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE, timeout=20.0)
+    restored = np.concatenate([points(c) for c in clouds[count:]])
+    assert np.all(restored[:, 2] == 0.0)                 # the changed nodes back at 0
+    assert ros.probe.clock_times()[-1] > 0.4             # sim time went on
+
+
+def test_a_plane_publishes_no_terrain_and_reset_terrain_says_so(ros):
+    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value=SERVO_RIG)]))
+    assert ros.spin_until(lambda: ros.probe.clocks)
+    assert sim.count_publishers(topics.TERRAIN) == 0
+    answer = ros.call(reset_terrain, Trigger.Request())
+    assert answer.success and 'not deformable' in answer.message
