@@ -58,15 +58,19 @@ class TerrainFeed:
         if self._surface is None or (time < self._next and not due):
             return None
         grid = self._surface.grid
+        pristine = getattr(self._surface, 'pristine', None)  # only deformable sand changes
         if self._published is None:
             changed = np.ones(grid.shape, dtype=bool)
+        elif pristine is None:
+            return None
         else:
             changed = grid != self._published
             if not changed.any():
                 return None
         self._published = grid.copy()
         self._next = time + self._period
-        pristine = getattr(self._surface, 'pristine', grid)
+        if pristine is None:
+            pristine = grid
         deformed = grid != pristine
         return TerrainUpdate(float(time), self._points(changed), self._points(deformed),
                              (grid - pristine)[deformed], float(min(self._surface.spacing)))
