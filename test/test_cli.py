@@ -183,10 +183,10 @@ def _as_in_a_terminal():
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
-def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, signum):
+def _long_run_recording(out):
+    """A warm `rft-sim run plate_drop` of 600 s into `out`, as a terminal's foreground job,
+    once it is stepping and has written to its bag."""
     Simulation(load_scene('plate_drop'))  # kernels in numba's cache: the child starts warm
-    out = tmp_path / 'run'
     child = subprocess.Popen(
         [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '600',
          '--out', str(out), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -195,7 +195,14 @@ def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, sig
     deadline = time.monotonic() + 120
     while not (bag_file.exists() and bag_file.stat().st_size > 0):  # stepping, recording
         assert child.poll() is None and time.monotonic() < deadline, child.communicate()
-        time.sleep(0.1)
+        time.sleep(0.05)
+    return child
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, signum):
+    out = tmp_path / 'run'
+    child = _long_run_recording(out)
     child.send_signal(signum)
     stdout, stderr = child.communicate(timeout=60)
     assert child.returncode == 128 + signum, stderr
@@ -274,17 +281,8 @@ def test_an_ignored_sigint_stays_ignored(tmp_path):
 def test_ctrl_c_twice_quits_at_once_without_a_traceback(tmp_path):
     """The first Ctrl-C asks the run to stop; a second one right after (while it closes the
     bag, writes the summary and plots) quits at once: exit 130, no traceback."""
-    Simulation(load_scene('plate_drop'))
     out = tmp_path / 'run'
-    child = subprocess.Popen(
-        [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '600',
-         '--out', str(out), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, preexec_fn=_as_in_a_terminal)
-    bag_file = out / 'bag' / 'bag.mcap'
-    deadline = time.monotonic() + 120
-    while not (bag_file.exists() and bag_file.stat().st_size > 0):
-        assert child.poll() is None and time.monotonic() < deadline, child.communicate()
-        time.sleep(0.05)
+    child = _long_run_recording(out)
     child.send_signal(signal.SIGINT)
     time.sleep(0.01)
     if child.poll() is None:
