@@ -2,7 +2,7 @@
 
 MuJoCo rigid-body dynamics coupled with 3D granular Resistive Force Theory (RFT).
 
-Subpackages (imports point one way: rft <- sand <- sim -> scenes -> control; the rest on top)
+Subpackages (each imports only those listed before it)
 -----------
 rft         the force law and plate geometry (numpy; no MuJoCo, no ROS)
 sand        the sand engine: plates from MuJoCo geoms, surfaces, compiled coupling, the step
