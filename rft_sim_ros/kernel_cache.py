@@ -64,3 +64,70 @@ def warm_up(log=print):
     down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
     plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
     return uncached()
+
+
+class BackgroundCompile:
+    """Kernels compiled into numba's on-disk cache by another Python process, while this one
+    goes on (compiling others): on two cores a cold start takes about as long as its
+    longest share instead of the sum. numba compiles in pure Python under a process-wide
+    lock, so threads cannot do this.
+
+    kernels: (numba dispatcher with cache=True, signature) pairs; signature: numba's text of
+    the argument types, e.g. '(float64, int64[:, ::1])'. The child sees the same cache
+    (it inherits NUMBA_CACHE_DIR) and runs this module (`python -m rft_sim_ros.kernel_cache
+    module:name=signature ...`). `wait()` returns once it is done; a kernel it could not
+    compile is then simply compiled here, at its first call, so a failed child costs time,
+    never correctness. Used as a context manager, a child still running when the block
+    ends (e.g. this process is interrupted while compiling its own share) is killed.
+    """
+
+    def __init__(self, kernels):
+        import subprocess
+        import sys
+        self.kernels = [kernel for kernel, _ in kernels]
+        specs = [f'{kernel.py_func.__module__}:{kernel.py_func.__name__}={signature}'
+                 for kernel, signature in kernels]
+        self._child = subprocess.Popen(
+            [sys.executable, '-m', 'rft_sim_ros.kernel_cache', *specs],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exception):
+        if self._child.poll() is None:
+            self._child.kill()
+            self._child.communicate()
+
+    def wait(self):
+        """Wait for the child; (True, '') when it compiled every kernel and the cache now
+        holds them, else (False, why: its error output or the kernels the cache lacks)."""
+        try:
+            _, error = self._child.communicate()
+        except BaseException:  # e.g. KeyboardInterrupt: do not leave the child compiling
+            self._child.kill()
+            self._child.wait()
+            raise
+        missing = [kernel.py_func.__qualname__ for kernel in self.kernels
+                   if not is_cached(kernel)]
+        if self._child.returncode == 0 and not missing:
+            return True, ''
+        why = error.decode(errors='replace').strip().splitlines()[-1:] or [
+            f'not cached: {", ".join(missing)}']
+        return False, why[0]
+
+
+def _compile_main(specs):
+    """The child of `BackgroundCompile`: compile each 'module:name=signature' of `specs`."""
+    from numba.core import sigutils
+    for spec in specs:
+        target, signature = spec.split('=', 1)
+        module_name, name = target.split(':')
+        kernel = getattr(importlib.import_module(module_name), name)
+        arguments, _ = sigutils.normalize_signature(signature)
+        kernel.compile(arguments)
+
+
+if __name__ == '__main__':
+    import sys
+    _compile_main(sys.argv[1:])

@@ -1,4 +1,6 @@
-"""The start-up notice that the kernels compile: shown exactly when numba's cache lacks them."""
+"""Cold starts: the notice that the kernels compile (shown exactly when numba's cache lacks
+them), and kernels compiled into the cache by a second process (`BackgroundCompile`)."""
+import json
 import os
 import subprocess
 import sys
@@ -26,3 +28,49 @@ def test_a_filled_cache_gets_none():
     ema = load_scene('plate_drop', {'rft.low_velocity.method': 'ema'})
     Simulation(ema)
     assert compile_notice(ema) is None
+
+
+_BACKGROUND_PROBE = '''
+import json, numpy as np
+from rft_sim_ros.kernel_cache import BackgroundCompile, is_cached
+from rft_sim_ros.sand import coupling
+kernel = coupling.implicit_mass
+before = is_cached(kernel)
+job = BackgroundCompile([(kernel, "(float64[:, ::1], float64[::1], float64)")])
+done, why = job.wait()
+after = is_cached(kernel)
+mass = np.eye(2)
+kernel(mass, np.array([1.0, 2.0]), 0.5)  # loads what the child compiled: no compile here
+print(json.dumps({"before": before, "done": done, "why": why, "after": after,
+                  "mass": mass.tolist(), "hits": sum(kernel.stats.cache_hits.values()),
+                  "misses": sum(kernel.stats.cache_misses.values())}))
+'''
+
+
+def test_a_background_compile_fills_the_cache_for_this_process(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    done = subprocess.run([sys.executable, '-c', _BACKGROUND_PROBE], env=env,
+                          capture_output=True, text=True, check=True, timeout=120)
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result['before'] is False  # an empty cache
+    assert result['done'] is True, result['why']
+    assert result['after'] is True
+    assert result['hits'] == 1 and result['misses'] == 0  # loaded, not compiled again
+    assert result['mass'] == [[1.5, 0.0], [0.0, 2.0]]  # M + dt D, computed by that code
+
+
+_FAILING_PROBE = '''
+import json
+from rft_sim_ros.kernel_cache import BackgroundCompile
+from rft_sim_ros.sand import coupling
+print(json.dumps(BackgroundCompile([(coupling.implicit_mass, "(int64,)")]).wait()))
+'''
+
+
+def test_a_failed_background_compile_says_why(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    done = subprocess.run([sys.executable, '-c', _FAILING_PROBE], env=env,
+                          capture_output=True, text=True, check=True, timeout=120)
+    ok, why = json.loads(done.stdout.strip().splitlines()[-1])
+    assert ok is False
+    assert 'Signature mismatch' in why, why  # the child's own error

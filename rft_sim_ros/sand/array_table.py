@@ -12,8 +12,9 @@ recorded with, so that a table built in another order raises instead of reading 
 The table holds references to its arrays, so they stay alive while it does; an array must
 never be replaced by a new object while a table of it is in use.
 """
+import numba
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
@@ -46,74 +47,65 @@ class ArrayTable:
         self.table = np.array(rows, dtype=np.int64).reshape(-1, 5)
 
 
-def _view_intrinsic(rank):
-    """A compiled function (address, shape, dtype) -> C-contiguous array of that rank over
-    the memory at address (no copy, no owner), built directly: numba's carray checks and
-    formats its arguments at every call site, which made the kernels take twice as long to
-    compile."""
+def _reader(dtype, rank):
+    """A compiled accessor (table, i) -> entry i of the table as a C-contiguous array of
+    `dtype` and `rank` over the recorded memory (no copy, no owner). It raises TypeError
+    when the entry was recorded with another element type or rank, so that a table built in
+    another order raises instead of reading garbage.
+
+    An intrinsic: the check and the view are emitted straight as LLVM IR at each call site.
+    (As an inline numba function, each of the ~90 reads in the kernels was inlined and
+    typed again at compile time, a large part of the cold compile; numba's carray also
+    checked and formatted its arguments at every call site.)"""
+    code = _CODES[np.dtype(dtype)]
+    element = numba.from_dtype(np.dtype(dtype))
+    array_type = types.Array(element, rank, 'C')
+
     @intrinsic
-    def view(typingctx, address, shape, dtype):
-        element = dtype.instance_type
-        array_type = types.Array(element, rank, 'C')
+    def read(typingctx, table, index):
+        if not (isinstance(table, types.Array) and table.dtype == types.int64
+                and table.ndim == 2 and table.layout == 'C'
+                and isinstance(index, types.Integer)):
+            return None
 
         def codegen(context, builder, signature, args):
-            address_value, shape_value, _ = args
-            dims = cgutils.unpack_tuple(builder, shape_value, rank) if rank > 1 else [shape_value]
-            itemsize = context.get_abi_sizeof(context.get_data_type(element))
-            strides, stride = [], context.get_constant(types.intp, itemsize)
+            table_type, index_type = signature.args
+            entries = make_array(table_type)(context, builder, args[0])
+            row = builder.mul(context.cast(builder, args[1], index_type, types.intp),
+                              context.get_constant(types.intp, 5))
+
+            def column(which):
+                offset = builder.add(row, context.get_constant(types.intp, which))
+                return builder.load(builder.gep(entries.data, [offset]))
+
+            def differs(which, value):
+                return builder.icmp_signed('!=', column(which),
+                                           context.get_constant(types.int64, value))
+            with builder.if_then(builder.or_(differs(CODE, code), differs(RANK, rank)),
+                                 likely=False):
+                context.call_conv.return_user_exc(builder, TypeError, (_MISMATCH,))
+            dims = [column(ROWS), column(COLUMNS)][:rank]
+            item_type = context.get_data_type(element)
+            itemsize = context.get_constant(types.intp, context.get_abi_sizeof(item_type))
+            strides, stride = [], itemsize
             for dim in reversed(dims):
                 strides.insert(0, stride)
                 stride = builder.mul(stride, dim)
             array = make_array(array_type)(context, builder)
-            data = builder.inttoptr(address_value, context.get_data_type(element).as_pointer())
+            data = builder.inttoptr(column(ADDRESS), item_type.as_pointer())
             populate_array(array, data=data, shape=cgutils.pack_array(builder, dims),
-                           strides=cgutils.pack_array(builder, strides),
-                           itemsize=context.get_constant(types.intp, itemsize), meminfo=None)
+                           strides=cgutils.pack_array(builder, strides), itemsize=itemsize,
+                           meminfo=None)
             return array._getvalue()
-        shape_type = types.UniTuple(types.int64, rank) if rank > 1 else types.int64
-        return array_type(types.int64, shape_type, dtype), codegen
-    return view
-
-
-_vector_view, _matrix_view = _view_intrinsic(1), _view_intrinsic(2)
-
-
-@njit
-def _mismatch():
-    """Raise for an entry read with another element type or rank. A call of its own: a
-    raise inlined into every accessor made each read ~20 times dearer."""
-    raise TypeError('array table entry read with another dtype or rank than recorded')
-
-
-@njit(inline='always')
-def _check(table, i, code, rank):
-    if (table[i, CODE] != code) | (table[i, RANK] != rank):
-        _mismatch()
-
-
-def _vector_reader(dtype):
-    code = _CODES[np.dtype(dtype)]
-
-    @njit(inline='always')
-    def read(table, i):
-        _check(table, i, code, 1)
-        return _vector_view(table[i, ADDRESS], table[i, ROWS], dtype)
+        return array_type(table, index), codegen
     return read
 
 
-def _matrix_reader(dtype):
-    code = _CODES[np.dtype(dtype)]
-
-    @njit(inline='always')
-    def read(table, i):
-        _check(table, i, code, 2)
-        return _matrix_view(table[i, ADDRESS], (table[i, ROWS], table[i, COLUMNS]), dtype)
-    return read
-
+_MISMATCH = 'array table entry read with another dtype or rank than recorded'
 
 #: Compiled accessors: entry i of a table as an array (no copy), by element type and rank.
-float_vector, float_matrix = _vector_reader(np.float64), _matrix_reader(np.float64)
-int_vector, int_matrix = _vector_reader(np.int64), _matrix_reader(np.int64)
-int32_vector, int32_matrix = _vector_reader(np.int32), _matrix_reader(np.int32)
-int8_vector, int8_matrix = _vector_reader(np.int8), _matrix_reader(np.int8)
-byte_vector = _vector_reader(np.uint8)
+float_vector, float_matrix = _reader(np.float64, 1), _reader(np.float64, 2)
+int_vector, int_matrix = _reader(np.int64, 1), _reader(np.int64, 2)
+int32_vector, int32_matrix = _reader(np.int32, 1), _reader(np.int32, 2)
+int8_vector, int8_matrix = _reader(np.int8, 1), _reader(np.int8, 2)
+byte_vector = _reader(np.uint8, 1)

@@ -225,7 +225,7 @@ def gather_plates(arrays):
     slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
     table = float_matrix(arrays, a.table)
     force = float_matrix(arrays, a.force)
-    k = 0
+    k = np.int64(0)  # (typed, not Literal[int](0): that compiled the calls below twice)
     leading_count = 0
     slots = 0
     for i in range(body_ids.shape[0]):
@@ -1067,35 +1067,25 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.factored), float_vector(arrays, a.solution),
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
         float_matrix(arrays, a.block), float_matrix(arrays, a.chain_work))
-    if slots == 0:  # no plate in the sand
-        scatter_wrenches(0, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
-                         wrench_sum)
-        return
-    rows = jac[:6 * slots + 1]
-    prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
-                  body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                  qfrc_actuator, qfrc_applied, qfrc_bias, rows, space.chain, space.chain_count)
-    implicit_damping(settings[DAMPER] != 0.0, settings[ACTUATORS] != 0.0, dof_damping, trntype,
-                     trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm, biastype,
-                     biasprm, forcelimited, forcerange, ctrl, act, actadr, actuator_force,
-                     damping)
-    implicit_mass(mass, damping, timestep)
-    iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, rows,
-                                   space, mass, dof_parentid, qvel, timestep, step, memory,
-                                   work, flags, xi_new, wrench)
+    if slots > 0:  # (none: no plate in the sand, zero wrenches)
+        rows = jac[:6 * slots + 1]
+        prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
+                      body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
+                      qfrc_actuator, qfrc_applied, qfrc_bias, rows, space.chain,
+                      space.chain_count)
+        implicit_damping(settings[DAMPER] != 0.0, settings[ACTUATORS] != 0.0, dof_damping,
+                         trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm,
+                         biastype, biasprm, forcelimited, forcerange, ctrl, act, actadr,
+                         actuator_force, damping)
+        implicit_mass(mass, damping, timestep)
+        iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
+                                       rows, space, mass, dof_parentid, qvel, timestep, step,
+                                       memory, work, flags, xi_new, wrench)
+        counters[SOLVES] += abs(iterations)
+        counters[UNSETTLED] += iterations < 0
+    # one call site for any slot count (a literal 0 at a second one compiled it twice)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
                      wrench_sum)
-    counters[SOLVES] += abs(iterations)
-    counters[UNSETTLED] += iterations < 0
-
-
-@njit(cache=True, error_model='numpy')
-def implicit_sand_step(timestep, gather_arrays, implicit_arrays):
-    """A whole step's sand wrenches by the implicit law, in one call from Python (after
-    mj_step1, MuJoCo's actuator forces and the dense inertia of this state): `gather_plates`,
-    then `implicit_step`. Arguments as there."""
-    gather_plates(gather_arrays)
-    implicit_step(timestep, implicit_arrays)
 
 
 @njit(cache=True, error_model='numpy')

@@ -9,12 +9,13 @@ integrates. The engine owns the xfrc_applied rows of its sand bodies.
 Only the bodies a scene names carry plates; a body whose plates are all above the surface is
 skipped after one bounding-sphere test, so cost grows with plates in the sand.
 """
+import contextlib
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from ..kernel_cache import is_cached
+from ..kernel_cache import BackgroundCompile, is_cached
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
@@ -31,13 +32,16 @@ LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 #: 2-core VM of the README's figures (`rft-sim bench` start-up); start-up messages quote it.
 COLD_START_S = 30
 
+#: numba's text of the argument types of a kernel taking one `ArrayTable` (its int64 table).
+_TABLE_SIGNATURE = '(int64[:, ::1],)'
+
 
 def kernels_cached(method='implicit'):
     """Whether numba's on-disk cache holds current compiled code of the kernels an engine
     with low-velocity `method` runs, so that building one compiles nothing (otherwise it
     compiles for about COLD_START_S: a first run after install, or after an upgrade)."""
     if method == 'implicit':
-        kernels = (coupling.implicit_sand_step, coupling.implicit_plate_forces)
+        kernels = (coupling.gather_plates, coupling.implicit_step, coupling.implicit_plate_forces)
     else:
         kernels = (coupling.gather_plates, coupling.smoothed_wrenches, coupling.scatter_wrenches)
     return all(is_cached(kernel) for kernel in kernels)
@@ -335,24 +339,34 @@ class SandEngine:
 
     def _implicit(self):
         """The plates in the sand and their implicit wrenches, written to xfrc_applied
-        (coupling.implicit_sand_step, after MuJoCo's actuator forces and dense inertia of this
-        state)."""
+        (coupling.gather_plates and coupling.implicit_step, after MuJoCo's actuator forces
+        and dense inertia of this state)."""
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
-        coupling.implicit_sand_step(self._options.timestep, self._gather_arrays.table,
-                                    self._implicit_arrays.table)
+        coupling.gather_plates(self._gather_arrays.table)
+        coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
 
     def _load_kernels(self):
         """Run every compiled kernel once on no plates (their outputs are scratch), so that
         numba loads them from its cache (or compiles them) now, as part of start-up, and not
         at the first step in contact with sand, where it would stall a running simulation
-        (a paced ROS node) for up to a few tenths of a second."""
+        (a paced ROS node) for up to a few tenths of a second.
+
+        With a cold cache (a first run) and the implicit method, the gather kernel compiles
+        in a second process (`BackgroundCompile`) while this one compiles the implicit
+        step, the larger share: on two cores the start-up is that share, not the sum."""
         surface, kind = self._settings[coupling.SURFACE], self._settings[coupling.SURFACE_KIND]
         self._settings[coupling.SURFACE] = -np.inf  # a surface no plate is below
         self._settings[coupling.SURFACE_KIND] = FLAT
         if self._implicit_method:
+            background = [(coupling.gather_plates, _TABLE_SIGNATURE)]
+            with (BackgroundCompile(background) if not is_cached(coupling.gather_plates)
+                  else contextlib.nullcontext()) as compiling:
+                coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
+                self._implicit_plate_forces(0)
+                if compiling is not None:
+                    compiling.wait()  # (a kernel it did not cache compiles at its call)
             self._implicit()
-            self._implicit_plate_forces(0)
         else:
             coupling.gather_plates(self._gather_arrays.table)
             self._explicit()
