@@ -313,6 +313,42 @@ def test_bad_array_command_is_rejected_and_changes_nothing(busy_handler, positio
         np.testing.assert_array_equal(v0, v1)
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=0, max_size=5),
+       st.sampled_from([np.float64, np.float32, np.int64, list]))
+def test_array_commands_are_accepted_exactly_when_valid(values, kind):
+    """Arrays as gaits and controllers hand them over each tick (float64 numpy arrays of one
+    value per joint) and every other form: accepted exactly when there is one finite number
+    per joint, huge ones included, and then held as given."""
+    if kind is list:
+        command = list(values)
+    else:
+        with np.errstate(all='ignore'):
+            if kind is np.int64 and not all(math.isfinite(v) for v in values):
+                return  # no integer form of a non-finite value
+            command = np.array(values, dtype=kind) if kind is not np.int64 else np.array(
+                [int(np.clip(v, -2**62, 2**62)) for v in values], dtype=kind)
+    expected = np.array(command, dtype=float)
+    h = handler()
+    result = h.set_positions(command, now=1.0)
+    valid = expected.shape == (3,) and bool(np.isfinite(expected).all())
+    assert result.accepted == valid, result.message
+    held = h.sample(2.0).positions
+    np.testing.assert_array_equal(held, expected if valid else INITIAL)
+
+
+def test_array_command_holds_a_copy_of_the_callers_array():
+    h = handler()
+    targets = np.array([1.0, 2.0, 3.0])
+    assert h.set_positions(targets, now=0.0).accepted
+    targets[:] = 7.0  # a gait reusing its buffer for the next tick
+    np.testing.assert_array_equal(h.sample(1.0).positions, [1.0, 2.0, 3.0])
+    huge = np.array([1e200, -1e300, 1.7e308])  # finite, though their squares overflow
+    assert h.set_positions(huge, now=1.0).accepted
+    np.testing.assert_array_equal(h.sample(1.0).positions, huge)
+    assert h.set_positions(np.array([1e200, np.nan, 0.0]), now=1.0).reason is Reason.NOT_FINITE
+
+
 def test_rejections_are_counted_per_reason():
     h = handler()
     for _ in range(3):

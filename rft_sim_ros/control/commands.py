@@ -119,7 +119,7 @@ class _Spline:
     def hold(cls, time, positions):
         """Hold `positions` (a float array, taken over) from `time` on."""
         p = positions.reshape(1, -1)
-        return cls([time], p, np.zeros_like(p), _CUBIC_KNOT)
+        return cls([time], p, np.zeros(p.shape), _CUBIC_KNOT)
 
     def sample(self, t):
         times = self.times
@@ -209,7 +209,8 @@ class CommandHandler:
 
     def sample(self, t):
         """`Targets` at sim time `t` (s); `t` should not go back past commands given."""
-        self._start_pending(t)
+        if self._pending is not None:
+            self._start_pending(t)
         return self._active.sample(t)
 
     def set_positions(self, positions, now):
@@ -249,8 +250,13 @@ class CommandHandler:
         return self._efforts
 
     def _joint_array(self, values, what):
-        """One finite value per joint, `joint_names` order; raises _Rejected."""
-        values = _float_vector(values, what)
+        """One finite value per joint, `joint_names` order, as a new float array; raises
+        _Rejected."""
+        if type(values) is np.ndarray and values.dtype == np.float64 \
+                and values.shape == (len(self.joint_names),):
+            values = values.copy()  # what a gait or controller hands over each tick, as is
+        else:
+            values = _float_vector(values, what)
         if values.size != len(self.joint_names):
             raise _Rejected(Reason.ARRAY_LENGTH,
                             f'{what} has {values.size} values, expected '
