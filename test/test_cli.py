@@ -290,3 +290,12 @@ def test_ctrl_c_twice_quits_at_once_without_a_traceback(tmp_path):
     stdout, stderr = child.communicate(timeout=120)
     assert child.returncode == 130, stderr
     assert 'Traceback' not in stderr
+
+
+def test_starting_the_cli_leaves_the_mesh_libraries_unloaded():
+    # trimesh (with scipy) takes ~0.5 s to import: only making plates, not reading them from
+    # the plate cache, and converting mesh files need it, so every start would pay for it
+    probe = 'import sys, rft_sim_ros.cli; print(sorted({"trimesh", "scipy"} & set(sys.modules)))'
+    done = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True,
+                          check=True, timeout=60)
+    assert done.stdout.strip() == '[]'

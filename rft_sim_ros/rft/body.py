@@ -1,6 +1,5 @@
 """RFT wrench on a whole rigid body, given its pose and twist (like Treers' rft_3D_body)."""
 import numpy as np
-import trimesh
 
 from .force_law import plate_forces
 from .plates import Plates
@@ -17,7 +16,7 @@ def body_wrench(mesh, position, rotation, linear_velocity, angular_velocity, zet
     law_options: passed to `plate_forces` (normalisation, dynamic).
     Returns (force (3,), torque (3,)), world axes.
     """
-    plates = Plates.from_mesh(mesh) if isinstance(mesh, trimesh.Trimesh) else mesh
+    plates = mesh if isinstance(mesh, Plates) else Plates.from_mesh(mesh)
     rotation = np.asarray(rotation, dtype=float).reshape(3, 3)
     position = np.asarray(position, dtype=float)
     lever = plates.centroids @ rotation.T

@@ -8,8 +8,6 @@ asks; a <mesh scale> still applies).
 import logging
 from pathlib import Path
 
-import trimesh
-
 #: Mesh file suffixes MuJoCo's own loader reads.
 MUJOCO_MESH_SUFFIXES = frozenset({'.stl', '.obj', '.msh'})
 
@@ -26,6 +24,7 @@ def mujoco_reads(path):
 def converted_stl(path):
     """Binary STL bytes of the mesh in `path` (all its parts in one triangle mesh, the
     file's scene transforms applied); raises MeshError naming the file."""
+    import trimesh  # (here: ~0.5 s to import, and only such meshes need it)
     trimesh_log = logging.getLogger('trimesh')
     level = trimesh_log.level
     trimesh_log.setLevel(logging.ERROR)  # its fallbacks (e.g. dense normals) are not errors

@@ -18,7 +18,6 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-import trimesh
 
 from ..rft.plates import Plates, edge_for_plate_area, refine, top_up
 
@@ -39,6 +38,7 @@ def geom_mesh(model, geom_id, edge, mesh=None):
     second order in the plate size. Mesh geoms are refined as given, or from `mesh` (their
     simplified surface, `simplified_meshes`).
     """
+    import trimesh  # (here: ~0.5 s to import, and runs with cached plates never need it)
     kind = mujoco.mjtGeom(int(model.geom_type[geom_id]))
     size = model.geom_size[geom_id]
     if kind in (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
@@ -74,6 +74,7 @@ def geom_mesh(model, geom_id, edge, mesh=None):
 
 def model_mesh(model, geom_id):
     """The mesh of mesh geom `geom_id` as MuJoCo compiled it (geom frame), a trimesh."""
+    import trimesh
     mesh_id = model.geom_dataid[geom_id]
     v0, nv = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
     f0, nf = model.mesh_faceadr[mesh_id], model.mesh_facenum[mesh_id]
