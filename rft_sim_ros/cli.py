@@ -243,8 +243,17 @@ class stop_on_signals:
             signal.signal(number, handler)
 
 
+def _check_workers(workers):
+    if workers is not None and workers < 1:
+        raise SceneError(f'--workers must be >= 1, got {workers}')
+
+
 def cmd_validate(args):
     log = lambda line: print(f'validate: {line}', file=sys.stderr)  # noqa: E731
+    _check_workers(args.workers)
+    if args.workers is not None and (args.terrain or args.stability):
+        raise SceneError('--workers applies to the validation report, which runs its cases '
+                         'in parallel; --stability and --terrain run one case at a time')
     args.out = output_folder(args.out or fresh_folder(
         'terrain' if args.terrain else 'stability' if args.stability else 'validate'))
     say_if_cold()
@@ -263,7 +272,7 @@ def cmd_validate(args):
         print(f'wrote {Path(args.out) / "stability.md"}', file=sys.stderr)
         return 0
     from .validation import run_validation
-    results = run_validation(args.out, quick=args.quick, log=log)
+    results = run_validation(args.out, quick=args.quick, log=log, workers=args.workers)
     for trend in results.trends:
         print(f'{"held    " if trend.held else "NOT HELD"}  {trend.name}')
     print(f'wrote {Path(args.out) / "report.md"} ({results.wall_s:.0f} s)', file=sys.stderr)
@@ -272,9 +281,10 @@ def cmd_validate(args):
 
 def cmd_bench(args):
     from .bench import run_bench
+    _check_workers(args.workers)
     args.out = output_folder(args.out or fresh_folder('bench'))
     say_if_cold()
-    results = run_bench(args.out, quick=args.quick,
+    results = run_bench(args.out, quick=args.quick, workers=args.workers,
                         log=lambda line: print(f'bench: {line}', file=sys.stderr))
     cost = results['step_cost']
     print(f'hexapod step: {cost["sand_step_s"] * 1e6:.1f} us on sand, '
@@ -287,8 +297,7 @@ def cmd_bench(args):
 def cmd_sweep(args):
     from .study import load_study, run_study
     study = load_study(args.study)
-    if args.workers is not None and args.workers < 1:
-        raise SceneError(f'--workers must be >= 1, got {args.workers}')
+    _check_workers(args.workers)
     if args.run_timeout is not None and not args.run_timeout > 0:
         raise SceneError(f'--run-timeout must be > 0 s, got {args.run_timeout}')
     out = args.out or str(Path('runs') / f'study-{Path(args.study).stem}')
@@ -364,6 +373,9 @@ def build_parser():
     bench.add_argument('--quick', action='store_true', help='few, short measurements')
     bench.add_argument('--out', help='output folder (default: a fresh runs/bench-<time>; '
                                      'the committed results: --out bench/results)')
+    bench.add_argument('--workers', type=int,
+                       help='processes for the speed-against-error sweep (default: all cores; '
+                            'the step-cost and trial timings always run alone)')
     bench.set_defaults(func=cmd_bench)
     validate = commands.add_parser(
         'validate', help="reproduce the RFT-SiM paper's trends as a report with plots")
@@ -381,6 +393,8 @@ def build_parser():
     validate.add_argument('--terrain', action='store_true',
                           help='run the terrain study instead (slopes, deformable sand, a '
                                'patch of loose sand, step cost per surface): terrain.md')
+    validate.add_argument('--workers', type=int,
+                          help="processes the report's cases run on (default: all cores)")
     validate.set_defaults(func=cmd_validate)
     sweep = commands.add_parser('sweep', help='run a study: a scene over varied values, '
                                 'on all cores or a Ray cluster (docs/studies.md)')

@@ -91,17 +91,32 @@ def test_validate_and_bench_write_into_a_fresh_folder_unless_told(monkeypatch, t
     class Results:
         trends, wall_s = [], 0.0
 
-    monkeypatch.setattr(validation, 'run_validation',
-                        lambda out, quick, log: seen.append(Path(out)) or Results())
-    monkeypatch.setattr(bench, 'run_bench', lambda out, quick, log: seen.append(Path(out)) or {
+    monkeypatch.setattr(validation, 'run_validation', lambda out, quick, log, workers:
+                        seen.append((Path(out), workers)) or Results())
+    monkeypatch.setattr(bench, 'run_bench', lambda out, quick, log, workers: seen.append(
+        (Path(out), workers)) or {
         'step_cost': {'sand_step_s': 1.0, 'rigid_step_s': 1.0, 'ratio_full_to_rigid': 1.0},
         'trial': {'real_time_factor': 1.0}})
     assert main(['validate', '--quick']) == 0
-    assert main(['bench', '--quick']) == 0
-    assert main(['validate', '--quick', '--out', 'validation']) == 0
-    assert [p.parent.name for p in seen[:2]] == ['runs', 'runs']
-    assert seen[0].name.startswith('validate-') and seen[1].name.startswith('bench-')
-    assert seen[2] == Path('validation')
+    assert main(['bench', '--quick', '--workers', '1']) == 0
+    assert main(['validate', '--quick', '--out', 'validation', '--workers', '2']) == 0
+    assert [p.parent.name for p, _ in seen[:2]] == ['runs', 'runs']
+    assert seen[0][0].name.startswith('validate-') and seen[1][0].name.startswith('bench-')
+    assert seen[2][0] == Path('validation')
+    assert [workers for _, workers in seen] == [None, 1, 2]  # None: all cores
+
+
+@pytest.mark.parametrize('argv, words', [
+    (['validate', '--workers', '0'], ('--workers must be >= 1',)),
+    (['bench', '--workers', '-1'], ('--workers must be >= 1',)),
+    (['validate', '--stability', '--workers', '2'], ('--workers applies to the validation',)),
+])
+def test_bad_worker_counts_are_refused_before_anything_runs(argv, words, tmp_path, capsys,
+                                                            monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert exit_code(argv) == 2
+    one_error_line(capsys, *words)
+    assert not (tmp_path / 'runs').exists()
 
 
 # --- messages --------------------------------------------------------------------------------

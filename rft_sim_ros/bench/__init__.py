@@ -18,8 +18,9 @@ def _median(values):
     return sorted(values)[len(values) // 2]
 
 
-def run_bench(out, quick=False, log=print):
-    """Run the benchmark (`quick`: fewer, shorter measurements) and write it under `out`."""
+def run_bench(out, quick=False, log=print, workers=None):
+    """Run the benchmark (`quick`: fewer, shorter measurements) and write it under `out`;
+    the speed-against-error sweep runs on `workers` processes (default: all cores)."""
     results = {'machine': machine_info(), 'quick': quick}
     log('step cost: hexapod on sand vs rigid floor')
     results['step_cost'] = step_cost.hexapod_step_cost(
@@ -55,6 +56,6 @@ def run_bench(out, quick=False, log=print):
         chunks=2 if quick else 7, chunk_steps=200 if quick else 500,
         settle_steps=300 if quick else 2500)
     sweeps = pareto.QUICK_SWEEPS if quick else pareto.SWEEPS
-    results['speed_against_error'] = pareto.speed_against_error(sweeps, log)
+    results['speed_against_error'] = pareto.speed_against_error(sweeps, log, workers)
     report.write(Path(out), results)
     return results
