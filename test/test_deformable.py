@@ -7,6 +7,7 @@ from rft_sim_ros.sand.deformable import COUNT, DeformableSand
 from rft_sim_ros.sand.surface import Plane, Slope, block_maximum
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
+from rft_sim_ros.validation.terrain import lift_out, plate_redrop
 
 BED = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.5, 0.5]}
 
@@ -42,15 +43,6 @@ def _drop(extra=None, steps=800):
     return sim
 
 
-def _lift(sim, steps=5):
-    """Take the plate out of the sand (teleported 0.3 m up, held there)."""
-    sim.data.qpos[2] = 0.3
-    sim.data.qvel[:] = 0.0
-    sim.model.opt.gravity[2] = 0.0
-    sim.step(steps)
-    sim.model.opt.gravity[2] = -9.81
-
-
 def test_a_dropped_plate_leaves_a_crater_whose_volume_is_piled_around_it():
     sim = _drop()
     bed = sim.engine.surface
@@ -59,7 +51,7 @@ def test_a_dropped_plate_leaves_a_crater_whose_volume_is_piled_around_it():
     assert rest_speed < 1e-3  # at rest on deformable sand
     before = bed.displaced_volume()  # (edge nodes its side plates mark in turn, only)
     assert bed.state[COUNT] > 100  # its footprint nodes are pending
-    _lift(sim)
+    lift_out(sim)
     assert bed.state[COUNT] == 0
     crater, pile = bed.displaced_volume(), bed.piled_volume()
     assert before < 0.05 * crater
@@ -81,7 +73,7 @@ def test_a_plate_dropped_again_into_its_footprint_sinks_deeper():
     sim = _drop()
     first = -(sim.data.qpos[2] - 0.001)
     crater = sim.engine.surface
-    _lift(sim)
+    lift_out(sim)
     floor = -crater.grid[25, 25]
     sim.data.qpos[:7] = (0.0, 0.0, 0.1 + 0.001, 1, 0, 0, 0)  # the same drop height above 0
     sim.data.qvel[:] = 0.0
@@ -96,7 +88,7 @@ def test_reset_restores_the_pristine_surface_exactly():
     sim = _drop({'sand.surface.type': 'slope', 'sand.surface.angle_deg': 5.0})
     bed = sim.engine.surface
     pristine, blocks = bed.pristine.copy(), block_maximum(bed.pristine)
-    _lift(sim)
+    lift_out(sim)
     assert not np.array_equal(bed.grid, pristine)
     sim.reset()
     assert np.array_equal(bed.grid, pristine) and np.array_equal(bed.block_max, blocks)
@@ -147,6 +139,19 @@ def test_terrain_study_runs_and_reports(tmp_path):
     report = (tmp_path / 'terrain.md').read_text()
     assert 'Slopes' in report and 'Step cost' in report
     assert abs(results['deformation_hexapod']['deformable']['sand_volume_change_m3']) < 1e-12
+
+
+def test_the_terrain_study_drops_a_plate_twice_into_its_crater():
+    rows = plate_redrop()
+    rigid, soft = rows['rigid'], rows['deformable']
+    assert rigid['second_depth_m'] == rigid['first_depth_m'] and rigid['crater_floor_m'] == 0
+    assert soft['first_depth_m'] == rigid['first_depth_m']  # nothing changes until it leaves
+    assert soft['crater_floor_m'] == pytest.approx(soft['first_depth_m'], abs=1e-4)
+    # deeper by most of a fresh impact, a little less than a flat-floored crater would give
+    assert soft['first_depth_m'] + 0.5 * soft['crater_floor_m'] < soft['second_depth_m']
+    assert 0.8 * soft['second_estimate_m'] < soft['second_depth_m'] <= soft['second_estimate_m']
+    assert soft['sand_displaced_m3'] == pytest.approx(soft['sand_piled_m3'], rel=1e-9)
+    assert abs(soft['sand_volume_change_m3']) <= 1e-9 * soft['sand_displaced_m3']
 
 
 def test_hexapod_standing_on_deformable_sand_holds_still():

@@ -1,11 +1,12 @@
 """Terrain study (`rft-sim validate --terrain`): the hexapod on slopes, on deformable sand
-and across a patch of loose sand; the rail shapes on deformable sand; the step cost of each
-surface against the plane. Writes terrain.md, terrain.json and PNG plots.
+and across a patch of loose sand; the rail shapes and a dropped plate on deformable sand; the
+step cost of each surface against the plane. Writes terrain.md, terrain.json and PNG plots.
 
 Questions (docs/terrain.md): how speed and sinkage change with slope (0, 5, 10, 15 deg, up
 and down); whether deformation changes the hexapod's backward motion, speed and sinkage and
-the rail shapes' ordering (the paper's experiments: closed C > flat > open C); what a walk
-from zeta 3.75 onto zeta 1 does; and what each surface costs per step.
+the rail shapes' ordering (the paper's experiments: closed C > flat > open C); how deep a
+plate dropped again into its own crater goes; what a walk from zeta 3.75 onto zeta 1 does;
+and what each surface costs per step.
 """
 import json
 import time
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenes.config import load_scene
+from ..scenes.scenarios.plate_drop import expected_impact_depth
 from ..sim.simulation import Simulation
 from . import paper
 
@@ -71,6 +73,49 @@ def deformation_study(plates, rail_plates):
                 'carriage_displacement_m': sim.scenario.metrics(sim)['carriage_displacement_m'],
                 **sim.terrain_metrics()}
     return hexapod, rails, surface
+
+
+def lift_out(sim, height=0.3, steps=5):
+    """Take plate_drop's plate out of the sand: moved to `height` m above the pristine surface,
+    at rest, held there without gravity for `steps` steps (deformable sand then commits the
+    footprint its plates left), then gravity back on."""
+    joint = sim.data.joint('plate_free')
+    joint.qpos[2] = sim.scene.surface_height + height
+    joint.qvel[:] = 0.0
+    gravity = sim.model.opt.gravity[2]
+    sim.model.opt.gravity[2] = 0.0
+    sim.step(steps)
+    sim.model.opt.gravity[2] = gravity
+
+
+def plate_redrop(duration=1.0):
+    """plate_drop's plate on rigid and on deformable sand: dropped, lifted out (`lift_out`),
+    dropped again from the same height over its crater. {label: row}: depths of the plate's
+    bottom below the pristine surface at the end of each drop (m), the crater floor's depth
+    below it under the plate's centre, the estimate for the second drop (the crater's depth
+    plus the impact depth of a drop from drop_height + that depth onto the floor), and the
+    deformable sand's metrics (crater and pile volume, net volume change)."""
+    rows = {}
+    for label, overrides in (('rigid', {}), ('deformable', BED)):
+        sim = Simulation(load_scene('plate_drop', overrides))
+        plate, level, steps = sim.scenario, sim.scene.surface_height, int(duration / sim.timestep)
+
+        def depth():
+            return float(level - (sim.data.body('plate').xpos[2] - plate.thickness / 2))
+        sim.step(steps)
+        first = depth()
+        lift_out(sim)
+        x, y = sim.data.body('plate').xpos[:2]
+        floor = float(level - sim.engine.surface.height(np.array([x]), np.array([y]))[0])
+        plate.initialize(sim)
+        sim.data.joint('plate_free').qvel[:] = 0.0
+        sim.step(steps)
+        rows[label] = {'first_depth_m': first, 'crater_floor_m': floor, 'second_depth_m': depth(),
+                       'second_estimate_m': floor + float(expected_impact_depth(
+                           plate.mass, plate.side ** 2, sim.zeta, plate.drop_height + floor,
+                           -sim.model.opt.gravity[2])),
+                       **sim.terrain_metrics()}
+    return rows
 
 
 def zeta_crossing(plates):
@@ -138,6 +183,7 @@ def run_terrain(out_dir, quick=False, log=print):
     slopes = slope_study(plates)
     log('deformation')
     hexapod, rails, surface = deformation_study(plates, rail_plates)
+    plate = plate_redrop()
     log('zeta crossing')
     crossing = zeta_crossing(plates)
     log('step cost')
@@ -145,6 +191,7 @@ def run_terrain(out_dir, quick=False, log=print):
     results = {'slopes': {f'{d} {a:g}': r for (d, a), r in slopes.items()},
                'deformation_hexapod': hexapod,
                'deformation_rails': {f'{s} {lab}': r for (s, lab), r in rails.items()},
+               'plate_redrop': plate,
                'zeta_crossing': crossing, 'step_cost_s': costs,
                'plates_per_body': plates, 'rail_plates': rail_plates,
                'wall_s': time.perf_counter() - started, 'machine': machine_info()}
@@ -221,6 +268,23 @@ def _report(r, slopes, rails):
               "the paper's experiments: closed_c > flat > open_c (open C "
               f'{100 * paper.OPEN_C_VS_FLAT_EXPERIMENT:+.0f} % of flat; its simulation '
               f'{100 * paper.OPEN_C_VS_FLAT_SIM:+.0f} %).', '',
+              '| plate dropped twice (plate_drop) | first drop (mm) | crater floor (mm) | '
+              'second drop (mm) | estimate (mm) | crater / pile (cm^3) | volume change (m^3) |',
+              '|---|---|---|---|---|---|---|']
+    for label, row in r['plate_redrop'].items():
+        lines.append(f'| {label} sand | {1e3 * row["first_depth_m"]:.2f} | '
+                     f'{1e3 * row["crater_floor_m"]:.2f} | {1e3 * row["second_depth_m"]:.2f} | '
+                     f'{1e3 * row["second_estimate_m"]:.2f} | '
+                     f'{1e6 * row.get("sand_displaced_m3", 0.0):.1f} / '
+                     f'{1e6 * row.get("sand_piled_m3", 0.0):.1f} | '
+                     f'{row.get("sand_volume_change_m3", 0.0):.1e} |')
+    lines += ['', 'Depths below the pristine surface. The plate is lifted out between the '
+              'drops (deformable sand commits a footprint when its body leaves it); the '
+              'second drop starts from the same height and meets the crater floor, so it '
+              'ends about the crater depth plus a fresh impact depth deeper (the estimate, '
+              'for a flat-floored crater: the grid\'s crater walls slope over one cell, '
+              'so the plate\'s rim meets sand higher than the floor and stops it sooner); '
+              'on rigid sand both drops are the same.', '',
               '## Packed to loose sand', '',
               '| hexapod | forward (m) | speed (cm/s) | before x = 0.15 m | after | sinkage (cm) |',
               '|---|---|---|---|---|---|']
