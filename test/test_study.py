@@ -14,7 +14,9 @@ import pytest
 import yaml
 
 from rft_sim_ros.cli import main
+from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.study import StudyError, load_study, run_study, study_from_mapping
+from rft_sim_ros.study.cost import dearest_first, run_cost
 from rft_sim_ros.study.execute import RunTask, execute
 from rft_sim_ros.study.pool import map_unordered
 from rft_sim_ros.study.progress import StudyProgress
@@ -86,6 +88,26 @@ def test_a_run_that_raises_or_times_out_is_recorded():
     slow = execute(RunTask('1', 'plate_drop', {}, 30.0, timeout=0.2))
     assert not slow['stable'] and slow['reason'].startswith('timeout')
     assert slow['wall_time_s'] < 5.0
+
+
+def test_runs_are_costed_by_steps_times_plates():
+    study = _study(vary={'timestep': [0.002, 0.0005], 'rft.plates_per_body': [50, 200]},
+                   duration=0.2)
+    cost = {(r.varied['timestep'], r.varied['rft.plates_per_body']): r.cost for r in study.runs}
+    assert cost[(0.0005, 200)] == pytest.approx(16 * cost[(0.002, 50)])  # 4x steps, 4x plates
+    assert cost[(0.002, 50)] == pytest.approx(0.2 / 0.002 * 50)
+    hexapod = run_cost(load_scene('hexapod'))  # 12 sand bodies x 500 plates, 7500 steps
+    assert hexapod == pytest.approx(12 * 500 * 6.0 / 0.0008)
+    assert dearest_first([1.0, 3.0, 2.0, 3.0]) == [1, 3, 2, 0]
+
+
+def test_the_dearest_runs_go_out_first(tmp_path):
+    study = _study(vary={'timestep': [0.002, 0.001, 0.0005]}, duration=0.2)
+    result = run_study(study, tmp_path / 'out', workers=1, progress=False)
+    started = sorted(result.records.values(), key=lambda record: record['started_at'])
+    by_id = {run.run_id: run for run in study.runs}
+    assert [by_id[r['run_id']].varied['timestep'] for r in started] == [0.0005, 0.001, 0.002]
+    assert [row['timestep'] for row in result.rows] == [0.002, 0.001, 0.0005]  # listed order
 
 
 @pytest.fixture(scope='module')

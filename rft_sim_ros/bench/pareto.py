@@ -1,11 +1,13 @@
 """Speed against error for every scene: sweep plates per sand body and timestep, compare each
 scene's main metric with a converged reference (finest plates, smallest timestep), and find
 the runs no other run beats on both wall time and error (the Pareto front). The runs go
-out to all cores on the study machinery's process pool (rft_sim_ros/study/pool.py)."""
+out to all cores on the study machinery's process pool (rft_sim_ros/study/pool.py), the
+dearest first (study/cost.py)."""
 from dataclasses import dataclass
 
 from ..sim.runner import run_scene
 from ..scenes.config import load_scene
+from ..study.cost import dearest_first, run_cost
 from ..study.pool import map_unordered
 
 
@@ -70,11 +72,15 @@ def _points(name, sweep):
     return [sweep.reference] + sorted(grid, key=lambda g: (g[1], g[0]))
 
 
+def _scene(job):
+    """The SceneConfig of (scene, plates per body, timestep s)."""
+    name, plates, timestep = job
+    return load_scene(name, {'rft.plates_per_body': plates, 'timestep': timestep})
+
+
 def _run(job):
     """Run (scene, plates per body, timestep s) headless: its summary."""
-    name, plates, timestep = job
-    scene = load_scene(name, {'rft.plates_per_body': plates, 'timestep': timestep})
-    return run_scene(scene, progress=False, plots=False)
+    return run_scene(_scene(job), progress=False, plots=False)
 
 
 def speed_against_error(sweeps, log=lambda line: None, workers=None):
@@ -83,6 +89,7 @@ def speed_against_error(sweeps, log=lambda line: None, workers=None):
     the rows (plates, timestep, wall s per sim s, metric, relative error vs the reference,
     default, on_front, stable) and the reference."""
     jobs = [(name, *point) for name, sweep in sweeps.items() for point in _points(name, sweep)]
+    jobs = [jobs[i] for i in dearest_first([run_cost(_scene(job)) for job in jobs])]
     summaries = {}
     for outcome in map_unordered(_run, jobs, workers):
         name, plates, timestep = job = jobs[outcome.index]

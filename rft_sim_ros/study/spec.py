@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from ..scenes.config import SceneError, load_scene
+from .cost import run_cost
 
 _KNOWN = {'scene', 'set', 'duration', 'vary', 'repeats', 'metrics', 'description'}
 
@@ -37,11 +38,13 @@ class StudyError(SceneError):
 @dataclass(frozen=True)
 class Run:
     """One run of a study: its id (folder name under DIR/runs), the varied values, the repeat
-    index (0-based) and the overrides it hands load_scene (fixed `set` + varied values)."""
+    index (0-based), the overrides it hands load_scene (fixed `set` + varied values) and its
+    expected relative cost (`cost.run_cost`: runs go out dearest first)."""
     run_id: str
     varied: dict
     repeat: int
     overrides: dict
+    cost: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -105,16 +108,22 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
     points = expand(raw.get('vary'), where)
     keys = tuple(dict.fromkeys(k for point in points for k in point))
     width = len(str(len(points) * repeats - 1))
+    costs = {}
+    for point in points:
+        overrides = {**fixed, **point}
+        key = _frozen(overrides)
+        if key not in costs:
+            try:
+                costs[key] = run_cost(load_scene(scene, overrides), duration)
+            except (SceneError, ValueError) as error:
+                raise StudyError(f'{where}: run with {overrides}: {error}') from None
     runs = []
     for i, point in enumerate(points):
+        overrides = {**fixed, **point}
         for repeat in range(repeats):
             index = i * repeats + repeat
-            runs.append(Run(f'{index:0{width}d}', point, repeat, {**fixed, **point}))
-    for point in {_frozen(r.overrides): r.overrides for r in runs}.values():
-        try:
-            load_scene(scene, point)
-        except SceneError as error:
-            raise StudyError(f'{where}: run with {point}: {error}') from None
+            runs.append(Run(f'{index:0{width}d}', point, repeat, overrides,
+                            costs[_frozen(overrides)]))
     return Study(scene=scene, fixed=dict(fixed), duration=None if duration is None
                  else float(duration), keys=keys, runs=tuple(runs), repeats=repeats,
                  metrics=tuple(metrics), source=raw)

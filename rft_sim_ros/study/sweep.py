@@ -21,6 +21,7 @@ import yaml
 from ..sim.runner import machine_info
 from ..sim.summary import json_default
 from . import plots, table
+from .cost import dearest_first
 from .execute import RunTask, execute, failure_record
 from .pool import default_workers, map_unordered
 from .progress import StudyProgress
@@ -106,6 +107,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     records = finished_records(out, study, retry_failed) if resume else {}
     resumed = len(records)
     todo = [run for run in study.runs if run.run_id not in records]
+    todo = [todo[i] for i in dearest_first([run.cost for run in todo])]
     by_id = {run.run_id: run for run in study.runs}
     tasks = [RunTask(run.run_id, study.scene, run.overrides, study.duration, run_timeout)
              for run in todo]

@@ -8,6 +8,7 @@ from typing import Optional
 
 from ..scenes.config import load_scene
 from ..sim.simulation import Simulation, SimulationDiverged
+from ..study.cost import dearest_first, run_cost
 from ..study.pool import map_unordered
 
 
@@ -70,9 +71,11 @@ def run_spec(spec):
 
 def run_cases(groups, workers=None, log=print):
     """Run every CaseSpec of `groups` ({group: {key: CaseSpec}}) on `workers` processes
-    (default: all cores), logging each as it finishes; return {group: {key: Case}} in the
+    (default: all cores; the dearest first, study/cost.py), logging each as it finishes; return {group: {key: Case}} in the
     order given. Raises RuntimeError if a case cannot run (its worker died twice)."""
     jobs = [(group, key, spec) for group, specs in groups.items() for key, spec in specs.items()]
+    jobs = [jobs[i] for i in dearest_first([
+        run_cost(load_scene(spec.scene, spec.overrides), spec.duration) for _, _, spec in jobs])]
     done = {}
     for outcome in map_unordered(run_spec, [spec for _, _, spec in jobs], workers):
         group, key, spec = jobs[outcome.index]
