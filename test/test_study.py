@@ -260,6 +260,9 @@ def test_study_benchmark_pieces():
     from rft_sim_ros.bench.study_scaling import gaps_between_runs, hexapod_study
     study = hexapod_study(40)
     assert len(study.runs) == 40 and study.keys == ('zeta', 'payload')
+    assert study.duration is None and study.fixed == {}  # the scene as bundled
+    short = hexapod_study(10, duration=1.0)
+    assert short.duration == 1.0 and short.fixed == {'settle_time': 0.3}
     records = {'a': {'worker': 'w1', 'started_at': 10.0, 'finished_at': 11.0},
                'b': {'worker': 'w1', 'started_at': 11.25, 'finished_at': 12.0},
                'c': {'worker': 'w2', 'started_at': 10.5, 'finished_at': 11.5},

@@ -3,7 +3,7 @@ worker, on all local cores, and on a single-machine Ray cluster; speed-up over o
 and the overhead per run; optionally (--reuse) `rft-sim validate --quick` and the quick
 speed-against-error sweep of `rft-sim bench` on one worker and on all cores.
 
-    python -m rft_sim_ros.bench.study_scaling [--out DIR] [--runs 40] [--reuse]
+    python -m rft_sim_ros.bench.study_scaling [--out DIR] [--runs 40] [--duration S] [--reuse]
 
 Overhead per run, on one worker: the time the worker waits between the end of one run and
 the start of the next (the median over the study, from the worker's own clock): result
@@ -22,17 +22,21 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..sim.runner import machine_info
+from ..scenes.config import load_scene
+from ..sim.runner import machine_info, run_duration
 from ..study import run_study, study_from_mapping
 from ..study.pool import default_workers, map_unordered
 
 
-def hexapod_study(runs):
-    """`runs` hexapod runs of 1 s sim time (0.3 s settle, then walking) over zeta x payload."""
+def hexapod_study(runs, duration=None):
+    """`runs` hexapod runs over zeta x payload: the bundled scene as it is (drop, settle, five
+    gait cycles: 6 s of sim time), or `duration` s of sim time each (0.3 s settle, then
+    walking)."""
     payloads = (0.0, 0.5, 1.0, 1.5, 2.0)
     zetas = [round(1.0 + 0.5 * i, 2) for i in range(max(1, runs // len(payloads)))]
+    short = {} if duration is None else {'duration': duration, 'set': {'settle_time': 0.3}}
     return study_from_mapping({
-        'scene': 'hexapod', 'duration': 1.0, 'set': {'settle_time': 0.3},
+        'scene': 'hexapod', **short,
         'vary': {'zeta': zetas, 'payload': list(payloads)},
         'metrics': ['forward_distance_m', 'mean_sinkage_m']})
 
@@ -80,11 +84,12 @@ def _timed_study(study, out, start_s=0.0, **backend):
             'load_before': load, 'load_after': _load(), 'rows': result.rows}
 
 
-def measure_study(runs=40, workers=None):
+def measure_study(runs=40, workers=None, duration=None):
     """One worker, `workers` local workers and a local Ray cluster of `workers` CPUs, back to
-    back on the same study; speed-ups over one worker and bit-for-bit agreement."""
+    back on the same study (`hexapod_study`); speed-ups over one worker and bit-for-bit
+    agreement."""
     workers = workers or default_workers()
-    study = hexapod_study(runs)
+    study = hexapod_study(runs, duration)
     with tempfile.TemporaryDirectory() as scratch:
         one = _timed_study(study, Path(scratch) / 'one', start_s=worker_start_s(), workers=1)
         many = _timed_study(study, Path(scratch) / 'many', workers=workers)
@@ -103,7 +108,8 @@ def measure_study(runs=40, workers=None):
         return [{k: v for k, v in r.items() if k != 'wall_time_s'} for r in a['rows']] == [
             {k: v for k, v in r.items() if k != 'wall_time_s'} for r in b['rows']]
 
-    result = {'runs': len(study.runs), 'workers': workers, 'one_worker': one,
+    result = {'runs': len(study.runs), 'run_sim_time_s': duration or run_duration(
+                  load_scene('hexapod')), 'workers': workers, 'one_worker': one,
               'local': many, 'ray': on_ray,
               'speedup_local': one['wall_s'] / many['wall_s'],
               'speedup_ray': one['wall_s'] / on_ray['wall_s'],
@@ -145,18 +151,21 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--out', default='bench/results', help='folder for study_scaling.json')
     parser.add_argument('--runs', type=int, default=40, help='runs in the hexapod study')
+    parser.add_argument('--duration', type=float,
+                        help='sim time of each run, s (default: the scene as bundled, 6 s)')
     parser.add_argument('--reuse', action='store_true',
                         help='also time validate --quick and the quick speed-against-error '
                              'sweep on one worker and on all cores')
     args = parser.parse_args(argv)
-    results = {'machine': machine_info(), 'study': measure_study(args.runs)}
+    results = {'machine': machine_info(),
+               'study': measure_study(args.runs, duration=args.duration)}
     if args.reuse:
         results['reuse'] = measure_reuse()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / 'study_scaling.json').write_text(json.dumps(results, indent=2))
     s = results['study']
-    print(f'{s["runs"]}-run hexapod study: one worker {s["one_worker"]["wall_s"]:.1f} s, '
+    print(f'{s["runs"]}-run hexapod study ({s["run_sim_time_s"]:g} s runs): one worker {s["one_worker"]["wall_s"]:.1f} s, '
           f'{s["workers"]} workers {s["local"]["wall_s"]:.1f} s (x{s["speedup_local"]:.2f}), '
           f'Ray {s["ray"]["wall_s"]:.1f} s (x{s["speedup_ray"]:.2f}); overhead per run '
           f'{1e3 * s["one_worker"]["overhead_per_run_s"]:.0f} ms = '
