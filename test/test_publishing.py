@@ -1,5 +1,6 @@
 """The publish schedule: whole steps per cycle, the requested rate on average."""
 import math
+from fractions import Fraction
 
 import pytest
 
@@ -31,3 +32,13 @@ def test_hexapod_publishes_at_100_hz_not_104():
 def test_bad_rates_are_refused(rate, timestep):
     with pytest.raises(ValueError, match='must be > 0'):
         PublishSchedule(rate, timestep)
+
+
+@pytest.mark.parametrize('rate, timestep', [(100.0, 0.0008), (30.0, 0.001), (59.94, 0.0007),
+                                            (2000.0, 0.001), (1.0, 0.002)])
+def test_end_step_is_the_nearest_whole_step_halves_rounding_up(rate, timestep):
+    """Integer arithmetic gives floor(n x steps per period + 1/2) exactly (as Fractions)."""
+    schedule = PublishSchedule(rate, timestep)
+    ratio = max(Fraction(1.0 / (rate * timestep)).limit_denominator(1_000_000), Fraction(1))
+    for n in [*range(0, 300), 10**6 + 3, 2**40 + 1]:
+        assert schedule.end_step(n) == math.floor(n * ratio + Fraction(1, 2))

@@ -61,7 +61,7 @@ class GenericMetrics:
         self._legs = [leg.name for leg in state.legs]
         self._times.append(state.time)
         self._base.append(state.base_position)
-        self._speed.append(float(np.linalg.norm(state.base_linear_velocity)))
+        self._speed.append(state.base_speed)
         self._depth.append(self.depths(sim.data))
         self._force_z.append([leg.force[2] for leg in state.legs])
 

@@ -295,7 +295,7 @@ def _series_row(state):
     return {'time_s': state.time,
             'base_x_m': state.base_position[0], 'base_y_m': state.base_position[1],
             'base_z_m': state.base_position[2],
-            'base_speed_mps': float(np.linalg.norm(state.base_linear_velocity)),
+            'base_speed_mps': state.base_speed,
             'plates_active': state.plates_active,
             **{f'{leg.name}_force_z_N': leg.force[2] for leg in state.legs}}
 

@@ -342,7 +342,7 @@ class Simulation:
             self._warnings = warnings
             return 'MuJoCo reported an unstable (non-finite or huge) state'
         qvel = self.data.qvel
-        peak = np.max(np.abs(qvel)) if qvel.size else 0.0
+        peak = np.abs(qvel).max() if qvel.size else 0.0
         if not peak <= RUNAWAY_SPEED:  # also catches NaN
             return f'runaway speed {peak:.3g} (> {RUNAWAY_SPEED:g} m/s or rad/s)'
         return None

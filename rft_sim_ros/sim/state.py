@@ -5,6 +5,7 @@ reports it (ROS messages, rosbag2 files, summary metrics). All quantities are SI
 named in each field's docstring. The world frame is ROS's `odom` (REP 105): fixed, z up,
 its origin at the world origin of the MuJoCo model; the sand surface is horizontal.
 """
+import math
 from dataclasses import dataclass, field
 from typing import Tuple
 
@@ -70,3 +71,9 @@ class SimState:
     zeta: float
     plates_active: int
     active_plates: ActivePlates = field(default=None)
+
+    @property
+    def base_speed(self):
+        """|base_linear_velocity|, m/s (the speed of the base_link origin)."""
+        v = np.asarray(self.base_linear_velocity, dtype=float)
+        return math.sqrt(v @ v)  # np.linalg.norm's own formula, without its checks
