@@ -75,6 +75,17 @@ def test_stamp_is_within_half_a_nanosecond(t):
     assert abs(ros_time_to_seconds(msg) - t) <= 1e-9 * max(1.0, t)
 
 
+@settings(max_examples=500)
+@given(st.floats(allow_nan=False, allow_infinity=False))
+def test_nanoseconds_are_the_exact_value_rounded_half_away_from_zero(t):
+    """Any finite float, tiny, huge or negative: the decimal rounding of its exact value."""
+    from decimal import ROUND_HALF_UP, localcontext
+    with localcontext() as context:
+        context.prec = 400  # every digit of any double times 1e9
+        exact = Decimal(t).scaleb(9).to_integral_value(rounding=ROUND_HALF_UP)
+    assert seconds_to_ns(t) == int(exact)
+
+
 @pytest.mark.parametrize('bad', [float('nan'), float('inf'), -float('inf')])
 def test_stamp_rejects_non_finite_time(bad):
     with pytest.raises(ValueError, match='finite'):

@@ -295,8 +295,9 @@ def test_arbitrary_messages_never_raise_and_bad_ones_move_nothing(rig_scene, nam
                                   time_from_start=types.SimpleNamespace(sec=offset, nanosec=0))
     message = types.SimpleNamespace(joint_names=names, points=[point],
                                     header=types.SimpleNamespace(stamp=time_msg))
-    for result in (h.runtime.on_trajectory(message),
-                   h.runtime.on_positions(types.SimpleNamespace(data=data))):
+    for send in (lambda: h.runtime.on_trajectory(message),
+                 lambda: h.runtime.on_positions(types.SimpleNamespace(data=data))):
+        result = send()  # (one at a time: each rejected one is checked before the next)
         if not result.accepted:
             np.testing.assert_array_equal(h.targets(), before)
         before = h.targets()

@@ -175,7 +175,7 @@ def _float_scalar(value, what):
 
 def _check_finite(values, what, names):
     finite = np.isfinite(values)
-    if not finite.all():
+    if not np.logical_and.reduce(finite):  # (.all() adds a Python wrapper, at every tick)
         bad = [names[i] for i in np.flatnonzero(~finite)]
         raise _Rejected(Reason.NOT_FINITE, f'{what} not finite for joint(s) {", ".join(bad)}')
 

@@ -6,7 +6,6 @@ binary value of the float to the nearest nanosecond (halves away from zero), so 
 depends on the float error of `t * 1e9`.
 """
 import math
-from decimal import ROUND_HALF_UP, Decimal
 
 NS_PER_S = 1_000_000_000
 
@@ -16,7 +15,10 @@ def seconds_to_ns(t):
     t = float(t)
     if not math.isfinite(t):
         raise ValueError(f'time must be finite, got {t} s')
-    return int(Decimal(t).scaleb(9).to_integral_value(rounding=ROUND_HALF_UP))
+    # |t| = num / den exactly (den a power of two): floor(|t| 1e9 + 1/2) in integers
+    num, den = abs(t).as_integer_ratio()
+    ns = (2 * num * NS_PER_S + den) // (2 * den)
+    return ns if t >= 0 else -ns
 
 
 def split_ns(ns):

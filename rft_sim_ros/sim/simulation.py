@@ -186,6 +186,7 @@ class Simulation:
             1.0 / (CHECK_RATE * self._control_every * scene.timestep))))
         self._ticks = 0
         self._ctrl = self.data.ctrl
+        self._warning_numbers = self.data.warning.number  # a view of mjData's warning counts
         self._time_offset = 0.0
         self.steps = 0
         self._start()
@@ -287,7 +288,7 @@ class Simulation:
         self.engine.zeta = value
 
     def _warning_count(self):
-        return int(self.data.warning.number[_INSTABILITY_WARNINGS].sum())
+        return int(np.add.reduce(self._warning_numbers[_INSTABILITY_WARNINGS]))
 
     def step(self, count=1):
         """Advance `count` steps: at control ticks the scenario's control and the servo
@@ -342,7 +343,7 @@ class Simulation:
             self._warnings = warnings
             return 'MuJoCo reported an unstable (non-finite or huge) state'
         qvel = self.data.qvel
-        peak = np.abs(qvel).max() if qvel.size else 0.0
+        peak = np.maximum.reduce(np.abs(qvel)) if qvel.size else 0.0
         if not peak <= RUNAWAY_SPEED:  # also catches NaN
             return f'runaway speed {peak:.3g} (> {RUNAWAY_SPEED:g} m/s or rad/s)'
         return None
@@ -380,7 +381,7 @@ class Simulation:
         """A SimState snapshot of the current state; its leg wrenches are the means over the
         steps since the previous snapshot (see `leg_wrenches`)."""
         d = self.data
-        velocity = np.zeros(6)
+        velocity = np.empty(6)
         mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_XBODY, self._base_id,
                                  velocity, 1)  # base_link frame origin, base_link axes
         plates = None
@@ -390,13 +391,13 @@ class Simulation:
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
-            joint_positions=d.qpos[self._qpos_adr].copy(),
-            joint_velocities=d.qvel[self._dof_adr].copy(),
-            joint_efforts=d.qfrc_actuator[self._dof_adr].copy(),
+            joint_positions=d.qpos[self._qpos_adr],  # (index arrays: copies already)
+            joint_velocities=d.qvel[self._dof_adr],
+            joint_efforts=d.qfrc_actuator[self._dof_adr],
             base_position=d.xpos[self._base_id].copy(),
             base_quaternion_wxyz=d.xquat[self._base_id].copy(),
-            base_linear_velocity=velocity[3:].copy(),
-            base_angular_velocity=velocity[:3].copy(),
+            base_linear_velocity=velocity[3:],  # (this call's own array)
+            base_angular_velocity=velocity[:3],
             legs=self.leg_wrenches(),
             zeta=self.engine.zeta,
             plates_active=int(self.engine.plates_active),

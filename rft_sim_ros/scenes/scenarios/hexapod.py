@@ -99,11 +99,13 @@ class Scenario(BaseScenario):
         if not self.settle_time <= t <= self.settle_time + self.walk_time + 1e-9:
             return
         d = sim.data
-        force_z = sim.engine.body_wrenches[:, 2]
         tips = d.site_xpos[self._feet]
-        above = tips[:, 2] - sim.engine.surface.height(tips[:, 0], tips[:, 1])
-        self._samples.append(np.concatenate([
-            [t], d.xpos[self._base], above, self._leg_sum @ force_z]))
+        sample = np.empty(16)  # t, base x y z, tips above the sand (6), legs' force z (6)
+        sample[0] = t
+        sample[1:4] = d.xpos[self._base]
+        sample[4:10] = tips[:, 2] - sim.engine.surface.height(tips[:, 0], tips[:, 1])
+        sample[10:] = self._leg_sum @ sim.engine.body_wrenches[:, 2]
+        self._samples.append(sample)
 
     def series(self):
         """The walk's time course: {'time_s', 'x_m', 'y_m', 'z_m'} (base_link origin, world)
