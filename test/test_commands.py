@@ -349,6 +349,23 @@ def test_array_command_holds_a_copy_of_the_callers_array():
     assert h.set_positions(np.array([1e200, np.nan, 0.0]), now=1.0).reason is Reason.NOT_FINITE
 
 
+def test_hold_positions_is_set_positions_without_the_checks():
+    """A built-in gait's targets (hold_positions) act as the same position command: the
+    same targets afterwards, pending trajectories and effort mode cancelled alike."""
+    checked, unchecked = handler(), handler()
+    for h in (checked, unchecked):
+        h.set_trajectory(traj(JOINTS, (5.0, [5, 5, 5])), now=0.0)
+        h.set_trajectory(traj(JOINTS, (1.0, [9, 9, 9]), start=4.0), now=1.0)
+        h.set_efforts([0.5, 0.5, 0.5], now=1.5)
+    assert checked.set_positions(np.array([1.0, 2.0, 3.0]), now=2.0).accepted
+    unchecked.hold_positions(np.array([1.0, 2.0, 3.0]), now=2.0)
+    assert checked.efforts is None and unchecked.efforts is None
+    for t in (2.0, 4.5, 10.0):
+        for a, b in zip(checked.sample(t), unchecked.sample(t)):
+            np.testing.assert_array_equal(a, b)
+    assert unchecked.rejections == {}
+
+
 def test_rejections_are_counted_per_reason():
     h = handler()
     for _ in range(3):

@@ -16,6 +16,7 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
   positions are held with velocity 0. Accelerations and efforts are not used.
 * `set_positions` (std_msgs/Float64MultiArray to forward_position_controller): new
   targets for all joints in `joint_names` order, held from now on; cancels any trajectory.
+  `hold_positions` does the same, unchecked, for the targets of a built-in gait.
 * `set_efforts` (std_msgs/Float64MultiArray to the effort forward controller): efforts for
   all joints in `joint_names` order (N m or N), applied from now on instead of the position
   targets (`efforts` is then not None) until the next position command or trajectory; the
@@ -219,10 +220,17 @@ class CommandHandler:
             values = self._joint_array(positions, 'position command')
         except _Rejected as rejected:
             return self._reject(rejected)
+        self.hold_positions(values, now)
+        return ACCEPTED
+
+    def hold_positions(self, positions, now):
+        """`set_positions` for targets the simulation's own code computed (a built-in gait,
+        at every control tick), without the checks that commands from outside get:
+        `positions` must be a float array of one finite value per joint (`joint_names`
+        order), and is held as it is (the caller must not change it afterwards)."""
         self._pending = None
         self._efforts = None
-        self._active = _Spline.hold(now, values)
-        return ACCEPTED
+        self._active = _Spline.hold(now, positions)
 
     def set_efforts(self, efforts, now):
         """Apply `efforts` (all joints, `joint_names` order; N m or N) from sim time `now` (s)

@@ -42,7 +42,11 @@ class GenericMetrics:
         self._bodies = engine.body_names
         self._body_ids = engine.body_ids
         self._plates = _stacked_plates(engine.local_pos, engine.plate_start)
-        self._poses = np.empty((len(self._body_ids), 3, 4))  # [rotation | position] per body
+        # scratch, reused at every sample: [rotation | position] per body, world positions
+        # (bodies, 3, P) and depths (bodies, P) of the plates
+        self._poses = np.empty((len(self._body_ids), 3, 4))
+        self._world = np.empty((len(self._body_ids), 3, self._plates.shape[2]))
+        self._below = np.empty((len(self._body_ids), self._plates.shape[2]))
         self._legs = None
         self._times, self._base, self._speed, self._depth, self._force_z = [], [], [], [], []
 
@@ -55,9 +59,10 @@ class GenericMetrics:
         ids, poses = self._body_ids, self._poses
         poses[:, :, :3] = data.xmat[ids].reshape(-1, 3, 3)
         poses[:, :, 3] = data.xpos[ids]
-        world = poses @ self._plates
-        below = self._surface.height(world[:, 0], world[:, 1]) - world[:, 2]
-        return np.maximum(below.max(axis=1), 0.0)
+        world = np.matmul(poses, self._plates, out=self._world)
+        below = np.subtract(self._surface.height(world[:, 0], world[:, 1]), world[:, 2],
+                            out=self._below)
+        return np.maximum(np.maximum.reduce(below, axis=1), 0.0)
 
     def observe(self, sim, state):
         """Record one snapshot `state` (SimState) of `sim`."""

@@ -92,7 +92,8 @@ class Scenario(BaseScenario):
     def control(self, sim):
         # the gait's clock is the time since this run (or reset) started: sim.data.time
         if self.gait is not None:
-            sim.commands.set_positions(self.gait.targets(sim.data.time), now=sim.time)
+            # (the gait's own new array of finite targets: held without the checks)
+            sim.commands.hold_positions(self.gait.targets(sim.data.time), now=sim.time)
 
     def observe(self, sim):
         t = sim.data.time
