@@ -288,7 +288,7 @@ class Simulation:
         self.engine.zeta = value
 
     def _warning_count(self):
-        return int(np.add.reduce(self._warning_numbers[_INSTABILITY_WARNINGS]))
+        return sum(self._warning_numbers[_INSTABILITY_WARNINGS].tolist())
 
     def step(self, count=1):
         """Advance `count` steps: at control ticks the scenario's control and the servo
@@ -374,8 +374,7 @@ class Simulation:
         points = self.data.xpos[self._leg_feet]
         forces = sums[:, :3]
         torques = sums[:, 3:] - _cross(points, forces)
-        return tuple(LegWrench(name, force, torque, point) for name, force, torque, point
-                     in zip(self._leg_names, forces, torques, points))
+        return tuple(map(LegWrench, self._leg_names, forces, torques, points))
 
     def state(self, with_plates=False):
         """A SimState snapshot of the current state; its leg wrenches are the means over the
