@@ -64,3 +64,27 @@ def test_hexapod_step_cost_runs_both_loops():
     assert result['sand_engine_step_s'] > 0 and result['rigid_step_s'] > 0
     assert result['ratio_engine_to_rigid'] == pytest.approx(
         result['sand_engine_step_s'] / result['rigid_step_s'])
+
+
+def test_engine_step_worker_times_one_gait_cycle_of_the_walk(tmp_path):
+    """The terrain-cost worker: the code it imported, the cycle's steps, a CPU time per step."""
+    from rft_sim_ros.bench.terrain_cost import BED, CODE, Worker
+    worker = Worker(CODE, {'rft.plates_per_body': 50, **BED}, tmp_path)
+    try:
+        assert worker.info['package'] == str(CODE / 'rft_sim_ros' / '__init__.py')
+        assert worker.info['cycle_steps'] == 1250  # 1 Hz gait at 0.8 ms
+        assert 0.0 < worker.chunk() < 0.01
+    finally:
+        worker.close()
+    assert worker.process.returncode == 0
+
+
+@pytest.mark.slow
+def test_terrain_cost_writes_every_surface_against_the_plane(tmp_path):
+    import json
+    from rft_sim_ros.bench.terrain_cost import main
+    main(['--out', str(tmp_path), '--rounds', '1'])
+    results = json.loads((tmp_path / 'terrain_cost.json').read_text())
+    assert results['cases']['plane']['ratio_to_plane'] == 1.0
+    assert len(results['cases']) == 7 and results['machine']['cores'] >= 1
+    assert '| deformable 8 m x 8 m, 1 cm |' in (tmp_path / 'terrain_cost.md').read_text()

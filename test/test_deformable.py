@@ -1,10 +1,11 @@
 """Deformable sand: craters and piles that conserve volume, avalanches to the angle of repose,
 footprints a returning body meets, reset, and rest on deformed sand."""
+import mujoco
 import numpy as np
 import pytest
 
 from rft_sim_ros.sand.deformable import COUNT, DeformableSand
-from rft_sim_ros.sand.surface import Plane, Slope, block_maximum
+from rft_sim_ros.sand.surface import Plane, Slope, block_maximum, block_minimum
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 from rft_sim_ros.validation.terrain import lift_out, plate_redrop
@@ -34,6 +35,7 @@ def test_a_pile_steeper_than_repose_relaxes_to_it_conserving_volume(repose):
     assert axis > 0.9 * limit  # a pile at (close to) the angle of repose, not flattened
     assert abs(bed.grid.sum() - before) <= 1e-9 * moved
     assert np.array_equal(bed.block_max, block_maximum(bed.grid))
+    assert np.array_equal(bed.block_min, block_minimum(bed.grid))
     assert bed.grid.max() < 0.1 + 0.08
 
 
@@ -67,6 +69,36 @@ def test_a_dropped_plate_leaves_a_crater_whose_volume_is_piled_around_it():
     assert metrics['max_footprint_depth_m'] == bed.max_footprint_depth()
 
 
+def test_each_plate_in_the_sand_marks_the_four_nodes_of_its_cell():
+    """The gather's marks (one per run of plates in a cell) are those of one mark per plate
+    in the sand, in plate order: the nodes of its cell pending in order of first mark, each
+    remembering the lowest plate z."""
+    sim = Simulation(load_scene('plate_drop', BED))
+    engine, model, data, bed = sim.engine, sim.model, sim.data, sim.engine.surface
+    while bed.state[COUNT] == 0:  # falling until its first step in the sand
+        mujoco.mj_step1(model, data)
+        xpos, xmat = data.xpos.copy(), data.xmat.copy()
+        engine.apply()
+        mujoco.mj_step2(model, data)
+    ny, nx = bed.grid.shape
+    order, lowest = [], {}
+    for i, body in enumerate(engine.body_ids):
+        local = engine.local_pos[engine.plate_start[i]:engine.plate_start[i + 1]]
+        world = local @ xmat[body].reshape(3, 3).T + xpos[body]
+        for x, y, z in world[bed.height(world[:, 0], world[:, 1]) > world[:, 2]]:
+            u = int((x - bed.origin[0]) * (1.0 / bed.spacing[0]))
+            v = int((y - bed.origin[1]) * (1.0 / bed.spacing[1]))
+            for node in (v * nx + u, v * nx + u + 1, (v + 1) * nx + u, (v + 1) * nx + u + 1):
+                if node not in lowest:
+                    order.append(node)
+                lowest[node] = min(lowest.get(node, np.inf), z)
+    assert len(order) > 100
+    pending = bed.pending[:bed.state[COUNT]]
+    assert pending.tolist() == order
+    assert np.allclose(bed.lowest.ravel()[pending], [lowest[n] for n in order], rtol=0,
+                       atol=1e-12)
+
+
 def test_a_plate_dropped_again_into_its_footprint_sinks_deeper():
     """The second drop meets the crater floor, so its depth below the pristine surface is
     about the crater's depth plus a fresh impact depth."""
@@ -90,8 +122,10 @@ def test_reset_restores_the_pristine_surface_exactly():
     pristine, blocks = bed.pristine.copy(), block_maximum(bed.pristine)
     lift_out(sim)
     assert not np.array_equal(bed.grid, pristine)
+    assert not np.array_equal(bed.block_min, block_minimum(pristine))
     sim.reset()
     assert np.array_equal(bed.grid, pristine) and np.array_equal(bed.block_max, blocks)
+    assert np.array_equal(bed.block_min, block_minimum(pristine))
     assert bed.state[COUNT] == 0 and (bed.stamp == -1).all()
     assert np.array_equal(pristine, Slope(0.0, 5.0).height(*np.meshgrid(
         bed.origin[0] + bed.cell * np.arange(bed.grid.shape[1]),

@@ -8,7 +8,7 @@ from test_engine import _arm, _random_state
 from rft_sim_ros.rft import body_wrench
 from rft_sim_ros.sand.engine import LowVelocity
 from rft_sim_ros.sand.geoms import body_plates
-from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum,
+from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,
                                       surface_from_settings)
 from rft_sim_ros.sand.zeta_map import ZetaMap, zeta_map_from_settings
 from rft_sim_ros.scenes.config import SceneError, load_scene
@@ -35,6 +35,20 @@ def test_a_flat_height_grid_gives_exactly_the_planes_forces(seed):
     *_, engine, flat_grid = _wrenches(grid, seed)
     assert engine.plates_active > 0
     assert np.array_equal(plane, flat_grid)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_a_grid_level_under_the_bodies_only_gives_exactly_the_planes_forces(seed):
+    """Blocks level at h under the bodies (read without a look-up), a hill elsewhere."""
+    h = 0.0375
+    grid = HeightGrid(np.full((41, 31), h), size=(1.2, 1.6), center=(0.1, -0.05))
+    grid.grid[:4, :4] += 0.2
+    grid.block_max[:], grid.block_min[:] = block_maximum(grid.grid), block_minimum(grid.grid)
+    assert (grid.block_max != grid.block_min).any()
+    *_, plane = _wrenches(Plane(h), seed)
+    *_, engine, level = _wrenches(grid, seed)
+    assert engine.plates_active > 0
+    assert np.array_equal(plane, level)
 
 
 @pytest.mark.parametrize('seed', range(3))
@@ -65,7 +79,7 @@ def test_depth_below_a_shaped_surface_is_vertical_below_the_local_height(surface
 def test_bodies_above_a_hill_are_skipped_but_not_bodies_in_it():
     hill = HeightGrid(np.zeros((101, 101)), size=(2.0, 2.0))
     hill.grid[45:56, 45:56] = 0.4  # a 0.2 m tower of sand around the origin
-    hill.block_max[:] = block_maximum(hill.grid)
+    hill.block_max[:], hill.block_min[:] = block_maximum(hill.grid), block_minimum(hill.grid)
     for x, inside in ((0.0, True), (0.8, False)):
         model, data, engine = _engine(hill, low_velocity=LowVelocity(method='none'))
         data.qpos[:3] = [x - 0.2, 0.0, 0.3]  # the lower leg hangs over (x, 0)
@@ -75,13 +89,15 @@ def test_bodies_above_a_hill_are_skipped_but_not_bodies_in_it():
         assert (engine.plates_active > 0) == inside
 
 
-def test_block_maximum_bounds_every_node():
+def test_block_maximum_and_minimum_bound_every_node():
     rng = np.random.default_rng(1)
     grid = rng.normal(size=(37, 29))
-    blocks = block_maximum(grid, block=8)
+    high, low = block_maximum(grid, block=8), block_minimum(grid, block=8)
     for j in range(37):
         for i in range(29):
-            assert blocks[j // 8, i // 8] >= grid[j, i]
+            for bj in {j // 8, max(j - 1, 0) // 8}:  # a node at a block's end is in both
+                for bi in {i // 8, max(i - 1, 0) // 8}:
+                    assert low[bj, bi] <= grid[j, i] <= high[bj, bi]
 
 
 def test_slope_heights_and_normal():

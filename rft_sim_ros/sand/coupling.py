@@ -37,9 +37,9 @@ from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
-from .deformable import mark as mark_footprint
+from .deformable import mark_cells, touch_cell
 from .surface import FLAT, SLOPE
-from .surface_kernels import grid_height, map_factor, surface_top
+from .surface_kernels import grid_range, map_factor, node_height, surface_top
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -57,7 +57,11 @@ STATE, VISITED, SOLVED, WANTED = 0, 1, 2, 3
 FLAG_ROWS = 4
 
 
-def cluster_plates(centroids, size=32):
+#: Plates per cluster at most.
+CLUSTER_SIZE = 32
+
+
+def cluster_plates(centroids, size=CLUSTER_SIZE):
     """Order plates into spatial clusters of at most `size` by recursive halving along the
     widest axis. Returns (order, cluster_start): plates order[cluster_start[c]:
     cluster_start[c+1]] form cluster c."""
@@ -108,10 +112,12 @@ GatherArrays = namedtuple('GatherArrays', [
     # the engine's settings and counters, plates and clusters
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
     'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
-    # the surface's grid and block maximum (`surface.SurfaceData`), the zeta map's factors
-    'surface_grid', 'surface_block_max', 'zeta_factors',
-    # deformable sand's footprint marks (`deformable.DeformableSand`)
-    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state',
+    # the surface's grid, block maximum and minimum (`surface.SurfaceData`); zeta map factors
+    'surface_grid', 'surface_block_max', 'surface_block_min', 'zeta_factors',
+    # deformable sand's footprint marks (`deformable.DeformableSand`) and the cells one
+    # cluster's plates touch (work space of CLUSTER_SIZE)
+    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cells',
+    'deform_cell_z',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -171,10 +177,13 @@ def gather_plates(arrays):
     Bodies whose bounding sphere (radius `radii`, about the body origin), and then clusters
     whose bounding sphere, lies above the surface (above its highest point within the
     sphere's radius, horizontally) are skipped without touching their plates. A plate's
-    depth is the surface height at its (x, y) minus its z (vertical, world axes); a
-    horizontal plane (SURFACE_KIND FLAT) keeps the original arithmetic, bit for bit. On
-    deformable sand (DEFORM) every plate below the surface marks its footprint node
-    (`deformable.mark`).
+    depth is the surface height at its (x, y) minus its z (vertical, world axes): a
+    horizontal plane (SURFACE_KIND FLAT) keeps the original arithmetic, bit for bit, and so
+    does a grid whose blocks under the cluster are level (block minimum == maximum: every
+    bilinear height there is that level exactly); elsewhere on a grid only plates below the
+    blocks' maximum read the grid. On deformable sand (DEFORM) the plates below the surface
+    mark their footprint cells (`deformable.mark_cells`), each cell once per cluster with
+    its lowest plate z (the same marks, in the same order, as one per plate).
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
     that the depth test reads positions only). A plate below the surface first has
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
@@ -201,6 +210,7 @@ def gather_plates(arrays):
     g_idx, g_idy = settings[GRID_INV_DX], settings[GRID_INV_DY]
     grid = float_matrix(arrays, a.surface_grid)
     block_max = float_matrix(arrays, a.surface_block_max)
+    block_min = float_matrix(arrays, a.surface_block_min)
     zeta_map = settings[ZETA_MAP] != 0.0
     factors = float_matrix(arrays, a.zeta_factors)
     mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
@@ -209,6 +219,7 @@ def gather_plates(arrays):
     stamp, lowest = int_matrix(arrays, a.deform_stamp), float_matrix(arrays, a.deform_lowest)
     pending = int_vector(arrays, a.deform_pending)
     deform_state = int_vector(arrays, a.deform_state)
+    cells, cell_z = int_vector(arrays, a.deform_cells), float_vector(arrays, a.deform_cell_z)
     step = counters[STEPS]
     body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
     body_cluster_start = int_vector(arrays, a.body_cluster_start)
@@ -233,8 +244,8 @@ def gather_plates(arrays):
         if flat:
             top = surface_height
         else:
-            top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max, gx0, gy0,
-                              g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
+            top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max, block_min,
+                              gx0, gy0, g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         if xpos[b, 2] - radii[i] >= top:
             continue
         first = k
@@ -264,38 +275,43 @@ def gather_plates(arrays):
         s_z = r22 - gx * r02 - gy * r12
         for c in range(body_cluster_start[i], body_cluster_start[i + 1]):
             ccx, ccy, ccz = cluster_center[c, 0], cluster_center[c, 1], cluster_center[c, 2]
+            # the surface under the cluster: level at `level`, or (lookup) a grid to read
+            level, lookup = surface_height, False
             if slope:
                 if (s_0 + s_x * ccx + s_y * ccy + s_z * ccz - cluster_radius[c]
                         >= surface_height + cluster_radius[c] * g_norm):
                     continue
             else:
                 if not flat:
-                    top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max,
-                                      gx0, gy0, g_idx, g_idy,
-                                      ox + r00 * ccx + r01 * ccy + r02 * ccz,
-                                      oy + r10 * ccx + r11 * ccy + r12 * ccz, cluster_radius[c])
+                    low, top = grid_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
+                                          ox + r00 * ccx + r01 * ccy + r02 * ccz,
+                                          oy + r10 * ccx + r11 * ccy + r12 * ccz,
+                                          cluster_radius[c])
+                    level, lookup = top, low != top
                 if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= top:
                     continue
             j0 = cluster_plate_start[c]
             j1 = cluster_plate_start[c + 1]
             cluster, cluster_normals = positions[j0:j1], normals[j0:j1]  # (no wraparound)
+            plain = not (slope or lookup or deform)  # a plane, or a rigid grid level here
+            touched = 0  # deformable sand: cells its plates in the sand are in
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
-                plate_x = plate_y = 0.0  # world (x, y), on a grid only
-                if flat:
-                    depth = surface_height - pz
+                if plain:
+                    depth = level - pz
                 elif slope:
                     depth = surface_height - (s_0 + s_x * lx + s_y * ly + s_z * lz)
-                else:
-                    plate_x = ox + r00 * lx + r01 * ly + r02 * lz
-                    plate_y = oy + r10 * lx + r11 * ly + r12 * lz
-                    depth = grid_height(grid, gx0, gy0, g_idx, g_idy, plate_x, plate_y) - pz
+                elif lookup and pz >= top:  # above the highest node under the cluster
+                    continue
+                else:  # a grid, at the plate's node coordinates (u, v)
+                    u = (ox + r00 * lx + r01 * ly + r02 * lz - gx0) * g_idx
+                    v = (oy + r10 * lx + r11 * ly + r12 * lz - gy0) * g_idy
+                    depth = (node_height(grid, u, v) if lookup else level) - pz
+                    if deform and depth > 0.0:
+                        touched = touch_cell(grid, u, v, pz, cells, cell_z, touched)
                 if depth <= 0.0:
                     continue
-                if deform:
-                    mark_footprint(grid, stamp, lowest, pending, deform_state, gx0, gy0, g_idx,
-                                   g_idy, step, plate_x, plate_y, pz)
                 mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
                               cluster_normals[i_c, 2])
                 n_v = (mx * (body_v[0] + body_w[1] * lz - body_w[2] * ly)
@@ -326,6 +342,7 @@ def gather_plates(arrays):
                 out_slot[k] = slots
                 leading_count += leading
                 k += 1
+            mark_cells(stamp, lowest, pending, deform_state, step, cells, cell_z, touched)
         if k > first:
             slot_body[slots] = i
             slot_start[slots] = first

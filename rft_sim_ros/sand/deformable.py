@@ -78,7 +78,7 @@ class DeformableSand(HeightGrid):
         self.tan_repose = float(np.tan(np.radians(repose_deg)))
         self.rise = self.tan_repose * self.cell  # m between axis neighbours at repose
         self.pristine = self.grid.copy()
-        self._pristine_block_max = self.block_max.copy()
+        self._pristine_blocks = self.block_max.copy(), self.block_min.copy()
         self.stamp = np.full(self.grid.shape, -1, dtype=np.int64)  # last step marked; -1: not
         self.lowest = np.zeros(self.grid.shape)           # lowest plate z while pending, m
         self.pending = np.zeros(self.grid.size, dtype=np.int64)  # flat indices of pending nodes
@@ -93,8 +93,8 @@ class DeformableSand(HeightGrid):
     def settle(self, step):
         """Commit the nodes left by their bodies at `step`, deposit and avalanche (rules
         2-4). Called by the engine after each gather."""
-        settle(self.grid, self.block_max, self.stamp, self.lowest, self.pending, self.state,
-               self._committed, self._amount, step, self.rise)
+        settle(self.grid, self.block_max, self.block_min, self.stamp, self.lowest, self.pending,
+               self.state, self._committed, self._amount, step, self.rise)
 
     def relax_all(self):
         """Avalanche the whole bed until settled (e.g. a pile made by hand); returns the
@@ -104,13 +104,13 @@ class DeformableSand(HeightGrid):
         sweeps = 0
         while self.state[OPEN]:
             sweeps += avalanche(self.grid, self.stamp, self.state, self.rise)
-        refresh_blocks(self.grid, self.block_max, 0, nx - 1, 0, ny - 1)
+        refresh_blocks(self.grid, self.block_max, self.block_min, 0, nx - 1, 0, ny - 1)
         return sweeps
 
     def reset(self):
         """The pristine surface again, nothing pending."""
         self.grid[:] = self.pristine
-        self.block_max[:] = self._pristine_block_max
+        self.block_max[:], self.block_min[:] = self._pristine_blocks
         self.stamp[:] = -1
         self.state[:] = 0
 
@@ -139,19 +139,36 @@ class DeformableSand(HeightGrid):
 
 
 @njit(cache=True, inline='always')
-def mark(grid, stamp, lowest, pending, state, x0, y0, inv_dx, inv_dy, step, x, y, z):
-    """Rule 1: mark the four nodes of the cell holding world (x, y) as under a plate at
-    height z (m)."""
+def touch_cell(grid, u, v, z, cells, cell_z, count):
+    """Note a plate at height z (m) at node coordinates (u, v) in the list of cells a body's
+    plates are in (`cells[:count]`, flat indices j * nx + i of each cell's lower-left node,
+    in order of first touch; `cell_z`: the lowest z in each); outside the bed: nothing.
+    Returns the new count."""
     ny, nx = grid.shape
-    u = (x - x0) * inv_dx
-    v = (y - y0) * inv_dy
     if u < 0.0 or v < 0.0 or u >= nx - 1 or v >= ny - 1:
-        return
-    i, j = int(u), int(v)
-    _mark_node(stamp, lowest, pending, state, nx, step, i, j, z)
-    _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j, z)
-    _mark_node(stamp, lowest, pending, state, nx, step, i, j + 1, z)
-    _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j + 1, z)
+        return count
+    cell = int(v) * nx + int(u)
+    m = count - 1
+    while m >= 0 and cells[m] != cell:  # from the latest: neighbours share cells
+        m -= 1
+    if m < 0:
+        cells[count], cell_z[count] = cell, z
+        return count + 1
+    cell_z[m] = min(cell_z[m], z)
+    return count
+
+
+@njit(cache=True, inline='always')
+def mark_cells(stamp, lowest, pending, state, step, cells, cell_z, count):
+    """Rule 1: mark the four nodes of each of `cells[:count]` (`touch_cell`) as under a
+    plate at height cell_z (m) at `step`, in order."""
+    nx = stamp.shape[1]
+    for m in range(count):
+        j, i, z = cells[m] // nx, cells[m] % nx, cell_z[m]
+        _mark_node(stamp, lowest, pending, state, nx, step, i, j, z)
+        _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j, z)
+        _mark_node(stamp, lowest, pending, state, nx, step, i, j + 1, z)
+        _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j + 1, z)
 
 
 @njit(cache=True, inline='always')
@@ -166,7 +183,8 @@ def _mark_node(stamp, lowest, pending, state, nx, step, i, j, z):
 
 
 @njit(cache=True)
-def settle(grid, block_max, stamp, lowest, pending, state, committed, amount, step, rise):
+def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed, amount, step,
+           rise):
     """Rules 2-4 (module docstring) for the nodes that were pending before `step`; `rise`:
     see `avalanche`."""
     ny, nx = grid.shape
@@ -188,7 +206,7 @@ def settle(grid, block_max, stamp, lowest, pending, state, committed, amount, st
     state[COUNT] = kept
     if n_committed == 0:
         if state[OPEN]:
-            _continue_avalanche(grid, block_max, stamp, state, rise)
+            _continue_avalanche(grid, block_max, block_min, stamp, state, rise)
         return
     i_lo, i_hi, j_lo, j_hi = nx, -1, ny, -1
     for c in range(n_committed):
@@ -204,14 +222,14 @@ def settle(grid, block_max, stamp, lowest, pending, state, committed, amount, st
         i_lo, i_hi = min(i_lo, state[WI0]), max(i_hi, state[WI1])
         j_lo, j_hi = min(j_lo, state[WJ0]), max(j_hi, state[WJ1])
     state[WI0], state[WI1], state[WJ0], state[WJ1], state[OPEN] = i_lo, i_hi, j_lo, j_hi, 1
-    _continue_avalanche(grid, block_max, stamp, state, rise)
+    _continue_avalanche(grid, block_max, block_min, stamp, state, rise)
 
 
 @njit(cache=True, inline='always')
-def _continue_avalanche(grid, block_max, stamp, state, rise):
+def _continue_avalanche(grid, block_max, block_min, stamp, state, rise):
     """Avalanche the open window, refresh its blocks, count it if it is still unsettled."""
     avalanche(grid, stamp, state, rise)
-    refresh_blocks(grid, block_max, state[WI0], state[WI1], state[WJ0], state[WJ1])
+    refresh_blocks(grid, block_max, block_min, state[WI0], state[WI1], state[WJ0], state[WJ1])
     if not state[OPEN]:
         return
     state[UNSETTLED] += 1
@@ -294,15 +312,15 @@ def avalanche(grid, stamp, state, rise):
 
 
 @njit(cache=True)
-def refresh_blocks(grid, block_max, i_lo, i_hi, j_lo, j_hi):
-    """Recompute the block maxima of the blocks holding nodes [i_lo, i_hi] x [j_lo, j_hi]
-    (a node n sits in blocks n // BLOCK and, at a block's end, (n - 1) // BLOCK)."""
+def refresh_blocks(grid, block_max, block_min, i_lo, i_hi, j_lo, j_hi):
+    """Recompute the block maxima and minima of the blocks holding nodes [i_lo, i_hi] x
+    [j_lo, j_hi] (a node n sits in blocks n // BLOCK and, at a block's end, (n - 1) // BLOCK)."""
     ny, nx = grid.shape
     for bj in range(max((j_lo - 1) // BLOCK, 0), min(j_hi // BLOCK, block_max.shape[0] - 1) + 1):
         for bi in range(max((i_lo - 1) // BLOCK, 0),
                         min(i_hi // BLOCK, block_max.shape[1] - 1) + 1):
-            top = -1e300
+            low, high = 1e300, -1e300
             for j in range(bj * BLOCK, min((bj + 1) * BLOCK, ny - 1) + 1):
                 for i in range(bi * BLOCK, min((bi + 1) * BLOCK, nx - 1) + 1):
-                    top = max(top, grid[j, i])
-            block_max[bj, bi] = top
+                    low, high = min(low, grid[j, i]), max(high, grid[j, i])
+            block_max[bj, bi], block_min[bj, bi] = high, low

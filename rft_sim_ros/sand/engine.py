@@ -168,7 +168,7 @@ class SandEngine:
         settings[coupling.GRID_INV_DX] = 1.0 / data.spacing[0]
         settings[coupling.GRID_INV_DY] = 1.0 / data.spacing[1]
         self._surface_grid = data.grid
-        self._surface_block_max = data.block_max
+        self._surface_block_max, self._surface_block_min = data.block_max, data.block_min
 
     def _cluster(self, plates):
         """Store all plates, body by body and within a body cluster by cluster, with the
@@ -226,7 +226,8 @@ class SandEngine:
             cluster_plate_start=self._cluster_plate_start, cluster_center=self._cluster_center,
             cluster_radius=self._cluster_radius, positions=self.local_pos,
             normals=self.local_normal, areas=self.areas, surface_grid=self._surface_grid,
-            surface_block_max=self._surface_block_max, zeta_factors=self._zeta_factors,
+            surface_block_max=self._surface_block_max,
+            surface_block_min=self._surface_block_min, zeta_factors=self._zeta_factors,
             **self._footprint_arrays(),
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
@@ -254,14 +255,17 @@ class SandEngine:
             **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
 
     def _footprint_arrays(self):
-        """The gather's deformable-sand arrays (1-element placeholders on rigid sand)."""
+        """The gather's deformable-sand arrays (1-element placeholders on rigid sand) and its
+        work space for one cluster's footprint cells."""
         sand = self.surface
+        work = dict(deform_cells=np.zeros(coupling.CLUSTER_SIZE, dtype=np.int64),
+                    deform_cell_z=np.zeros(coupling.CLUSTER_SIZE))
         if self.deformable:
             return dict(deform_stamp=sand.stamp, deform_lowest=sand.lowest,
-                        deform_pending=sand.pending, deform_state=sand.state)
+                        deform_pending=sand.pending, deform_state=sand.state, **work)
         return dict(deform_stamp=np.full((1, 1), -1, dtype=np.int64),
                     deform_lowest=np.zeros((1, 1)), deform_pending=np.zeros(1, dtype=np.int64),
-                    deform_state=np.zeros(1, dtype=np.int64))
+                    deform_state=np.zeros(1, dtype=np.int64), **work)
 
     @property
     def zeta(self):

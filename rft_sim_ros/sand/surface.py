@@ -16,8 +16,10 @@ kind code plus a plane (height at the world origin and gradient) and a height gr
 Depth below a sloped surface is measured vertically, in world axes (see docs/terrain.md for
 the literature behind this choice): depth = height(x, y) - z of the plate.
 
-The grid carries a coarse "block maximum" (the highest node of each BLOCK x BLOCK tile) so
-that a kernel can tell in a few reads whether a bounding sphere lies wholly above the sand.
+The grid carries a coarse "block maximum" and "block minimum" (the highest and lowest node
+of each BLOCK x BLOCK tile) so that a kernel can tell in a few reads whether a bounding sphere
+lies wholly above the sand, and whether the surface under it is level (block minimum ==
+maximum: the bilinear height there is that level exactly, no look-up needed).
 """
 from collections import namedtuple
 from pathlib import Path
@@ -31,22 +33,32 @@ BLOCK = 8
 
 #: What the kernels read: kind code; the plane's height at the world origin (m) and gradient
 #: dh/dx, dh/dy; the grid (heights (ny, nx) m, origin = world (x, y) of node [0, 0], node
-#: spacing (dx, dy) m) and its block maximum ((ceil((ny-1)/BLOCK)+1, ...) m). A surface
-#: without a grid passes 2 x 2 placeholders.
+#: spacing (dx, dy) m) and its block maximum and minimum ((ceil((ny-1)/BLOCK)+1, ...) m). A
+#: surface without a grid passes 2 x 2 placeholders.
 SurfaceData = namedtuple('SurfaceData', ['kind', 'height', 'gradient', 'grid', 'origin',
-                                         'spacing', 'block_max'])
+                                         'spacing', 'block_max', 'block_min'])
 
 
 def block_maximum(grid, block=BLOCK):
     """(by, bx) array: block [j, i] = max of the nodes [j*block .. (j+1)*block] x
     [i*block .. (i+1)*block] (inclusive, clipped to the grid), so every node n belongs to
     block n // block and the bilinear surface inside a cell never exceeds its blocks."""
+    return _blocks(grid, block, np.max)
+
+
+def block_minimum(grid, block=BLOCK):
+    """As `block_maximum`, with each block's lowest node (the surface never goes below)."""
+    return _blocks(grid, block, np.min)
+
+
+def _blocks(grid, block, reduce):
     ny, nx = grid.shape
     by, bx = (ny - 1) // block + 1, (nx - 1) // block + 1
     out = np.empty((by, bx))
     for j in range(by):
         for i in range(bx):
-            out[j, i] = grid[j * block:(j + 1) * block + 1, i * block:(i + 1) * block + 1].max()
+            out[j, i] = reduce(grid[j * block:(j + 1) * block + 1,
+                                    i * block:(i + 1) * block + 1])
     return out
 
 
@@ -88,7 +100,7 @@ class Plane(Surface):
     @property
     def data(self):
         return SurfaceData(FLAT, self.level, (0.0, 0.0), _NO_GRID, (0.0, 0.0), (1.0, 1.0),
-                           _NO_GRID)
+                           _NO_GRID, _NO_GRID)
 
 
 class Slope(Surface):
@@ -108,7 +120,7 @@ class Slope(Surface):
     @property
     def data(self):
         return SurfaceData(SLOPE, self.level, self.gradient, _NO_GRID, (0.0, 0.0), (1.0, 1.0),
-                           _NO_GRID)
+                           _NO_GRID, _NO_GRID)
 
 
 class HeightGrid(Surface):
@@ -131,6 +143,7 @@ class HeightGrid(Surface):
         self.spacing = (size[0] / (nx - 1), size[1] / (ny - 1))
         self.origin = (self.center[0] - size[0] / 2, self.center[1] - size[1] / 2)
         self.block_max = block_maximum(self.grid)
+        self.block_min = block_minimum(self.grid)
 
     @classmethod
     def from_file(cls, path, size, center=(0.0, 0.0), height_range=None, base=0.0):
@@ -194,7 +207,7 @@ class HeightGrid(Surface):
     @property
     def data(self):
         return SurfaceData(GRID, 0.0, (0.0, 0.0), self.grid, self.origin, self.spacing,
-                           self.block_max)
+                           self.block_max, self.block_min)
 
 
 def grey_levels(path):

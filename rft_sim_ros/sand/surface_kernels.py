@@ -10,44 +10,45 @@ from .surface import BLOCK, FLAT, SLOPE
 
 
 @njit(inline='always')
-def grid_height(grid, x0, y0, inv_dx, inv_dy, x, y):
-    """Bilinear height of the grid at world (x, y), m."""
+def node_height(grid, u, v):
+    """Bilinear height of the grid at node coordinates (u, v), m."""
     ny, nx = grid.shape
-    u = min(max((x - x0) * inv_dx, 0.0), nx - 1.0)
-    v = min(max((y - y0) * inv_dy, 0.0), ny - 1.0)
-    i = min(int(u), nx - 2)
-    j = min(int(v), ny - 2)
-    fu, fv = u - i, v - j
+    i = min(max(int(u), 0), nx - 2)  # (clamped as integers: any u gives a node inside)
+    j = min(max(int(v), 0), ny - 2)
+    fu = min(max(u - i, 0.0), 1.0)
+    fv = min(max(v - j, 0.0), 1.0)
     low = grid[j, i] + fu * (grid[j, i + 1] - grid[j, i])
     high = grid[j + 1, i] + fu * (grid[j + 1, i + 1] - grid[j + 1, i])
     return low + fv * (high - low)
 
 
 @njit(inline='always')
-def grid_top(grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
-    """An upper bound of the grid's height over the square |x' - x|, |y' - y| <= r (m): the
-    largest block maximum of the blocks it touches."""
+def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
+    """Bounds (low, high) of the grid's height over the square |x' - x|, |y' - y| <= r (m):
+    the extreme block minimum and maximum of the blocks it touches (they hold every node a
+    bilinear look-up in the square reads; low == high: the surface there is level at it)."""
     ny, nx = grid.shape
     u0 = int(min(max((x - r - x0) * inv_dx, 0.0), nx - 1.0))
     u1 = int(min(max((x + r - x0) * inv_dx, 0.0), nx - 1.0)) + 1
     v0 = int(min(max((y - r - y0) * inv_dy, 0.0), ny - 1.0))
     v1 = int(min(max((y + r - y0) * inv_dy, 0.0), ny - 1.0)) + 1
-    top = -1e300
+    low, high = 1e300, -1e300
     for bj in range(v0 // BLOCK, min(v1 // BLOCK, block_max.shape[0] - 1) + 1):
         for bi in range(u0 // BLOCK, min(u1 // BLOCK, block_max.shape[1] - 1) + 1):
-            top = max(top, block_max[bj, bi])
-    return top
+            low, high = min(low, block_min[bj, bi]), max(high, block_max[bj, bi])
+    return low, high
 
 
 @njit(inline='always')
-def surface_top(kind, level, gx, gy, g_norm, grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r):
+def surface_top(kind, level, gx, gy, g_norm, grid, block_max, block_min, x0, y0, inv_dx, inv_dy,
+                x, y, r):
     """An upper bound of the surface's height within horizontal distance r of (x, y), m
     (g_norm: the slope's |gradient|)."""
     if kind == FLAT:
         return level
     if kind == SLOPE:
         return level + gx * x + gy * y + r * g_norm
-    return grid_top(grid, block_max, x0, y0, inv_dx, inv_dy, x, y, r)
+    return grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r)[1]
 
 
 @njit(inline='always')

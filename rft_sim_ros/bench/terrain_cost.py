@@ -1,0 +1,163 @@
+"""Step cost of the sand surfaces (docs/terrain.md): the hexapod's engine step (sand +
+MuJoCo) on a slope, a height grid and deformable sand against the same hexapod on the plane,
+and optionally the plane against an older checkout of the code (e.g. the code before the
+terrain work).
+
+    python -m rft_sim_ros.bench.terrain_cost [--out DIR] [--rounds 5] [--baseline CODE_DIR]
+
+Every case runs in its own worker process (`engine_step_worker.py`: one hexapod walking on
+one surface); the cases take turns, one gait cycle each, for `rounds` rounds, so machine noise
+hits all alike. Reported: the median CPU time per engine step of each case, and its ratio to
+the plane as the median of the per-round ratios (a ratio taken within one round). The workers
+of the code under test import this package; the baseline worker imports CODE_DIR's (a
+`git worktree add` checkout) with the same interpreter. Writes terrain_cost.json and
+terrain_cost.md into DIR (default bench/results).
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..sim.runner import machine_info
+
+WORKER = Path(__file__).with_name('engine_step_worker.py')
+#: The package root of the code under test.
+CODE = Path(__file__).resolve().parents[2]
+BASELINE = 'plane, baseline code'
+#: Deformable bed of the targets: 1 cm cells over 2 m x 2 m.
+BED = {'sand.deformable.enabled': True, 'sand.deformable.cell': 0.01,
+       'sand.deformable.size': [2.0, 2.0]}
+
+
+def grid_files(folder):
+    """Two 2 m x 2 m height grids at 1 cm (.npy, m) in `folder`: flat at 0 (the plane's
+    physics on the grid path) and rippled (+-1 cm, 0.25 m wavelength)."""
+    flat, rippled = Path(folder) / 'flat_grid.npy', Path(folder) / 'rippled_grid.npy'
+    x = np.linspace(-1.0, 1.0, 201)
+    np.save(flat, np.zeros((201, 201)))
+    np.save(rippled, 0.01 * np.sin(2 * np.pi * x / 0.25)[None, :]
+            * np.cos(2 * np.pi * x / 0.25)[:, None])
+    return flat, rippled
+
+
+def cases(folder):
+    """(label, scene overrides) of the surfaces measured; 'plane' is the reference."""
+    flat, rippled = grid_files(folder)
+    grid = {'sand.surface.type': 'grid', 'sand.surface.size': [2.0, 2.0]}
+    return (
+        ('plane', {}),
+        ('slope 0 deg (slope path, the plane\'s physics)', {'sand.surface.type': 'slope'}),
+        ('slope 10 deg', {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0}),
+        ('height grid 2 m at 1 cm, flat (grid path, the plane\'s physics)',
+         {**grid, 'sand.surface.file': str(flat)}),
+        ('height grid 2 m at 1 cm, rippled +-1 cm', {**grid, 'sand.surface.file': str(rippled)}),
+        ('deformable 2 m x 2 m, 1 cm', BED),
+        ('deformable 8 m x 8 m, 1 cm', {**BED, 'sand.deformable.size': [8.0, 8.0]}),
+    )
+
+
+class Worker:
+    """A worker process (see engine_step_worker.py) measuring one case with the code in
+    `code` (a folder holding the rft_sim_ros package)."""
+
+    def __init__(self, code, overrides, cwd):
+        env = dict(os.environ, PYTHONPATH=str(code))
+        self.process = subprocess.Popen(
+            [sys.executable, '-P', str(WORKER), json.dumps(overrides)], cwd=cwd, env=env,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.info = self._answer()
+
+    def _answer(self):
+        line = self.process.stdout.readline()
+        if not line:
+            raise RuntimeError(f'engine step worker exited with {self.process.wait()}')
+        return json.loads(line)
+
+    def chunk(self):
+        """CPU time per engine step (s) over one gait cycle."""
+        self.process.stdin.write('chunk\n')
+        self.process.stdin.flush()
+        return self._answer()['step_s']
+
+    def close(self):
+        self.process.stdin.close()
+        self.process.wait()
+
+
+def surface_costs(rounds=5, baseline=None, log=print):
+    """Median engine-step CPU time per case and its ratio to the plane (median of per-round
+    ratios); with `baseline` (a code folder), the plane of that code as one more case."""
+    with tempfile.TemporaryDirectory() as folder:
+        plan = [(label, CODE, overrides) for label, overrides in cases(folder)]
+        if baseline is not None:
+            plan.insert(0, (BASELINE, Path(baseline).resolve(), {}))
+        workers = {}
+        try:
+            for label, code, overrides in plan:
+                log(f'starting: {label}')
+                workers[label] = Worker(code, overrides, folder)
+            samples = {label: [] for label in workers}
+            for r in range(rounds):
+                log(f'round {r + 1}/{rounds}')
+                for label, worker in workers.items():
+                    samples[label].append(worker.chunk())
+        finally:
+            for worker in workers.values():
+                worker.close()
+    plane = np.array(samples['plane'])
+    result = {}
+    for label, values in samples.items():
+        values = np.array(values)
+        result[label] = {'step_s': float(np.median(values)),
+                         'ratio_to_plane': float(np.median(values / plane)),
+                         'samples_s': values.tolist(), 'package': workers[label].info['package']}
+    return result
+
+
+def markdown(results):
+    machine = results['machine']
+    lines = ['# Step cost of the sand surfaces', '',
+             f'Machine: {machine["cpu"]}, {machine["cores"]} cores (shared); Python '
+             f'{machine["python"]}, MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. '
+             'Hexapod walking (500 plates per leg segment, 0.8 ms): CPU time per engine step '
+             '(sand + MuJoCo), one worker process per case, the cases taking turns one gait '
+             f'cycle each over {results["rounds"]} rounds; medians, and ratios to the plane as '
+             'the median of per-round ratios. Produced by `python -m '
+             'rft_sim_ros.bench.terrain_cost`.', '',
+             '| surface | us/step | vs plane |', '|---|---|---|']
+    for label, row in results['cases'].items():
+        lines.append(f'| {label} | {row["step_s"] * 1e6:.1f} | {row["ratio_to_plane"]:.3f} |')
+    if results.get('baseline'):
+        lines += ['', f'Baseline code: {results["baseline"]}.']
+    return '\n'.join(lines) + '\n'
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog='python -m rft_sim_ros.bench.terrain_cost',
+                                     description=__doc__.split('\n\n')[0])
+    parser.add_argument('--out', default='bench/results', help='output folder')
+    parser.add_argument('--rounds', type=int, default=5, help='gait cycles per case')
+    parser.add_argument('--baseline', help='a folder holding an older rft_sim_ros to compare '
+                                           'the plane with (e.g. a git worktree)')
+    parser.add_argument('--baseline-label', default='', help='what the baseline is (report)')
+    args = parser.parse_args(argv)
+    log = lambda line: print(f'terrain_cost: {line}', file=sys.stderr)  # noqa: E731
+    results = {'machine': machine_info(), 'rounds': args.rounds,
+               'load_before': os.getloadavg()[0],
+               'cases': surface_costs(args.rounds, args.baseline, log),
+               'load_after': os.getloadavg()[0],
+               'baseline': args.baseline_label or args.baseline}
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / 'terrain_cost.json').write_text(json.dumps(results, indent=2) + '\n')
+    (out / 'terrain_cost.md').write_text(markdown(results))
+    print(f'wrote {out / "terrain_cost.md"}', file=sys.stderr)
+
+
+if __name__ == '__main__':
+    main()
