@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import resources
 from ..sim.runner import machine_info
 
 WORKER = Path(__file__).with_name('engine_step_worker.py')
@@ -34,15 +35,39 @@ BED = {'sand.deformable.enabled': True, 'sand.deformable.cell': 0.01,
        'sand.deformable.size': [2.0, 2.0]}
 
 
+def rippled_heights():
+    """A 2 m x 2 m height grid at 1 cm (m, [iy, ix]): ripples of +-1 cm, 0.25 m wavelength."""
+    x = np.linspace(-1.0, 1.0, 201)
+    return 0.01 * np.sin(2 * np.pi * x / 0.25)[None, :] * np.cos(2 * np.pi * x / 0.25)[:, None]
+
+
 def grid_files(folder):
     """Two 2 m x 2 m height grids at 1 cm (.npy, m) in `folder`: flat at 0 (the plane's
-    physics on the grid path) and rippled (+-1 cm, 0.25 m wavelength)."""
+    physics on the grid path) and rippled (`rippled_heights`)."""
     flat, rippled = Path(folder) / 'flat_grid.npy', Path(folder) / 'rippled_grid.npy'
-    x = np.linspace(-1.0, 1.0, 201)
     np.save(flat, np.zeros((201, 201)))
-    np.save(rippled, 0.01 * np.sin(2 * np.pi * x / 0.25)[None, :]
-            * np.cos(2 * np.pi * x / 0.25)[:, None])
+    np.save(rippled, rippled_heights())
     return flat, rippled
+
+
+def hfield_model(folder):
+    """The hexapod's MJCF with an <hfield> geom 'terrain' in its world body holding the
+    rippled grid (2 m x 2 m centred on the origin, heights -1 .. +1 cm), written to
+    `folder`; returns its path. (The hexapod model itself has no hfield.)"""
+    models = resources.models_dir()
+    heights = rippled_heights()
+    low, high = heights.min(), heights.max()
+    elevation = ' '.join(f'{value:.6f}' for value in ((heights - low) / (high - low)).ravel())
+    xml = (models / 'hexapod.xml').read_text()
+    xml = xml.replace('meshdir="assets"', f'meshdir="{models / "assets"}"', 1)
+    xml = xml.replace('<asset>', f'<asset><hfield name="ripples" nrow="{heights.shape[0]}" '
+                                 f'ncol="{heights.shape[1]}" size="1 1 {high - low} 0.01" '
+                                 f'elevation="{elevation}"/>', 1)
+    xml = xml.replace('<worldbody>', '<worldbody><geom name="terrain" type="hfield" '
+                                     f'hfield="ripples" pos="0 0 {low}"/>', 1)
+    path = Path(folder) / 'hexapod_hfield.xml'
+    path.write_text(xml)
+    return path
 
 
 def cases(folder):
@@ -56,6 +81,9 @@ def cases(folder):
         ('height grid 2 m at 1 cm, flat (grid path, the plane\'s physics)',
          {**grid, 'sand.surface.file': str(flat)}),
         ('height grid 2 m at 1 cm, rippled +-1 cm', {**grid, 'sand.surface.file': str(rippled)}),
+        ('the model\'s own hfield, the same ripples', {
+            'model': str(hfield_model(folder)), 'sand.surface.type': 'hfield',
+            'sand.surface.geom': 'terrain'}),
         ('deformable 2 m x 2 m, 1 cm', BED),
         ('deformable 8 m x 8 m, 1 cm', {**BED, 'sand.deformable.size': [8.0, 8.0]}),
     )
