@@ -57,11 +57,7 @@ STATE, VISITED, SOLVED, WANTED = 0, 1, 2, 3
 FLAG_ROWS = 4
 
 
-#: Plates per cluster at most.
-CLUSTER_SIZE = 32
-
-
-def cluster_plates(centroids, size=CLUSTER_SIZE):
+def cluster_plates(centroids, size=32):
     """Order plates into spatial clusters of at most `size` by recursive halving along the
     widest axis. Returns (order, cluster_start): plates order[cluster_start[c]:
     cluster_start[c+1]] form cluster c."""
@@ -115,7 +111,7 @@ GatherArrays = namedtuple('GatherArrays', [
     # the surface's grid, block maximum and minimum (`surface.SurfaceData`); zeta map factors
     'surface_grid', 'surface_block_max', 'surface_block_min', 'zeta_factors',
     # deformable sand's footprint marks (`deformable.DeformableSand`) and the cells one
-    # cluster's plates touch (work space of CLUSTER_SIZE)
+    # cluster's plates touch (work space, one entry per plate of the largest cluster)
     'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cells',
     'deform_cell_z',
     # mjData, mjModel

@@ -256,10 +256,11 @@ class SandEngine:
 
     def _footprint_arrays(self):
         """The gather's deformable-sand arrays (1-element placeholders on rigid sand) and its
-        work space for one cluster's footprint cells."""
+        work space for one cluster's footprint cells (one per plate of the largest)."""
         sand = self.surface
-        work = dict(deform_cells=np.zeros(coupling.CLUSTER_SIZE, dtype=np.int64),
-                    deform_cell_z=np.zeros(coupling.CLUSTER_SIZE))
+        largest = int(np.diff(self._cluster_plate_start).max(initial=1))
+        work = dict(deform_cells=np.zeros(largest, dtype=np.int64),
+                    deform_cell_z=np.zeros(largest))
         if self.deformable:
             return dict(deform_stamp=sand.stamp, deform_lowest=sand.lowest,
                         deform_pending=sand.pending, deform_state=sand.state, **work)
