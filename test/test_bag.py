@@ -164,7 +164,8 @@ def test_packed_state_topics_are_the_bytes_rosbags_serialises(legs, time):
 
 
 def test_batched_cycles_write_the_file_rosbags_writes_message_by_message(tmp_path):
-    """Enough cycles to close MCAP chunks (1 MiB) on the way: same bytes, same metadata."""
+    """Enough cycles to close MCAP chunks (1 MiB) on the way: same bytes, same metadata
+    (chunks closed by ours and by rosbags' own close_chunk)."""
     recorded_states = states(n=900)
     batched, plain = tmp_path / 'batched' / 'run', tmp_path / 'plain' / 'run'  # same names
     with BagWriter(batched, LEGS) as writer:
@@ -173,6 +174,7 @@ def test_batched_cycles_write_the_file_rosbags_writes_message_by_message(tmp_pat
     reference = _Rosbag2Writer(plain, version=9,
                                storage_plugin=StoragePlugin.MCAP)
     reference.open()
+    del reference.storage.close_chunk  # rosbags' own, against ours in the batched bag
     factory = RosbagsFactory()
     connections = {topic: reference.add_connection(topic, msgtype, typestore=factory.typestore)
                    for topic, msgtype in topics.published_topics(LEGS, plates=False).items()}
@@ -184,6 +186,15 @@ def test_batched_cycles_write_the_file_rosbags_writes_message_by_message(tmp_pat
     assert (batched / 'run.mcap').read_bytes() == (plain / 'run.mcap').read_bytes()
     assert (batched / 'metadata.yaml').read_text() == (plain / 'metadata.yaml').read_text()
     assert bag_topics(batched)[topics.CLOCK].count == 900
+
+
+def test_bag_metadata_keeps_each_value_on_its_line_as_rosbag2_writes_it(recorded):
+    # ruamel.yaml's C emitter (a dependency: 4x faster than its Python one, which folds the
+    # long type description hashes onto a second line)
+    path, _ = recorded
+    lines = (path / 'metadata.yaml').read_text().splitlines()
+    hashes = [line for line in lines if 'type_description_hash:' in line]
+    assert hashes and all(line.split(': ')[1].startswith('RIHS01_') for line in hashes)
 
 
 def test_bag_metadata_names_the_jazzy_distribution(recorded):

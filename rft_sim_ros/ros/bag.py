@@ -6,10 +6,14 @@ messages with `rft_sim_ros.ros.messages` through the rosbags backend, so a bag h
 rclpy node would have published. Timestamps are sim time in integer nanoseconds, the same
 value as each message's stamp. No ROS installation is needed (rosbags is pure Python).
 """
+import itertools
 import struct
+from collections import defaultdict
 from dataclasses import dataclass
+from io import BytesIO
 
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import PendingChunk
 
 from rft_sim_ros.ros import cdr, messages, topics
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
@@ -26,10 +30,82 @@ _MCAP_MESSAGE_FIELDS = _MCAP_MESSAGE.size - 9  # the record's length counts thes
 _MCAP_CHUNK_SIZE = 2**20
 
 
+def _close_chunk(storage):
+    """rosbags' McapWriter.close_chunk for `storage` (an McapWriter), the same bytes: the
+    chunk record, then a message index per channel, and the chunk's index entry kept for the
+    summary. Each message index is packed by one struct call (rosbags writes it 8 bytes at a
+    time: about 5 ms for a 1 MiB chunk of a hexapod's small messages)."""
+    chunk, bio = storage.chunk, storage.bio
+    data = chunk.bio.getvalue()
+    compressed = storage.compressor(data)
+    compression = storage.compression.encode()
+    times = (chunk.message_start_time, chunk.message_end_time)
+    record = b''.join((struct.pack('<QQQII', *times, len(data), 0, len(compression)),
+                       compression, struct.pack('<Q', len(compressed)), compressed))
+    chunk_start = bio.tell()
+    bio.write(struct.pack('<BQ', 0x06, len(record)) + record)
+    chunk_end = bio.tell()
+    offsets = []
+    for cid, msgs in chunk.msgs.items():
+        offsets.append((cid, bio.tell()))
+        index = struct.pack(f'<HI{2 * len(msgs)}Q', cid, 16 * len(msgs),
+                            *itertools.chain.from_iterable(msgs))
+        bio.write(struct.pack('<BQ', 0x07, len(index)) + index)
+    entry = BytesIO()  # (rosbags writes it with its length from tell(): left at its end)
+    entry.write(struct.pack('<QQQQI', *times, chunk_start, chunk_end - chunk_start,
+                            10 * len(offsets)))
+    for cid, offset in offsets:
+        entry.write(struct.pack('<HQ', cid, offset))
+    entry.write(struct.pack('<QI', bio.tell() - chunk_end, len(compression)) + compression
+                + struct.pack('<QQ', len(compressed), len(data)))
+    storage.chunks.append(entry)
+    storage.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+
+
+class _CycleRecords:
+    """A publish cycle of `encoder`'s topics (a `cdr.StateEncoder`) as the MCAP Message
+    records of `connections` (one each, in topic order), packed by one struct call: each
+    record's header (opcode, length, channel id, sequence 0 and the two times) then the
+    message's CDR fields, whose layout is fixed for a run. starts, sizes: each record's
+    offset in a cycle's bytes, and its message's CDR size."""
+
+    def __init__(self, encoder, connections):
+        structs = encoder.structs
+        self.sizes = [packer.size for packer in structs]
+        self._prefixes = [struct.pack('<BQHI', 0x05, _MCAP_MESSAGE_FIELDS + size, c.id, 0)
+                          for c, size in zip(connections, self.sizes)]
+        self._struct = struct.Struct('<' + ''.join(
+            f'{len(prefix)}sQQ' + packer.format.lstrip('<')
+            for prefix, packer in zip(self._prefixes, structs)))
+        self.starts = []
+        offset = 0
+        for size in self.sizes:
+            self.starts.append(offset)
+            offset += _MCAP_MESSAGE.size + size
+
+    def pack(self, time_ns, arguments):
+        """The cycle's bytes at `time_ns` (ns) from the encoder's `arguments`."""
+        values = []
+        for prefix, message in zip(self._prefixes, arguments):
+            values += (prefix, time_ns, time_ns)
+            values += message
+        return self._struct.pack(*values)
+
+    def payloads(self, data):
+        """Each message's CDR bytes in a cycle's bytes `data`."""
+        header = _MCAP_MESSAGE.size
+        return [data[start + header:start + header + size]
+                for start, size in zip(self.starts, self.sizes)]
+
+
 class _Rosbag2Writer(Writer):
     """rosbags' Writer, with the ROS distribution of the messages (not 'rosbags') in the
-    bag's metadata (metadata.yaml and the MCAP file's copy), and `write_cycle`: the messages
-    of one publish cycle written as one batch."""
+    bag's metadata (metadata.yaml and the MCAP file's copy), `write_cycle`: the messages
+    of one publish cycle written as one batch, and chunks closed by `_close_chunk`."""
+
+    def open(self):
+        super().open()
+        self.storage.close_chunk = lambda: _close_chunk(self.storage)
 
     def write_cycle(self, connections, time_ns, payloads):
         """Record CDR `payloads`, one per connection of `connections`, all at `time_ns`:
@@ -57,10 +133,37 @@ class _Rosbag2Writer(Writer):
                 chunk = None
         if chunk is not None:
             chunk.bio.write(b''.join(parts))
+        self._cover(time_ns)
+
+    def _cover(self, time_ns):
+        """The storage's and the bag's time range extended to `time_ns` (as Writer.write)."""
+        storage = self.storage
         storage.message_start_time = min(time_ns, storage.message_start_time)
         storage.message_end_time = max(time_ns, storage.message_end_time)
         self.min_timestamp = min(time_ns, self.min_timestamp)
         self.max_timestamp = max(time_ns, self.max_timestamp)
+
+    def write_records(self, connections, time_ns, data, records):
+        """Record a cycle's bytes `data` (`_CycleRecords.pack` of `records` for
+        `connections`) at `time_ns`: appended to the chunk in one write, with the bookkeeping
+        of `write_cycle`; a cycle during which the chunk would close goes through
+        `write_cycle`, message by message (same bytes either way)."""
+        storage = self.storage
+        chunk = storage.chunk
+        offset = chunk.bio.tell()
+        if offset + len(data) > _MCAP_CHUNK_SIZE:
+            self.write_cycle(connections, time_ns, records.payloads(data))
+            return
+        chunk.bio.write(data)
+        chunk.message_start_time = min(time_ns, chunk.message_start_time)
+        chunk.message_end_time = max(time_ns, chunk.message_end_time)
+        msgs, stats, counts = chunk.msgs, storage.channel_stats, self.counts
+        for connection, start in zip(connections, records.starts):
+            cid = connection.id
+            msgs[cid].append((time_ns, offset + start))
+            stats[cid] += 1
+            counts[cid] += 1
+        self._cover(time_ns)
 
     def close(self):
         rosbags, ours = 'ros_distro: rosbags', f'ros_distro: {ROS_DISTRO}'
@@ -91,6 +194,7 @@ class BagWriter:
             for topic, msgtype in self._types.items()}
         self._encoder = None  # StateEncoder of the states' joints and legs
         self._encoded = []    # its topics' connections
+        self._records = None  # _CycleRecords of those
 
     def write(self, topic, message, time_ns):
         """Record `message` (a rosbags message of the topic's type) at `time_ns` (ns)."""
@@ -104,7 +208,8 @@ class BagWriter:
 
     def write_state(self, state):
         """Record one publishing cycle of `state`: the messages of `messages.state_messages`,
-        the fixed-layout ones packed directly (`cdr.StateEncoder`, same bytes)."""
+        the fixed-layout ones packed directly (`cdr.StateEncoder`, same bytes), with their
+        MCAP records, in one struct call (`_CycleRecords`)."""
         time_ns = seconds_to_ns(state.time)
         if self._encoder is None or not self._encoder.fits(state):
             self._encoder = cdr.StateEncoder(state)
@@ -112,8 +217,10 @@ class BagWriter:
             if unknown:
                 raise KeyError(f'{unknown} are not topics of this bag: {sorted(self._types)}')
             self._encoded = [self._connections[topic] for topic in self._encoder.topics]
-        self._writer.write_cycle(self._encoded, time_ns,
-                                 self._encoder.encode(state, *split_ns(time_ns)))
+            self._records = _CycleRecords(self._encoder, self._encoded)
+        arguments = self._encoder.arguments(state, *split_ns(time_ns))
+        self._writer.write_records(self._encoded, time_ns,
+                                   self._records.pack(time_ns, arguments), self._records)
         if self._plates and state.active_plates is not None:
             self.write(topics.PLATES, messages.plates_message(self.factory, state), time_ns)
 

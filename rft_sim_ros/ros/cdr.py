@@ -138,30 +138,41 @@ class StateEncoder:
         return (tuple(state.joint_names) == self.joint_names
                 and tuple(leg.name for leg in state.legs) == self.leg_names)
 
-    def encode(self, state, sec, nanosec):
-        """[bytes] of the messages of `self.topics`, in that order, for `state` stamped
-        (sec, nanosec) (its sim time)."""
+    @property
+    def structs(self):
+        """The `struct.Struct` of each message of `self.topics`, in that order (formats
+        little-endian with no implicit alignment, so they may be concatenated)."""
+        return [self._clock, self._joint_state, self._odom, self._tf,
+                *(wrench for wrench, _ in self._wrenches)]
+
+    def arguments(self, state, sec, nanosec):
+        """The values of each message's struct (`structs`), in topic order, for `state`
+        stamped (sec, nanosec) (its sim time): a list of lists."""
         e = _ENCAPSULATION
         x, y, z = state.base_position.tolist()
         qw, qx, qy, qz = state.base_quaternion_wxyz.tolist()
         count = self._joint_count
-        out = [self._clock.pack(e, sec, nanosec),
-               self._joint_state.pack(e, sec, nanosec, self._joint_frame, self._joint_names,
-                                      count[0], *state.joint_positions.tolist(),
-                                      count[1], *state.joint_velocities.tolist(),
-                                      count[2], *state.joint_efforts.tolist()),
-               self._odom.pack(e, sec, nanosec, *self._odom_frames, x, y, z, qx, qy, qz, qw,
-                               *state.base_linear_velocity.tolist(),
-                               *state.base_angular_velocity.tolist())]
+        out = [[e, sec, nanosec],
+               [e, sec, nanosec, self._joint_frame, self._joint_names,
+                count[0], *state.joint_positions.tolist(),
+                count[1], *state.joint_velocities.tolist(),
+                count[2], *state.joint_efforts.tolist()],
+               [e, sec, nanosec, *self._odom_frames, x, y, z, qx, qy, qz, qw,
+                *state.base_linear_velocity.tolist(), *state.base_angular_velocity.tolist()]]
         frames = self._tf_frames
-        transforms = [sec, nanosec, *frames[0], x, y, z, qx, qy, qz, qw]
+        transforms = [e, self._tf_count, sec, nanosec, *frames[0], x, y, z, qx, qy, qz, qw]
         for leg, frame in zip(state.legs, frames[1:]):
             transforms += [sec, nanosec, *frame, *leg.point.tolist(), 0.0, 0.0, 0.0, 1.0]
-        out.append(self._tf.pack(e, self._tf_count, *transforms))
-        for leg, (wrench, frame) in zip(state.legs, self._wrenches):
-            out.append(wrench.pack(e, sec, nanosec, frame, *leg.force.tolist(),
-                                   *leg.torque.tolist()))
+        out.append(transforms)
+        for leg, (_, frame) in zip(state.legs, self._wrenches):
+            out.append([e, sec, nanosec, frame, *leg.force.tolist(), *leg.torque.tolist()])
         return out
+
+    def encode(self, state, sec, nanosec):
+        """[bytes] of the messages of `self.topics`, in that order, for `state` stamped
+        (sec, nanosec) (its sim time)."""
+        return [packer.pack(*values) for packer, values
+                in zip(self.structs, self.arguments(state, sec, nanosec))]
 
 
 def _uint32(buffer, value):

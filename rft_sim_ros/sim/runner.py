@@ -130,7 +130,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     (sand/timestep.py) is said through log('warning: ...') before the first step, and the
     run is reported not stable with that reason.
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
-    part of wall_time_s spent in the recorders; generic_metrics: sim/metrics.py, those of
+    part of wall_time_s spent in the recorders, finishing them (closing a bag) included; generic_metrics: sim/metrics.py, those of
     every scene, next to the scenario's own `metrics`).
     """
     out = None if out_dir is None else Path(out_dir)
@@ -159,6 +159,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
     bar = None
     loop_started = None
     interrupted = False
+    recording = 0.0  # s in the recorders: recording each state, and finishing
     try:  # recorders are closed however the run ends (a bag is only complete once closed)
         duration = run_duration(scene, duration)
         actions = _scheduled_steps(schedule, scene.timestep)
@@ -187,7 +188,6 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         active_sum = 0
         reason = None
         done = 0
-        recording = 0.0
         generic.observe(sim, sim.state())  # the initial state
         loop_started = time.perf_counter()
         _run_due(actions, done, sim, changes)
@@ -217,12 +217,14 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
     except SimulationDiverged as error:
         reason = f'diverged {error}'
     finally:
-        if loop_started is not None:
-            wall = time.perf_counter() - loop_started
         if bar is not None:
             bar.close()
-        for recorder in recorders:
+        closing = time.perf_counter()
+        for recorder in recorders:  # (finishing a bag is part of the run and its recording)
             recorder.close()
+        recording += time.perf_counter() - closing
+        if loop_started is not None:
+            wall = time.perf_counter() - loop_started
     sim_time = sim.steps * sim.timestep
     metrics = {**sim.scenario.metrics(sim), **sim.terrain_metrics()} if done else {}
     if reason is None and coarse:
