@@ -17,8 +17,9 @@ from rft_sim_ros.ros.terrain import TerrainFeed
 
 #: Publish cycles written to the bag together. Between two cycles the simulation's steps
 #: push the writer's code and data out of the CPU caches: the hexapod's cycles written one by
-#: one took 31 ms of its 0.55 s run, in batches of 50 about 18 ms. Each state's wall time is
-#: taken when it is recorded (the /diagnostics real-time factor), and `close` writes the rest.
+#: one took 31 ms of its 0.55 s run, in batches of 50 about 18 ms. What is written is decided
+#: when each state is recorded (the surface's changes, /diagnostics with its real-time
+#: factor); `close` writes the rest.
 BATCH = 50
 
 
@@ -52,9 +53,9 @@ class BagRecorder:
                                  terrain=self._terrain.active)
         self._started = (sim.time, self._clock())
 
-    def _status(self, state, wall=None):
+    def _status(self, state):
         sim_start, wall_start = self._started
-        wall = (self._clock() if wall is None else wall) - wall_start
+        wall = self._clock() - wall_start
         rejected = self._sim.commands.rejections if self._sim.commands is not None else {}
         return RunStatus(scene=self._scene,
                          real_time_factor=(state.time - sim_start) / wall if wall > 0 else
@@ -64,25 +65,24 @@ class BagRecorder:
 
     def record(self, state):
         """One publish cycle of `state` (SimState), plus the sand surface and /diagnostics
-        when due; written in batches of BATCH cycles."""
-        self._pending.append((state, self._clock()))
+        when due: decided now, from the simulation as it is now; written in batches of
+        BATCH cycles."""
+        update = self._terrain.update(state.time)
+        status = self._status(state)
+        due = self._schedule.due(state.time, status_key(state, status))
+        self._pending.append((state, update, status if due else None))
+        self._last = state
         if len(self._pending) >= BATCH:
             self._flush()
 
     def _flush(self):
-        for state, wall in self._pending:
-            self._write(state, wall)
+        for state, update, status in self._pending:
+            self._writer.write_state(state)
+            if update is not None:
+                self._writer.write_terrain(update)
+            if status is not None:
+                self._writer.write_diagnostics(state, status)
         self._pending.clear()
-
-    def _write(self, state, wall):
-        self._writer.write_state(state)
-        update = self._terrain.update(state.time)
-        if update is not None:
-            self._writer.write_terrain(update)
-        self._last = state
-        status = self._status(state, wall)
-        if self._schedule.due(state.time, status_key(state, status)):
-            self._writer.write_diagnostics(state, status)
 
     def close(self):
         """Record the surface's last changes (whatever the rate: the bag ends with the final
