@@ -168,8 +168,10 @@ def test_batched_cycles_write_the_file_rosbags_writes_message_by_message(tmp_pat
     (chunks closed by ours and by rosbags' own close_chunk)."""
     recorded_states = states(n=900)
     batched, plain = tmp_path / 'batched' / 'run', tmp_path / 'plain' / 'run'  # same names
-    with BagWriter(batched, LEGS) as writer:
-        for state in recorded_states:
+    with BagWriter(batched, LEGS) as writer:  # in batches of 37 cycles, and one by one
+        for start in range(0, 600, 37):
+            writer.write_states(recorded_states[start:min(start + 37, 600)])
+        for state in recorded_states[600:]:
             writer.write_state(state)
     reference = _Rosbag2Writer(plain, version=9,
                                storage_plugin=StoragePlugin.MCAP)

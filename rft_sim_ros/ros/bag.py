@@ -67,7 +67,7 @@ class _CycleRecords:
     records of `connections` (one each, in topic order), packed by one struct call: each
     record's header (opcode, length, channel id, sequence 0 and the two times) then the
     message's CDR fields, whose layout is fixed for a run. starts, sizes: each record's
-    offset in a cycle's bytes, and its message's CDR size."""
+    offset in a cycle's bytes, and its message's CDR size; size: a cycle's bytes."""
 
     def __init__(self, encoder, connections):
         structs = encoder.structs
@@ -82,6 +82,7 @@ class _CycleRecords:
         for size in self.sizes:
             self.starts.append(offset)
             offset += _MCAP_MESSAGE.size + size
+        self.size = offset  # bytes of one cycle
 
     def pack(self, time_ns, arguments):
         """The cycle's bytes at `time_ns` (ns) from the encoder's `arguments`."""
@@ -143,27 +144,37 @@ class _Rosbag2Writer(Writer):
         self.min_timestamp = min(time_ns, self.min_timestamp)
         self.max_timestamp = max(time_ns, self.max_timestamp)
 
-    def write_records(self, connections, time_ns, data, records):
-        """Record a cycle's bytes `data` (`_CycleRecords.pack` of `records` for
-        `connections`) at `time_ns`: appended to the chunk in one write, with the bookkeeping
-        of `write_cycle`; a cycle during which the chunk would close goes through
-        `write_cycle`, message by message (same bytes either way)."""
-        storage = self.storage
-        chunk = storage.chunk
-        offset = chunk.bio.tell()
-        if offset + len(data) > _MCAP_CHUNK_SIZE:
-            self.write_cycle(connections, time_ns, records.payloads(data))
-            return
-        chunk.bio.write(data)
-        chunk.message_start_time = min(time_ns, chunk.message_start_time)
-        chunk.message_end_time = max(time_ns, chunk.message_end_time)
-        msgs, stats, counts = chunk.msgs, storage.channel_stats, self.counts
-        for connection, start in zip(connections, records.starts):
-            cid = connection.id
-            msgs[cid].append((time_ns, offset + start))
-            stats[cid] += 1
-            counts[cid] += 1
-        self._cover(time_ns)
+    def write_records(self, connections, cycles, records):
+        """Record `cycles`, (time_ns, bytes) pairs in time order of `_CycleRecords.pack` of
+        `records` for `connections`, as `write_cycle` would one by one (same bytes, same
+        bookkeeping): the cycles that fit in the open chunk in one write, with their index
+        entries added per channel at once; the cycle during which the chunk closes goes
+        through `write_cycle`, message by message."""
+        size = records.size
+        while cycles:
+            storage = self.storage
+            chunk = storage.chunk
+            offset = chunk.bio.tell()
+            fit = min(len(cycles), (_MCAP_CHUNK_SIZE - offset) // size)
+            if fit <= 0:  # the chunk closes within the next cycle
+                time_ns, data = cycles[0]
+                self.write_cycle(connections, time_ns, records.payloads(data))
+                cycles = cycles[1:]
+                continue
+            written, cycles = cycles[:fit], cycles[fit:]
+            chunk.bio.write(b''.join([data for _, data in written]))
+            first, last = written[0][0], written[-1][0]
+            chunk.message_start_time = min(first, chunk.message_start_time)
+            chunk.message_end_time = max(last, chunk.message_end_time)
+            msgs, stats, counts = chunk.msgs, storage.channel_stats, self.counts
+            for connection, start in zip(connections, records.starts):
+                cid = connection.id
+                msgs[cid].extend([(time_ns, offset + start + k * size)
+                                  for k, (time_ns, _) in enumerate(written)])
+                stats[cid] += fit
+                counts[cid] += fit
+            self._cover(first)
+            self._cover(last)
 
     def close(self):
         rosbags, ours = 'ros_distro: rosbags', f'ros_distro: {ROS_DISTRO}'
@@ -207,22 +218,39 @@ class BagWriter:
         self._writer.write(self._connections[topic], time_ns, data)
 
     def write_state(self, state):
-        """Record one publishing cycle of `state`: the messages of `messages.state_messages`,
-        the fixed-layout ones packed directly (`cdr.StateEncoder`, same bytes), with their
-        MCAP records, in one struct call (`_CycleRecords`)."""
-        time_ns = seconds_to_ns(state.time)
-        if self._encoder is None or not self._encoder.fits(state):
-            self._encoder = cdr.StateEncoder(state)
-            unknown = sorted(set(self._encoder.topics) - set(self._connections))
-            if unknown:
-                raise KeyError(f'{unknown} are not topics of this bag: {sorted(self._types)}')
-            self._encoded = [self._connections[topic] for topic in self._encoder.topics]
-            self._records = _CycleRecords(self._encoder, self._encoded)
-        arguments = self._encoder.arguments(state, *split_ns(time_ns))
-        self._writer.write_records(self._encoded, time_ns,
-                                   self._records.pack(time_ns, arguments), self._records)
-        if self._plates and state.active_plates is not None:
-            self.write(topics.PLATES, messages.plates_message(self.factory, state), time_ns)
+        """Record one publishing cycle of `state` (`write_states`)."""
+        self.write_states([state])
+
+    def write_states(self, states):
+        """Record the publishing cycles of `states` (SimStates, in time order): the messages
+        of `messages.state_messages`, the fixed-layout ones packed directly
+        (`cdr.StateEncoder`, same bytes) with their MCAP records in one struct call per cycle
+        (`_CycleRecords`), and consecutive cycles written together."""
+        batch = []
+        for state in states:
+            if self._encoder is None or not self._encoder.fits(state):
+                self._write_cycles(batch)
+                batch = []
+                self._encoder = cdr.StateEncoder(state)
+                unknown = sorted(set(self._encoder.topics) - set(self._connections))
+                if unknown:
+                    raise KeyError(f'{unknown} are not topics of this bag: '
+                                   f'{sorted(self._types)}')
+                self._encoded = [self._connections[topic] for topic in self._encoder.topics]
+                self._records = _CycleRecords(self._encoder, self._encoded)
+            time_ns = seconds_to_ns(state.time)
+            arguments = self._encoder.arguments(state, *split_ns(time_ns))
+            batch.append((time_ns, self._records.pack(time_ns, arguments)))
+            if self._plates and state.active_plates is not None:
+                self._write_cycles(batch)
+                batch = []
+                self.write(topics.PLATES, messages.plates_message(self.factory, state),
+                           time_ns)
+        self._write_cycles(batch)
+
+    def _write_cycles(self, cycles):
+        if cycles:
+            self._writer.write_records(self._encoded, cycles, self._records)
 
     def write_terrain(self, update):
         """Record a `terrain.TerrainUpdate` (`messages.terrain_messages`) at its sim time."""

@@ -8,10 +8,10 @@ the status says changes: zeta, stable/diverged, paused/running.
 import math
 
 
-def status_key(state, status):
-    """What makes a new /diagnostics due at once: (zeta, stable, paused) of the last
-    published `state` (SimState) and the run's `status` (messages.RunStatus)."""
-    return state.zeta, status.stable, status.paused
+def status_key(zeta, stable, paused):
+    """What makes a new /diagnostics due at once: a change of the last published state's
+    zeta (N/cm^3), or of whether the run is stable or paused (messages.RunStatus)."""
+    return zeta, stable, paused
 
 
 class DiagnosticsSchedule:

@@ -68,20 +68,27 @@ class BagRecorder:
         when due: decided now, from the simulation as it is now; written in batches of
         BATCH cycles."""
         update = self._terrain.update(state.time)
-        status = self._status(state)
-        due = self._schedule.due(state.time, status_key(state, status))
-        self._pending.append((state, update, status if due else None))
+        key = status_key(state.zeta, self._sim.diverged is None, False)  # (never paused)
+        status = self._status(state) if self._schedule.due(state.time, key) else None
+        self._pending.append((state, update, status))
         self._last = state
         if len(self._pending) >= BATCH:
             self._flush()
 
     def _flush(self):
+        """Write the pending cycles in time order: the states in runs, each run up to a
+        state whose surface change or /diagnostics follows it."""
+        states = []
         for state, update, status in self._pending:
-            self._writer.write_state(state)
-            if update is not None:
-                self._writer.write_terrain(update)
-            if status is not None:
-                self._writer.write_diagnostics(state, status)
+            states.append(state)
+            if update is not None or status is not None:
+                self._writer.write_states(states)
+                states = []
+                if update is not None:
+                    self._writer.write_terrain(update)
+                if status is not None:
+                    self._writer.write_diagnostics(state, status)
+        self._writer.write_states(states)
         self._pending.clear()
 
     def close(self):

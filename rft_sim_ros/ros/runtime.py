@@ -165,7 +165,7 @@ class SimRuntime:
 
     def _diagnostics(self, now):
         status = self.status()
-        if self._schedule.due(now, status_key(self.last_state, status)):
+        if self._schedule.due(now, status_key(self.last_state.zeta, status.stable, status.paused)):
             rate = self._meter.rate(self.last_state.time, now)
             self._sink.write_diagnostics(self.last_state, self.status(0.0 if self.paused else rate))
 

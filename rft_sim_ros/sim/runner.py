@@ -130,8 +130,9 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     (sand/timestep.py) is said through log('warning: ...') before the first step, and the
     run is reported not stable with that reason.
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
-    part of wall_time_s spent in the recorders, finishing them (closing a bag) included; generic_metrics: sim/metrics.py, those of
-    every scene, next to the scenario's own `metrics`).
+    part of wall_time_s spent in the recorders, finishing them (closing a bag) included;
+    generic_metrics: sim/metrics.py, those of every scene, next to the scenario's own
+    `metrics`).
     """
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
