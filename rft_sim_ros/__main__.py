@@ -6,13 +6,20 @@ swallowed by a library's catch-all and lost. So while they load, this module (st
 library only) only notes a Ctrl-C; once they are loaded, a noted Ctrl-C ends the command the
 way the CLI ends any interrupt: one line, exit status 130 (128 + SIGINT), nothing run. A
 SIGINT the caller ignores (a background job) stays ignored.
+
+Before those imports the native thread pools (BLAS, OpenMP) are set to one thread, unless
+the environment says otherwise (`native_threads`).
 """
+import os
 import signal
 import sys
+
+from .native_threads import unset
 
 
 def main(argv=None):
     """Load the CLI with Ctrl-C deferred, then run `rft_sim_ros.cli.main(argv)`."""
+    os.environ.update(unset())
     noted = []
     previous = signal.getsignal(signal.SIGINT)
     if previous is not signal.SIG_IGN:

@@ -314,3 +314,17 @@ def test_starting_the_cli_leaves_the_mesh_libraries_unloaded():
     done = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True,
                           check=True, timeout=60)
     assert done.stdout.strip() == '[]'
+
+
+def test_rft_sim_keeps_native_thread_pools_to_one_thread_unless_the_user_says(monkeypatch,
+                                                                              capsys):
+    # before numpy loads: runs are single-threaded, and a single-threaded parent forks its
+    # study workers (study/pool.py)
+    from rft_sim_ros.__main__ import main as entry
+    monkeypatch.delenv('OMP_NUM_THREADS', raising=False)
+    monkeypatch.delenv('OPENBLAS_NUM_THREADS', raising=False)
+    monkeypatch.setenv('MKL_NUM_THREADS', '3')
+    with pytest.raises(SystemExit):
+        entry(['--version'])
+    assert [os.environ.get(name) for name in
+            ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')] == ['1', '1', '3']

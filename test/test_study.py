@@ -7,6 +7,8 @@ import math
 import os
 import shutil
 import signal
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -14,6 +16,7 @@ import pytest
 import yaml
 
 from rft_sim_ros.cli import main
+from rft_sim_ros.native_threads import ONE_THREAD
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.study import StudyError, load_study, run_study, study_from_mapping
 from rft_sim_ros.study.cost import dearest_first, run_cost
@@ -213,6 +216,30 @@ def test_workers_keep_native_thread_pools_to_one_thread_unless_the_user_says(mon
     [outcome] = map_unordered(thread_settings, [names], workers=1)
     assert outcome.value == ['1', '1', '3']
     assert 'OMP_NUM_THREADS' not in os.environ  # this process's environment is left alone
+
+
+_FORK_PROBE = '''
+import json, sys, threading, wave   # wave: a module no spawned worker would load
+sys.path.insert(0, sys.argv[1])
+from probe import loaded
+from rft_sim_ros.study.pool import map_unordered, start_method
+if sys.argv[2] == 'threaded':  # another thread: forking could deadlock a child
+    threading.Thread(target=threading.Event().wait, daemon=True).start()
+[outcome] = map_unordered(loaded, ['wave'], workers=1)
+print(json.dumps([start_method(), outcome.value]))
+'''
+
+
+@pytest.mark.parametrize('threads, method', [('single', 'fork'), ('threaded', 'spawn')])
+def test_a_single_threaded_process_forks_its_workers(threads, method, tmp_path):
+    """Forked workers start with what their parent imported (no 0.8 s of imports each);
+    a process with other threads spawns fresh interpreters instead."""
+    (tmp_path / 'probe.py').write_text('import sys\n\n\ndef loaded(name):\n'
+                                       '    return name in sys.modules\n')
+    env = dict(os.environ, **ONE_THREAD)
+    done = subprocess.run([sys.executable, '-c', _FORK_PROBE, str(tmp_path), threads],
+                          env=env, capture_output=True, text=True, check=True, timeout=120)
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [method, method == 'fork']
 
 
 def test_progress_line_counts_and_estimates():

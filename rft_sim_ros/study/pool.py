@@ -1,6 +1,14 @@
-"""A small process pool that survives its workers: each worker is a spawned process with its
-own pipe; a worker that dies (a crash, os._exit, SIGKILL, the OOM killer) is replaced and its
-item retried once; an item that runs past a hard time limit has its worker killed and replaced.
+"""A small process pool that survives its workers: each worker is a process with its own
+pipe; a worker that dies (a crash, os._exit, SIGKILL, the OOM killer) is replaced and its item
+retried once; an item that runs past a hard time limit has its worker killed and replaced.
+
+Workers are forked from this process when it runs a single thread (`start_method`): they
+start at once with everything it has imported (the package, MuJoCo, numba: about 0.8 s a
+worker otherwise, which a short study or validation pays before its first result). Forking
+a process with other threads can deadlock the child (a lock held by a thread that is not
+copied), so a multi-threaded process (e.g. one whose BLAS keeps a thread pool) spawns fresh
+interpreters instead. `rft-sim` keeps the native thread pools to one thread (`__main__.py`),
+so its commands fork.
 
 concurrent.futures.ProcessPoolExecutor marks the whole pool broken when one worker dies,
 which would end a study; this pool does not. Items go out one at a time to idle workers and
@@ -15,14 +23,10 @@ from collections import deque
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 
+from ..native_threads import unset
+
 #: Attempts per item when its worker dies: the first, and one retry.
 ATTEMPTS = 2
-#: Native thread pools each worker keeps to one thread (unless the user's environment sets
-#: them): a run is single-threaded, and N workers that each start a BLAS/OpenMP pool as large
-#: as the machine oversubscribe it, their idle threads spinning (measured on 2 cores: a 40-run
-#: hexapod study on 2 workers took x0.91 the time of one worker, x0.63 with this). Ray sets
-#: OMP_NUM_THREADS to a task's CPUs itself, which OpenBLAS follows.
-WORKER_THREADS = {'OMP_NUM_THREADS': '1', 'OPENBLAS_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
 #: Time a worker may take to start (spawn, imports) before the hard limit starts counting, s.
 START_GRACE_S = 120.0
 
@@ -34,6 +38,16 @@ class Outcome:
     index: int
     value: object = None
     error: str = None
+
+
+def start_method():
+    """'fork' when this process runs a single thread (Linux: its task count), else
+    'spawn' (see module docstring)."""
+    try:
+        threads = len(os.listdir('/proc/self/task'))
+    except OSError:  # not Linux: no cheap way to know
+        return 'spawn'
+    return 'fork' if threads == 1 else 'spawn'
 
 
 def default_workers():
@@ -61,9 +75,11 @@ def _serve(conn, fn):
 
 @contextlib.contextmanager
 def _worker_environment():
-    """os.environ with WORKER_THREADS filled in where unset, while a worker is spawned (a
-    spawned process inherits the environment at start; this process's own pools are set)."""
-    added = {name: value for name, value in WORKER_THREADS.items() if name not in os.environ}
+    """os.environ with `native_threads.ONE_THREAD` filled in where unset, while a worker is
+    started (a
+    spawned process reads it as it starts; a forked one has this single-threaded process's
+    pools already)."""
+    added = unset()
     os.environ.update(added)
     try:
         yield
@@ -108,7 +124,7 @@ def map_unordered(fn, items, workers=None, hard_timeout=None):
     level function). hard_timeout: s an item may run before its worker is killed (None: no
     limit). Closing the generator stops the workers."""
     items = list(items)
-    context = multiprocessing.get_context('spawn')  # fresh interpreters: no forked state
+    context = multiprocessing.get_context(start_method())
     queue = deque(range(len(items)))
     attempts = {}
     pool = [_Worker(context, fn) for _ in range(max(1, min(workers or default_workers(),
