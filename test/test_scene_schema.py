@@ -86,7 +86,7 @@ def test_errors_name_file_line_and_key(tmp_path, edit, line, key, words):
 
 
 def test_syntax_errors_and_overrides_say_where(tmp_path):
-    with pytest.raises(SceneError, match=r"scene.yaml:4: not valid YAML: expected ','"):
+    with pytest.raises(SceneError, match=r"scene.yaml:4: not valid YAML: (did not find )?expected ','"):
         load_scene(write(tmp_path, 'name: x\nmodel: plate.xml\nrft: {a: b\n  c d]\n'))
     with pytest.raises(SceneError, match=r'scene.yaml: --set timestep: must be > 0'):
         load_scene(write(tmp_path, MINIMAL), {'timestep': -1})

@@ -11,7 +11,9 @@ transfer, the parent's recording (the run's summary file, the table rewrites) an
 out the next run. The once-per-study costs are reported beside it: the worker's start (a
 fresh interpreter importing the package), its warm-up and the final table and plots.
 Ratios come from runs measured back to back in one invocation; on a shared machine the load
-during each phase is reported (1-minute load average before and after).
+during each phase is reported (1-minute load average before and after). It runs as `rft-sim`
+does, with one-thread BLAS and OpenMP pools (`native_threads`: it restarts itself with them
+set), so the local workers are forked.
 """
 import argparse
 import json
@@ -22,6 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..native_threads import unset
 from ..scenes.config import load_scene
 from ..sim.runner import machine_info, run_duration
 from ..study import run_study, study_from_mapping
@@ -46,7 +49,8 @@ def _noop(item):
 
 
 def worker_start_s():
-    """Wall time (s) to start one pool worker (spawn, import the package) and get an answer."""
+    """Wall time (s) to start one pool worker (forked, or spawned and importing the package:
+    `pool.start_method`) and get an answer."""
     started = time.perf_counter()
     list(map_unordered(_noop, [0], workers=1))
     return time.perf_counter() - started
@@ -148,6 +152,10 @@ def measure_reuse(workers=None):
 
 
 def main(argv=None):
+    if unset():  # measured as `rft-sim sweep` runs: one-thread native pools, forked workers
+        os.execve(sys.executable, [sys.executable, '-m', __spec__.name,
+                                   *(sys.argv[1:] if argv is None else argv)],
+                  {**os.environ, **unset()})
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--out', default='bench/results', help='folder for study_scaling.json')
     parser.add_argument('--runs', type=int, default=40, help='runs in the hexapod study')

@@ -336,17 +336,25 @@ BY_PATH = {key.path: key for key in KEYS}
 _FREE = ('params', 'legs', 'rft.plates', 'robot.package_paths', 'robot.xacro_args')
 
 
+#: PyYAML's safe loader on libyaml's parser when PyYAML was built with it (a scene file in
+#: about 0.5 ms instead of 6), else its pure-Python one: the same content and marks.
+_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
+
 def load_with_lines(text, source='<scene>'):
     """Parse YAML `text` -> (content, {dotted key: 1-based line}) from PyYAML's node marks.
     Raises SceneError with the file and line of a syntax error."""
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        content = yaml.safe_load(text)
+    loader = _LOADER(text)
+    try:  # parsed once: the content is constructed from the node tree
+        node = loader.get_single_node()
+        content = None if node is None else loader.construct_document(node)
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         where = f'{source}:{mark.line + 1}' if mark else source
         problem = getattr(error, 'problem', None) or str(error)
         raise SceneError(f'{where}: not valid YAML: {problem}') from None
+    finally:
+        loader.dispose()
     lines = {}
 
     def walk(node, prefix):
