@@ -165,10 +165,10 @@ def main(argv=None):
                         help='also time validate --quick and the quick speed-against-error '
                              'sweep on one worker and on all cores')
     args = parser.parse_args(argv)
-    results = {'machine': machine_info(),
-               'study': measure_study(args.runs, duration=args.duration)}
-    if args.reuse:
-        results['reuse'] = measure_reuse()
+    results = {'machine': machine_info()}
+    if args.reuse:  # first: once Ray has run in this process, its threads remain, and a
+        results['reuse'] = measure_reuse()  # multi-threaded process spawns its workers
+    results['study'] = measure_study(args.runs, duration=args.duration)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / 'study_scaling.json').write_text(json.dumps(results, indent=2))
