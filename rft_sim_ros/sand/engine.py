@@ -28,9 +28,10 @@ from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
-#: Wall seconds a start takes with an empty numba cache (the kernels compile), measured on the
-#: 2-core VM of the README's figures (`rft-sim bench` start-up); start-up messages quote it.
-COLD_START_S = 30
+#: Wall seconds a start takes with an empty numba cache (the kernels compile, in two processes:
+#: `_load_kernels`), measured on the 2-core VM of the README's figures (11-13 s idle; a busy
+#: or one-core machine takes longer); start-up messages quote it.
+COLD_START_S = 15
 
 #: numba's text of the argument types of a kernel taking one `ArrayTable` (its int64 table).
 _TABLE_SIGNATURE = '(int64[:, ::1],)'
