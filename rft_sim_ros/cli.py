@@ -367,7 +367,7 @@ def build_parser():
     run.add_argument('--quiet', action='store_true', help='no progress bar')
     run.set_defaults(func=cmd_run)
     commands.add_parser(
-        'warmup', help='compile the kernels now (a first run does it otherwise, ~1 min)'
+        'warmup', help='compile the kernels now (a first run does it otherwise, ~15 s)'
     ).set_defaults(func=cmd_warmup)
     bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')
     bench.add_argument('--quick', action='store_true', help='few, short measurements')

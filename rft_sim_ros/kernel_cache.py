@@ -2,8 +2,11 @@
 
 The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`) and the gaits'
 (`scenes.gaits`, `scenes.leg_kinematics`) are numba functions compiled with cache=True: the
-first run after an install (or after their source changed) compiles them, which takes tens of seconds; every
-later run loads them from the cache in about a second. `sand.engine.kernels_cached` (and
+first run after an install (or after their source changed) compiles them, about 12 s on two
+cores (`BackgroundCompile` puts a share in a second process); every later run loads them
+from the cache in a fraction of a second. numba checks only the source file of each kernel:
+after editing a module that a kernel inlines from another file (e.g. `sand/surface_kernels.py`
+into `coupling.gather_plates`), clear the cache (`__pycache__/*.nb*`) or touch that file. `sand.engine.kernels_cached` (and
 `sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
 kernels one engine needs; `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
 
