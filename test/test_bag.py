@@ -1,5 +1,6 @@
 """rosbag2 (MCAP) recording of the published topics, read back with rosbags."""
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -7,7 +8,8 @@ import yaml
 from rosbags.rosbag2 import Reader, StoragePlugin, WriterError
 
 from rft_sim_ros.ros import messages, topics
-from rft_sim_ros.ros.bag import BagWriter, TopicInfo, _Rosbag2Writer, bag_topics, read_messages
+from rft_sim_ros.ros.bag import (BagWriter, TopicInfo, _CycleRecords, _Rosbag2Writer, bag_topics,
+                                 read_messages)
 from rft_sim_ros.ros import cdr
 from rft_sim_ros.ros.cdr import StateEncoder
 from rft_sim_ros.ros.factory import RosbagsFactory
@@ -157,7 +159,11 @@ def test_packed_state_topics_are_the_bytes_rosbags_serialises(legs, time):
     expected = [(topic, message) for topic, message
                 in messages.state_messages(factory, state, plates=False)]
     assert encoder.topics == [topic for topic, _ in expected]
-    packed = encoder.encode(state, *split_ns(seconds_to_ns(time)))
+    # as the bag holds them: the cycle's records packed in one call, each message's bytes
+    records = _CycleRecords(encoder, [SimpleNamespace(id=i) for i in range(len(expected))])
+    time_ns = seconds_to_ns(time)
+    packed = records.payloads(records.pack(time_ns, encoder.arguments(state,
+                                                                       *split_ns(time_ns))))
     for (topic, message), data in zip(expected, packed):
         assert data == bytes(factory.typestore.serialize_cdr(message, message.__msgtype__)), \
             topic

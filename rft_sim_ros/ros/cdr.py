@@ -4,7 +4,9 @@ A headless run records about ten messages per publish cycle. Building rosbags me
 (`messages.state_messages`) and serialising them cost about 30 us a message, a third of a
 hexapod run. But the state topics have layouts that are fixed for a run (frame ids, joint
 and leg names do not change), so each is one precompiled `struct.Struct`: alignment padding
-in the format, the constant strings as prepacked bytes, the numbers packed in one call.
+in the format, the constant strings as prepacked bytes, the numbers as its values. The bag
+writer joins a cycle's formats, with their MCAP record headers, into one struct and packs a
+whole cycle in one call (`bag._CycleRecords`).
 
 The bytes are what rosbags' (and rclpy's) serialiser writes for the messages
 `rft_sim_ros.ros.messages` builds from the same state: little-endian plain CDR (XCDR1) with
@@ -87,8 +89,9 @@ def _header(layout, frame_id):
 
 
 class StateEncoder:
-    """CDR bytes of one publish cycle's fixed-layout topics for states with the joints and
-    legs of `state` (a SimState): /clock, /joint_states, /odom, /tf and /rft/<leg>/wrench."""
+    """The CDR layouts (`structs`) and values (`arguments`) of one publish cycle's
+    fixed-layout topics, for states with the joints and legs of `state` (a SimState):
+    /clock, /joint_states, /odom, /tf and /rft/<leg>/wrench."""
 
     def __init__(self, state):
         self.joint_names = tuple(state.joint_names)
@@ -167,12 +170,6 @@ class StateEncoder:
         for leg, (_, frame) in zip(state.legs, self._wrenches):
             out.append([e, sec, nanosec, frame, *leg.force.tolist(), *leg.torque.tolist()])
         return out
-
-    def encode(self, state, sec, nanosec):
-        """[bytes] of the messages of `self.topics`, in that order, for `state` stamped
-        (sec, nanosec) (its sim time)."""
-        return [packer.pack(*values) for packer, values
-                in zip(self.structs, self.arguments(state, sec, nanosec))]
 
 
 def _uint32(buffer, value):
