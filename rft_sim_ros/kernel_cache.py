@@ -80,8 +80,9 @@ class BackgroundCompile:
     (it inherits NUMBA_CACHE_DIR) and runs this module (`python -m rft_sim_ros.kernel_cache
     module:name=signature ...`). `wait()` returns once it is done; a kernel it could not
     compile is then simply compiled here, at its first call, so a failed child costs time,
-    never correctness. Used as a context manager, a child still running when the block
-    ends (e.g. this process is interrupted while compiling its own share) is killed.
+    never correctness; so does a child that cannot start (no usable `sys.executable`, e.g.
+    in an embedding application). Used as a context manager, a child still running when the
+    block ends (e.g. this process is interrupted while compiling its own share) is killed.
     """
 
     def __init__(self, kernels):
@@ -90,21 +91,28 @@ class BackgroundCompile:
         self.kernels = [kernel for kernel, _ in kernels]
         specs = [f'{kernel.py_func.__module__}:{kernel.py_func.__name__}={signature}'
                  for kernel, signature in kernels]
-        self._child = subprocess.Popen(
-            [sys.executable, '-m', 'rft_sim_ros.kernel_cache', *specs],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self._child, self._not_started = None, None
+        try:
+            self._child = subprocess.Popen(
+                [sys.executable, '-m', 'rft_sim_ros.kernel_cache', *specs],
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        except OSError as error:
+            self._not_started = f'no compiling process: {error}'
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exception):
-        if self._child.poll() is None:
+        if self._child is not None and self._child.poll() is None:
             self._child.kill()
             self._child.communicate()
 
     def wait(self):
         """Wait for the child; (True, '') when it compiled every kernel and the cache now
-        holds them, else (False, why: its error output or the kernels the cache lacks)."""
+        holds them, else (False, why: its error output, the kernels the cache lacks, or why
+        it did not start)."""
+        if self._child is None:
+            return False, self._not_started
         try:
             _, error = self._child.communicate()
         except BaseException:  # e.g. KeyboardInterrupt: do not leave the child compiling

@@ -74,3 +74,13 @@ def test_a_failed_background_compile_says_why(tmp_path):
     ok, why = json.loads(done.stdout.strip().splitlines()[-1])
     assert ok is False
     assert 'Signature mismatch' in why, why  # the child's own error
+
+
+def test_a_compiling_process_that_cannot_start_says_why(monkeypatch):
+    from rft_sim_ros.kernel_cache import BackgroundCompile
+    from rft_sim_ros.sand import coupling
+    monkeypatch.setattr(sys, 'executable', '/nonexistent/python')  # e.g. an embedded Python
+    with BackgroundCompile([(coupling.implicit_mass, '(float64[:, ::1], float64[::1], '
+                                                     'float64)')]) as compiling:
+        ok, why = compiling.wait()
+    assert ok is False and why.startswith('no compiling process:'), why
