@@ -6,14 +6,10 @@ messages with `rft_sim_ros.ros.messages` through the rosbags backend, so a bag h
 rclpy node would have published. Timestamps are sim time in integer nanoseconds, the same
 value as each message's stamp. No ROS installation is needed (rosbags is pure Python).
 """
-import itertools
 import struct
-from collections import defaultdict
 from dataclasses import dataclass
-from io import BytesIO
 
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from rosbags.rosbag2.storage_mcap import PendingChunk
 
 from rft_sim_ros.ros import cdr, messages, topics
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
@@ -28,38 +24,6 @@ _MCAP_MESSAGE = struct.Struct('<BQHIQQ')
 _MCAP_MESSAGE_FIELDS = _MCAP_MESSAGE.size - 9  # the record's length counts these
 #: rosbags' McapWriter closes a chunk once it holds more than this many bytes.
 _MCAP_CHUNK_SIZE = 2**20
-
-
-def _close_chunk(storage):
-    """rosbags' McapWriter.close_chunk for `storage` (an McapWriter), the same bytes: the
-    chunk record, then a message index per channel, and the chunk's index entry kept for the
-    summary. Each message index is packed by one struct call (rosbags writes it 8 bytes at a
-    time: about 5 ms for a 1 MiB chunk of a hexapod's small messages)."""
-    chunk, bio = storage.chunk, storage.bio
-    data = chunk.bio.getvalue()
-    compressed = storage.compressor(data)
-    compression = storage.compression.encode()
-    times = (chunk.message_start_time, chunk.message_end_time)
-    record = b''.join((struct.pack('<QQQII', *times, len(data), 0, len(compression)),
-                       compression, struct.pack('<Q', len(compressed)), compressed))
-    chunk_start = bio.tell()
-    bio.write(struct.pack('<BQ', 0x06, len(record)) + record)
-    chunk_end = bio.tell()
-    offsets = []
-    for cid, msgs in chunk.msgs.items():
-        offsets.append((cid, bio.tell()))
-        index = struct.pack(f'<HI{2 * len(msgs)}Q', cid, 16 * len(msgs),
-                            *itertools.chain.from_iterable(msgs))
-        bio.write(struct.pack('<BQ', 0x07, len(index)) + index)
-    entry = BytesIO()  # (rosbags writes it with its length from tell(): left at its end)
-    entry.write(struct.pack('<QQQQI', *times, chunk_start, chunk_end - chunk_start,
-                            10 * len(offsets)))
-    for cid, offset in offsets:
-        entry.write(struct.pack('<HQ', cid, offset))
-    entry.write(struct.pack('<QI', bio.tell() - chunk_end, len(compression)) + compression
-                + struct.pack('<QQ', len(compressed), len(data)))
-    storage.chunks.append(entry)
-    storage.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
 
 
 class _CycleRecords:
@@ -101,12 +65,8 @@ class _CycleRecords:
 
 class _Rosbag2Writer(Writer):
     """rosbags' Writer, with the ROS distribution of the messages (not 'rosbags') in the
-    bag's metadata (metadata.yaml and the MCAP file's copy), `write_cycle`: the messages
-    of one publish cycle written as one batch, and chunks closed by `_close_chunk`."""
-
-    def open(self):
-        super().open()
-        self.storage.close_chunk = lambda: _close_chunk(self.storage)
+    bag's metadata (metadata.yaml and the MCAP file's copy), and `write_cycle` /
+    `write_records`: the messages of publish cycles written as batches."""
 
     def write_cycle(self, connections, time_ns, payloads):
         """Record CDR `payloads`, one per connection of `connections`, all at `time_ns`:

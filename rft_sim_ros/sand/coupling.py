@@ -1033,8 +1033,8 @@ def implicit_step(timestep, arrays):
     """One step's implicit sand wrenches over the plates the step's `gather_plates` left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
-    over the gathered plates, then `scatter_wrenches` into xfrc_applied (zero wrenches only,
-    with no slot). Arguments as in those functions (timestep: s); arrays: the table of an
+    over the gathered plates (when there are any), then `scatter_wrenches` into
+    xfrc_applied (zero wrenches when no plate is in the sand). Arguments as in those functions (timestep: s); arrays: the table of an
     `ArrayTable` of `ImplicitArrays`, settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves
     to the SOLVES counter and counts the step in UNSETTLED where it did not settle."""
     a = IMPLICIT
