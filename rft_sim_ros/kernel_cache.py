@@ -6,14 +6,16 @@ first run after an install (or after their source changed) compiles them, about 
 cores (`BackgroundCompile` puts a share in a second process); every later run loads them
 from the cache in a fraction of a second. numba checks only the source file of each kernel:
 after editing a module that a kernel inlines from another file (e.g. `sand/surface_kernels.py`
-into `coupling.gather_plates`), clear the cache (`__pycache__/*.nb*`) or touch that file. `sand.engine.kernels_cached` (and
-`sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
-kernels one engine needs; `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
+into the gather kernels of `sand/coupling.py`), clear the cache (`__pycache__/*.nb*`) or touch
+that file. `sand.engine.kernels_cached` (and `sim.simulation.compile_notice`, which the CLI and
+the node show) asks `is_cached` about the kernels one engine needs (one gather kernel per
+kind of surface); `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
 
 The cache is numba's: `__pycache__` beside the sources, or NUMBA_CACHE_DIR. A kernel counts as
 cached when numba's index for it holds at least one compiled signature for its current source.
 """
 import importlib
+from pathlib import Path
 
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.coupling',
@@ -52,18 +54,26 @@ def uncached():
 def warm_up(log=print):
     """Compile (or load) every kernel: short runs of the scenes and settings that use them.
     Returns the qualified names still not cached (none, unless a kernel went unused)."""
+    import tempfile
+
     import numpy as np
 
     from .rft.kernel import plate_forces_compiled
     from .scenes.config import load_scene
     from .sim.simulation import Simulation
-    runs = (('hexapod', {}),                      # implicit engine step, tripod gait
-            ('articulated_leg', {}),              # leg inverse kinematics
-            ('plate_drop', {'rft.low_velocity.method': 'ema'}),  # the explicit path
-            ('plate_drop', {'sand.deformable.enabled': True}))  # deformable sand
-    for scene, overrides in runs:
-        log(f'warmup: {scene} {overrides or ""}'.rstrip())
-        Simulation(load_scene(scene, overrides)).step(2)
+    with tempfile.TemporaryDirectory() as folder:
+        level = Path(folder) / 'level.npy'  # a height grid (of the plane's height)
+        np.save(level, np.zeros((3, 3)))
+        runs = (('hexapod', {}),                      # implicit engine step, tripod gait
+                ('articulated_leg', {}),              # leg inverse kinematics
+                ('plate_drop', {'rft.low_velocity.method': 'ema'}),  # the explicit path
+                ('plate_drop', {'sand.surface.type': 'slope'}),      # each surface's gather
+                ('plate_drop', {'sand.surface.type': 'grid', 'sand.surface.file': str(level),
+                                'sand.surface.size': [1.0, 1.0]}),
+                ('plate_drop', {'sand.deformable.enabled': True}))  # deformable sand
+        for scene, overrides in runs:
+            log(f'warmup: {scene} {overrides or ""}'.rstrip())
+            Simulation(load_scene(scene, overrides)).step(2)
     down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
     plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
     return uncached()
@@ -128,15 +138,22 @@ class BackgroundCompile:
         return False, why[0]
 
 
+def load(kernel, signature):
+    """Load `kernel` (a numba dispatcher) for `signature` (numba's text of the argument
+    types) from the cache, or compile it, without running it. (The text is turned into
+    types first: numba keys its cache by the argument types a call would give, and would
+    miss an entry under the text.)"""
+    from numba.core import sigutils
+    arguments, _ = sigutils.normalize_signature(signature)
+    kernel.compile(arguments)
+
+
 def _compile_main(specs):
     """The child of `BackgroundCompile`: compile each 'module:name=signature' of `specs`."""
-    from numba.core import sigutils
     for spec in specs:
         target, signature = spec.split('=', 1)
         module_name, name = target.split(':')
-        kernel = getattr(importlib.import_module(module_name), name)
-        arguments, _ = sigutils.normalize_signature(signature)
-        kernel.compile(arguments)
+        load(getattr(importlib.import_module(module_name), name), signature)
 
 
 if __name__ == '__main__':

@@ -22,25 +22,50 @@ def test_an_empty_cache_gets_the_notice(tmp_path):
 
 
 def test_a_filled_cache_gets_none():
-    scene = load_scene('plate_drop')
-    Simulation(scene)               # loads (or compiles and caches) the kernels
-    assert compile_notice(scene) is None
-    ema = load_scene('plate_drop', {'rft.low_velocity.method': 'ema'})
-    Simulation(ema)
-    assert compile_notice(ema) is None
+    for overrides in ({}, {'rft.low_velocity.method': 'ema'}, {'sand.surface.type': 'slope'},
+                      {'sand.deformable.enabled': True}):
+        scene = load_scene('plate_drop', overrides)
+        Simulation(scene)               # loads (or compiles and caches) its kernels
+        assert compile_notice(scene) is None, overrides
+
+
+_OWN_SURFACE_PROBE = '''
+import json
+from rft_sim_ros.kernel_cache import is_cached
+from rft_sim_ros.sand import coupling
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation, compile_notice
+slope = load_scene("plate_drop", {"sand.surface.type": "slope"})
+Simulation(slope)
+print(json.dumps({"cached": {name: is_cached(getattr(coupling, name)) for name in
+                             ("gather_plane", "gather_slope", "gather_grid", "gather_deformable")},
+                  "slope": compile_notice(slope), "plane": compile_notice(load_scene("plate_drop"))}))
+'''
+
+
+def test_a_scene_compiles_the_gather_kernel_of_its_own_surface_only(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    done = subprocess.run([sys.executable, '-c', _OWN_SURFACE_PROBE], env=env,
+                          capture_output=True, text=True, check=True, timeout=300)
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result['cached'] == {'gather_plane': False, 'gather_slope': True,
+                                'gather_grid': False, 'gather_deformable': False}
+    assert result['slope'] is None  # its kernels are there now
+    assert result['plane'].startswith('compiling kernels')  # the plane's gather is not
 
 
 _BACKGROUND_PROBE = '''
 import json, numpy as np
-from rft_sim_ros.kernel_cache import BackgroundCompile, is_cached
+from rft_sim_ros.kernel_cache import BackgroundCompile, is_cached, load
 from rft_sim_ros.sand import coupling
-kernel = coupling.implicit_mass
+kernel, signature = coupling.implicit_mass, "(float64[:, ::1], float64[::1], float64)"
 before = is_cached(kernel)
-job = BackgroundCompile([(kernel, "(float64[:, ::1], float64[::1], float64)")])
+job = BackgroundCompile([(kernel, signature)])
 done, why = job.wait()
 after = is_cached(kernel)
+load(kernel, signature)  # loads what the child compiled: no compile here
 mass = np.eye(2)
-kernel(mass, np.array([1.0, 2.0]), 0.5)  # loads what the child compiled: no compile here
+kernel(mass, np.array([1.0, 2.0]), 0.5)  # (the loaded code)
 print(json.dumps({"before": before, "done": done, "why": why, "after": after,
                   "mass": mass.tolist(), "hits": sum(kernel.stats.cache_hits.values()),
                   "misses": sum(kernel.stats.cache_misses.values())}))
@@ -57,6 +82,30 @@ def test_a_background_compile_fills_the_cache_for_this_process(tmp_path):
     assert result['after'] is True
     assert result['hits'] == 1 and result['misses'] == 0  # loaded, not compiled again
     assert result['mass'] == [[1.5, 0.0], [0.0, 2.0]]  # M + dt D, computed by that code
+
+
+_CALL_PROBE = '''
+import numpy as np
+from rft_sim_ros.sand import coupling
+coupling.implicit_mass(np.eye(2), np.ones(2), 0.5)  # compiled by a call, and cached
+'''
+_LOAD_PROBE = '''
+import json
+from rft_sim_ros.kernel_cache import load
+from rft_sim_ros.sand import coupling
+kernel = coupling.implicit_mass
+load(kernel, "(float64[:, ::1], float64[::1], float64)")
+print(json.dumps([sum(kernel.stats.cache_hits.values()), sum(kernel.stats.cache_misses.values())]))
+'''
+
+
+def test_loading_by_signature_finds_what_a_call_cached(tmp_path):
+    """(The engine loads its gather kernel by signature; a warm-up fills the cache by calls.)"""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    subprocess.run([sys.executable, '-c', _CALL_PROBE], env=env, check=True, timeout=120)
+    done = subprocess.run([sys.executable, '-c', _LOAD_PROBE], env=env, capture_output=True,
+                          text=True, check=True, timeout=120)
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [1, 0]  # a hit, no compile
 
 
 _FAILING_PROBE = '''

@@ -38,7 +38,7 @@ from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's spee
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
 from .deformable import mark_cells, touch_cell
-from .surface import FLAT, SLOPE
+from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import grid_range, map_factor, node_height, surface_top
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
@@ -87,23 +87,23 @@ PLATE_ROWS = LAW_ROWS + 7
 #: (m, world z; a slope's at the world origin), zeta (N/m^3), reciprocal normalisers 1/a4 and
 #: 1/b4, lambda x rho of the dynamic term (kg/m^3), whether trailing plates are gathered too
 #: (1/0), and the implicit law's rest speed v_reg (m/s), joint damping and actuator velocity
-#: gains (1/0) implicit; then the surface (`surface.SurfaceData`): its kind code, the slope's
-#: gradient dh/dx, dh/dy, the grid's node [0, 0] (x, y) m and 1/spacing (1/m); and the zeta
-#: map: whether there is one (1/0), its cell [0, 0] corner (x, y) m and 1/cell (1/m); whether
-#: the grid is deformable sand (1/0: plates below it mark footprints, `deformable.mark`).
+#: gains (1/0) implicit; then the surface (`surface.SurfaceData`; its kind is the gather
+#: kernel's, `gather_kernel`): the slope's gradient dh/dx, dh/dy, the grid's node [0, 0]
+#: (x, y) m and 1/spacing (1/m); and the zeta map: whether there is one (1/0), its cell
+#: [0, 0] corner (x, y) m and 1/cell (1/m).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
- SURFACE_KIND, SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
- ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY, DEFORM) = range(22)
-SETTING_COUNT = 22
+ SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
+ ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY) = range(20)
+SETTING_COUNT = 20
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
 STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED = range(6)
 COUNTER_COUNT = 6
 
-#: The arrays of `gather_plates`, in the order of its `ArrayTable`; GATHER holds each
-#: field's row of the table. The engine builds the table from a GatherArrays by name, so
-#: the order lives here only.
+#: The arrays of the gather kernels (`_gather_plates`), in the order of their `ArrayTable`;
+#: GATHER holds each field's row of the table. The engine builds the table from a
+#: GatherArrays by name, so the order lives here only.
 GatherArrays = namedtuple('GatherArrays', [
     # the engine's settings and counters, plates and clusters
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
@@ -147,7 +147,7 @@ def solve_space(nv, bodies):
 
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
 ImplicitArrays = namedtuple('ImplicitArrays', [
-    # the engine's settings and counters, the gathered plates (`gather_plates`)
+    # the engine's settings and counters, the gathered plates (`_gather_plates`)
     'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'table', 'force',
     # the sand bodies, mjModel, mjData
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
@@ -163,10 +163,12 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
 
-@njit(cache=True, error_model='numpy', fastmath={'contract'})
-def gather_plates(arrays):
+@njit(inline='always')
+def _gather_plates(arrays, kind, deform):
     """Find the plates in the sand and their RFT force for the current direction of motion:
-    one step (counted in the STEPS counter).
+    one step (counted in the STEPS counter). `kind` (surface.FLAT, SLOPE or GRID) and
+    `deform` (deformable sand: a GRID) are constants of each compiled kernel
+    (`gather_kernel`), so that each kind of surface runs a plate loop of its own.
 
     arrays: the table of an `ArrayTable` of `GatherArrays`; settings SURFACE ... TRAILING.
 
@@ -174,10 +176,10 @@ def gather_plates(arrays):
     whose bounding sphere, lies above the surface (above its highest point within the
     sphere's radius, horizontally) are skipped without touching their plates. A plate's
     depth is the surface height at its (x, y) minus its z (vertical, world axes): a
-    horizontal plane (SURFACE_KIND FLAT) keeps the original arithmetic, bit for bit, and so
+    horizontal plane (FLAT) keeps the original arithmetic, bit for bit, and so
     does a grid whose blocks under the cluster are level (block minimum == maximum: every
     bilinear height there is that level exactly); elsewhere on a grid only plates below the
-    blocks' maximum read the grid. On deformable sand (DEFORM) the plates below the surface
+    blocks' maximum read the grid. On deformable sand (`deform`) the plates below the surface
     mark their footprint cells (`deformable.mark_cells`), each cell once per cluster with
     its lowest plate z (the same marks, in the same order, as one per plate).
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
@@ -198,7 +200,6 @@ def gather_plates(arrays):
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     surface_height, zeta_si = settings[SURFACE], settings[ZETA]
     include_trailing = settings[TRAILING] != 0.0
-    kind = int(settings[SURFACE_KIND])
     flat, slope = kind == FLAT, kind == SLOPE
     gx, gy = settings[SLOPE_X], settings[SLOPE_Y]
     g_norm = np.sqrt(gx * gx + gy * gy)
@@ -211,7 +212,6 @@ def gather_plates(arrays):
     factors = float_matrix(arrays, a.zeta_factors)
     mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
     m_idx, m_idy = settings[MAP_INV_DX], settings[MAP_INV_DY]
-    deform = settings[DEFORM] != 0.0
     stamp, lowest = int_matrix(arrays, a.deform_stamp), float_matrix(arrays, a.deform_lowest)
     pending = int_vector(arrays, a.deform_pending)
     deform_state = int_vector(arrays, a.deform_state)
@@ -349,6 +349,39 @@ def gather_plates(arrays):
                    force[1], force[2])
     counters[STEPS] += 1
     counters[GATHERED], counters[LEADING], counters[SLOTS] = k, leading_count, slots
+
+
+@njit(cache=True, error_model='numpy', fastmath={'contract'})
+def gather_plane(arrays):
+    """`_gather_plates` on a horizontal plane."""
+    _gather_plates(arrays, FLAT, False)
+
+
+@njit(cache=True, error_model='numpy', fastmath={'contract'})
+def gather_slope(arrays):
+    """`_gather_plates` on an inclined plane."""
+    _gather_plates(arrays, SLOPE, False)
+
+
+@njit(cache=True, error_model='numpy', fastmath={'contract'})
+def gather_grid(arrays):
+    """`_gather_plates` on a rigid height grid."""
+    _gather_plates(arrays, GRID, False)
+
+
+@njit(cache=True, error_model='numpy', fastmath={'contract'})
+def gather_deformable(arrays):
+    """`_gather_plates` on deformable sand (a height grid the plates mark)."""
+    _gather_plates(arrays, GRID, True)
+
+
+def gather_kernel(kind, deformable=False):
+    """The compiled gather of a surface of kind `kind` (surface.FLAT, SLOPE, GRID), or of
+    deformable sand (a GRID). Each compiles, or loads from numba's cache, at its first use
+    only, so a scene pays for the kernel of its own surface."""
+    if deformable:
+        return gather_deformable
+    return {FLAT: gather_plane, SLOPE: gather_slope, GRID: gather_grid}[kind]
 
 
 @njit(cache=True, error_model='numpy', fastmath=True)
@@ -873,7 +906,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     (`memory`, indexed by plate, updated here: step << MEMORY_SHIFT | its final set; -1 for
     never) and not frozen, otherwise
     as moving when faster than v_reg; so a step usually needs one solve. Plates: columns
-    :k of the gathered table and force, slot by slot from slot_start (`gather_plates`;
+    :k of the gathered table and force, slot by slot from slot_start (`_gather_plates`;
     force (6, >= k): this fills rows 3..5 with r x G, so that it holds h); work
     (WORK_ROWS, >= k) and flags (FLAG_ROWS, >= k) are work space, of which rows STATE (final
     sets) and ACROSS (across dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step
@@ -1030,7 +1063,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
 
 @njit(cache=True, error_model='numpy')
 def implicit_step(timestep, arrays):
-    """One step's implicit sand wrenches over the plates the step's `gather_plates` left, in
+    """One step's implicit sand wrenches over the plates the step's gather kernel left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
     over the gathered plates (when there are any), then `scatter_wrenches` into
@@ -1108,7 +1141,7 @@ def smoothed_wrenches(k, slots, out_plate, out_slot, table, force, alpha, step,
     F_s = alpha F + (1 - alpha) F_s(previous step) for a plate that was in the sand on the
     previous step, F_s = F otherwise (its history is dropped when it leaves the sand).
     alpha = 1 applies the raw RFT force. Plates: columns :k of the gathered table and force
-    (`gather_plates`). Writes applied[:, :k] = F_s (N, world, on the body).
+    (`_gather_plates`). Writes applied[:, :k] = F_s (N, world, on the body).
     ema_force (N, 3), ema_step (N,) hold each plate's last smoothed force and the step index
     it was computed at. Writes wrench[:S] as in `implicit_wrenches`.
     """

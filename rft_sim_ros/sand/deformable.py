@@ -8,7 +8,7 @@ base surface (plane, slope, grid) at the nodes. Outside the bed the edge values 
 The rule (volume conserving):
 
 1. **Footprint marks.** While a body is in the sand, every plate below the surface marks the
-   four nodes of the cell its centroid lies in (in `coupling.gather_plates`): they are
+   four nodes of the cell its centroid lies in (in `coupling.gather_deformable`): they are
    "pending" and keep the lowest plate z seen. (Four nodes, not the nearest one, so that a
    body whose plates are no farther apart than a cell leaves no unmarked node inside its
    footprint; footprints are resolved to one cell.) A pending node's height does not change:

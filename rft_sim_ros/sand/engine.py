@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ..kernel_cache import BackgroundCompile, is_cached
+from ..kernel_cache import BackgroundCompile, is_cached, load
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
@@ -37,14 +37,16 @@ COLD_START_S = 15
 _TABLE_SIGNATURE = '(int64[:, ::1],)'
 
 
-def kernels_cached(method='implicit'):
+def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
     """Whether numba's on-disk cache holds current compiled code of the kernels an engine
-    with low-velocity `method` runs, so that building one compiles nothing (otherwise it
-    compiles for about COLD_START_S: a first run after install, or after an upgrade)."""
+    with low-velocity `method` on a surface of `surface_kind` (deformable or not) runs, so
+    that building one compiles nothing (otherwise it compiles for about COLD_START_S: a
+    first run after install, or after an upgrade)."""
+    gather = coupling.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
-        kernels = (coupling.gather_plates, coupling.implicit_step, coupling.implicit_plate_forces)
+        kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces)
     else:
-        kernels = (coupling.gather_plates, coupling.smoothed_wrenches, coupling.scatter_wrenches)
+        kernels = (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
     return all(is_cached(kernel) for kernel in kernels)
 
 
@@ -115,7 +117,7 @@ class SandEngine:
         self.surface = Plane(surface_height) if surface is None else surface
         self._set_surface(self.surface.data)
         self.deformable = isinstance(self.surface, DeformableSand)
-        self._settings[coupling.DEFORM] = self.deformable
+        self._gather = coupling.gather_kernel(self.surface.data.kind, self.deformable)
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
                               else np.ascontiguousarray(zeta_map.factors, dtype=float))
@@ -134,7 +136,7 @@ class SandEngine:
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
-        # the plates in the sand this step, one per column (coupling.gather_plates)
+        # the plates in the sand this step, one per column (the gather kernel)
         self._plate = np.zeros(n, dtype=np.int64)
         self._slot = np.zeros(n, dtype=np.int64)
         self._table = np.zeros((coupling.PLATE_ROWS, n))
@@ -162,7 +164,6 @@ class SandEngine:
     def _set_surface(self, data):
         """Write a `surface.SurfaceData` into the kernels' settings; keep its arrays."""
         settings = self._settings
-        settings[coupling.SURFACE_KIND] = data.kind
         settings[coupling.SURFACE] = data.height
         settings[coupling.SLOPE_X], settings[coupling.SLOPE_Y] = data.gradient
         settings[coupling.GRID_X0], settings[coupling.GRID_Y0] = data.origin
@@ -190,7 +191,7 @@ class SandEngine:
             body_clusters.append(len(centers))
         plate_starts.append(offset)
         joined = Plates.concatenate(parts)
-        # per plate, body frame: position and normal (read by coupling.gather_plates)
+        # per plate, body frame: position and normal (read by the gather kernel)
         self.local_pos = np.ascontiguousarray(joined.centroids)
         self.local_normal = np.ascontiguousarray(joined.normals)
         self.areas = np.ascontiguousarray(joined.areas)
@@ -319,7 +320,7 @@ class SandEngine:
             self._implicit()
         else:
             had_slots = self._counters[coupling.SLOTS]
-            coupling.gather_plates(self._gather_arrays.table)
+            self._gather(self._gather_arrays.table)
             if self._counters[coupling.SLOTS] or had_slots:  # (zeros once the last leave)
                 self._explicit()
         if self.deformable:  # footprints left by their bodies in this step
@@ -345,39 +346,34 @@ class SandEngine:
 
     def _implicit(self):
         """The plates in the sand and their implicit wrenches, written to xfrc_applied
-        (coupling.gather_plates and coupling.implicit_step, after MuJoCo's actuator forces
-        and dense inertia of this state)."""
+        (the surface's gather kernel and coupling.implicit_step, after MuJoCo's actuator
+        forces and dense inertia of this state)."""
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
-        coupling.gather_plates(self._gather_arrays.table)
+        self._gather(self._gather_arrays.table)
         coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
 
     def _load_kernels(self):
-        """Run every compiled kernel once on no plates (their outputs are scratch), so that
-        numba loads them from its cache (or compiles them) now, as part of start-up, and not
-        at the first step in contact with sand, where it would stall a running simulation
-        (a paced ROS node) for up to a few tenths of a second.
+        """Load every compiled kernel the engine runs from numba's cache (or compile it) now,
+        as part of start-up, and not at the first step in contact with sand, where it would
+        stall a running simulation (a paced ROS node) for up to a few tenths of a second:
+        the gather kernel by its signature, the others by a run on no plates (their outputs
+        are scratch).
 
         With a cold cache (a first run) and the implicit method, the gather kernel compiles
         in a second process (`BackgroundCompile`) while this one compiles the implicit
         step, the larger share: on two cores the start-up is that share, not the sum."""
-        surface, kind = self._settings[coupling.SURFACE], self._settings[coupling.SURFACE_KIND]
-        self._settings[coupling.SURFACE] = -np.inf  # a surface no plate is below
-        self._settings[coupling.SURFACE_KIND] = FLAT
         if self._implicit_method:
-            background = [(coupling.gather_plates, _TABLE_SIGNATURE)]
-            with (BackgroundCompile(background) if not is_cached(coupling.gather_plates)
+            background = [(self._gather, _TABLE_SIGNATURE)]
+            with (BackgroundCompile(background) if not is_cached(self._gather)
                   else contextlib.nullcontext()) as compiling:
                 coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
                 self._implicit_plate_forces(0)
                 if compiling is not None:
-                    compiling.wait()  # (a kernel it did not cache compiles at its call)
-            self._implicit()
+                    compiling.wait()  # (a kernel it did not cache compiles below)
         else:
-            coupling.gather_plates(self._gather_arrays.table)
             self._explicit()
-        self._settings[coupling.SURFACE] = surface
-        self._settings[coupling.SURFACE_KIND] = kind
+        load(self._gather, _TABLE_SIGNATURE)
         self._counters[:] = 0
         self._wrench_sum[:] = 0.0
 

@@ -239,6 +239,8 @@ def _rescale(values, height_range):
 
 
 SURFACE_TYPES = ('plane', 'slope', 'grid', 'hfield')
+#: The kind code (kernel) of each sand.surface.type.
+SURFACE_KINDS = {'plane': FLAT, 'slope': SLOPE, 'grid': GRID, 'hfield': GRID}
 
 
 def surface_from_settings(settings, base_height=0.0, model=None):

@@ -1,9 +1,10 @@
 """Compiled look-ups of the sand surface (`surface.SurfaceData`) and of the zeta map, inlined
-into `coupling.gather_plates`. World frame, m.
+into the gather kernels (`coupling.gather_kernel`). World frame, m.
 
 The grid is read in node coordinates u = (x - x0) / dx, v = (y - y0) / dy, clamped to the
 grid, so the edge values continue outside it.
 """
+import numpy as np
 from numba import njit
 
 from .surface import BLOCK, FLAT, SLOPE
@@ -17,8 +18,9 @@ def node_height(grid, u, v):
     j = min(max(int(v), 0), ny - 2)
     fu = min(max(u - i, 0.0), 1.0)
     fv = min(max(v - j, 0.0), 1.0)
-    low = grid[j, i] + fu * (grid[j, i + 1] - grid[j, i])
-    high = grid[j + 1, i] + fu * (grid[j + 1, i + 1] - grid[j + 1, i])
+    ui, uj, one = np.uint64(i), np.uint64(j), np.uint64(1)  # (no negative-index handling)
+    low = grid[uj, ui] + fu * (grid[uj, ui + one] - grid[uj, ui])
+    high = grid[uj + one, ui] + fu * (grid[uj + one, ui + one] - grid[uj + one, ui])
     return low + fv * (high - low)
 
 

@@ -26,7 +26,7 @@ from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
-from ..sand.surface import surface_from_settings
+from ..sand.surface import SURFACE_KINDS, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
@@ -55,7 +55,8 @@ def can_collide(model):
 def compile_notice(scene):
     """The line to show before building `scene` (SceneConfig) when its sand kernels are not
     in numba's cache yet: 'compiling kernels, first run only, ~N s'; None when cached."""
-    if kernels_cached(scene.low_velocity['method']):
+    kind = SURFACE_KINDS[scene.surface.get('type', 'plane')]
+    if kernels_cached(scene.low_velocity['method'], kind, bool(scene.deformable.get('enabled'))):
         return None
     return f'compiling kernels, first run only, ~{COLD_START_S:.0f} s'
 
