@@ -52,28 +52,36 @@ def uncached():
 
 
 def warm_up(log=print):
-    """Compile (or load) every kernel: short runs of the scenes and settings that use them.
+    """Compile (or load) every kernel: short runs of the scenes and settings that use them,
+    with the gather kernels of the other surfaces compiled meanwhile in a second process.
     Returns the qualified names still not cached (none, unless a kernel went unused)."""
     import tempfile
 
     import numpy as np
 
     from .rft.kernel import plate_forces_compiled
+    from .sand import coupling
+    from .sand.array_table import TABLE_SIGNATURE
     from .scenes.config import load_scene
     from .sim.simulation import Simulation
-    with tempfile.TemporaryDirectory() as folder:
+    others = [(kernel, TABLE_SIGNATURE) for kernel in (
+        coupling.gather_slope, coupling.gather_grid, coupling.gather_deformable)]
+
+    def run(scene, overrides):
+        log(f'warmup: {scene} {overrides or ""}'.rstrip())
+        Simulation(load_scene(scene, overrides)).step(2)
+
+    with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling:
+        run('hexapod', {})                      # implicit engine step (plane), tripod gait
+        run('articulated_leg', {})              # leg inverse kinematics
+        run('plate_drop', {'rft.low_velocity.method': 'ema'})  # the explicit path
+        compiling.wait()  # (a kernel it did not cache compiles in its run below)
         level = Path(folder) / 'level.npy'  # a height grid (of the plane's height)
         np.save(level, np.zeros((3, 3)))
-        runs = (('hexapod', {}),                      # implicit engine step, tripod gait
-                ('articulated_leg', {}),              # leg inverse kinematics
-                ('plate_drop', {'rft.low_velocity.method': 'ema'}),  # the explicit path
-                ('plate_drop', {'sand.surface.type': 'slope'}),      # each surface's gather
-                ('plate_drop', {'sand.surface.type': 'grid', 'sand.surface.file': str(level),
-                                'sand.surface.size': [1.0, 1.0]}),
-                ('plate_drop', {'sand.deformable.enabled': True}))  # deformable sand
-        for scene, overrides in runs:
-            log(f'warmup: {scene} {overrides or ""}'.rstrip())
-            Simulation(load_scene(scene, overrides)).step(2)
+        run('plate_drop', {'sand.surface.type': 'slope'})  # the other surfaces' gathers
+        run('plate_drop', {'sand.surface.type': 'grid', 'sand.surface.file': str(level),
+                           'sand.surface.size': [1.0, 1.0]})
+        run('plate_drop', {'sand.deformable.enabled': True})  # and deformable sand's
     down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
     plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
     return uncached()

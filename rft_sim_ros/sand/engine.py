@@ -21,7 +21,7 @@ from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import coupling
-from .array_table import ArrayTable
+from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand
 from .surface import FLAT, Plane
 from .zeta_map import ZetaMap
@@ -32,9 +32,6 @@ LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 #: `_load_kernels`), measured on the 2-core VM of the README's figures (11-13 s idle; a busy
 #: or one-core machine takes longer); start-up messages quote it.
 COLD_START_S = 15
-
-#: numba's text of the argument types of a kernel taking one `ArrayTable` (its int64 table).
-_TABLE_SIGNATURE = '(int64[:, ::1],)'
 
 
 def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
@@ -364,7 +361,7 @@ class SandEngine:
         in a second process (`BackgroundCompile`) while this one compiles the implicit
         step, the larger share: on two cores the start-up is that share, not the sum."""
         if self._implicit_method:
-            background = [(self._gather, _TABLE_SIGNATURE)]
+            background = [(self._gather, TABLE_SIGNATURE)]
             with (BackgroundCompile(background) if not is_cached(self._gather)
                   else contextlib.nullcontext()) as compiling:
                 coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
@@ -373,7 +370,7 @@ class SandEngine:
                     compiling.wait()  # (a kernel it did not cache compiles below)
         else:
             self._explicit()
-        load(self._gather, _TABLE_SIGNATURE)
+        load(self._gather, TABLE_SIGNATURE)
         self._counters[:] = 0
         self._wrench_sum[:] = 0.0
 
