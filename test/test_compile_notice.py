@@ -37,9 +37,10 @@ from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
 slope = load_scene("plate_drop", {"sand.surface.type": "slope"})
 Simulation(slope)
-print(json.dumps({"cached": {name: is_cached(getattr(coupling, name)) for name in
-                             ("gather_plane", "gather_slope", "gather_grid", "gather_deformable")},
-                  "slope": compile_notice(slope), "plane": compile_notice(load_scene("plate_drop"))}))
+kernels = ("gather_plane", "gather_slope", "gather_grid", "gather_deformable")
+print(json.dumps({"cached": {name: is_cached(getattr(coupling, name)) for name in kernels},
+                  "slope": compile_notice(slope),
+                  "plane": compile_notice(load_scene("plate_drop"))}))
 '''
 
 

@@ -1067,9 +1067,10 @@ def implicit_step(timestep, arrays):
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
     over the gathered plates (when there are any), then `scatter_wrenches` into
-    xfrc_applied (zero wrenches when no plate is in the sand). Arguments as in those functions (timestep: s); arrays: the table of an
-    `ArrayTable` of `ImplicitArrays`, settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves
-    to the SOLVES counter and counts the step in UNSETTLED where it did not settle."""
+    xfrc_applied (zero wrenches when no plate is in the sand). Arguments as in those
+    functions (timestep: s); arrays: the table of an `ArrayTable` of `ImplicitArrays`,
+    settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves to the SOLVES counter and counts
+    the step in UNSETTLED where it did not settle."""
     a = IMPLICIT
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     k, slots, step = counters[GATHERED], counters[SLOTS], counters[STEPS]
