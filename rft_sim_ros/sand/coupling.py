@@ -237,11 +237,8 @@ def _gather_plates(arrays, kind, deform):
     slots = 0
     for i in range(body_ids.shape[0]):
         b = body_ids[i]
-        if flat:
-            top = surface_height
-        else:
-            top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max, block_min,
-                              gx0, gy0, g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
+        top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max, block_min,
+                          gx0, gy0, g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         if xpos[b, 2] - radii[i] >= top:
             continue
         first = k
