@@ -21,7 +21,9 @@ runs/<command>-<time> unless `--out` names a folder (e.g. the committed validati
 Errors in what the user asked for (unknown scene, bad value, an output folder that cannot
 be written) print one line and exit 2, before anything runs. Ctrl-C (SIGINT) or SIGTERM stops
 a run at the next published state: the bag is closed, summary.json says `"interrupted":
-true`, and the exit status is 128 + the signal number (130, 143), as a shell reports it.
+true`, and the exit status is 128 + the signal number (130, 143), as a shell reports it; one
+that comes while the run is set up, before its output folder is made, ends it with nothing
+written.
 """
 import argparse
 import datetime
@@ -34,6 +36,7 @@ import threading
 from pathlib import Path
 
 from . import __version__
+from .interrupts import release_quietly
 from .sim.summary import significant
 from .scenes.config import (SceneError, bundled_scenes, load_scene, parse_assignment,
                             robot_overrides)
@@ -163,36 +166,40 @@ def _given(raw, key):
 
 
 def cmd_run(args):
-    from .sim.runner import run_duration, run_scene
-    scene = load_scene(args.scene, _scene_overrides(args))
-    if args.duration is not None and not args.duration > 0:
-        raise SceneError(f'--duration must be > 0 s, got {args.duration}')
-    schedule = [parse_timed_assignment(text) for text in args.set_at or []]
-    duration = run_duration(scene, args.duration)
-    for (at, change), text in zip(schedule, args.set_at or []):
-        if at > duration:
-            warn(f'--set-at {text} comes after the run ends ({duration:g} s): not applied')
-    out = Path(args.out) if args.out else fresh_folder(scene.name)
-    if not args.no_bag and (out / 'bag').exists():
-        raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
-                         'or pass --no-bag')
-    say_if_cold(scene)
-    created = next((folder for folder in reversed((out, *out.parents))
-                    if not folder.exists()), None)  # the first folder this run makes
-    output_folder(out)
-    try:
-        recorders = []
-        if not args.no_bag:
-            from .ros.recording import BagRecorder
-            recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
-        with stop_on_signals() as stop:
+    with stop_on_signals() as stop:  # from the start: a Ctrl-C in the set-up is no exception
+        from .sim.runner import run_duration, run_scene
+        scene = load_scene(args.scene, _scene_overrides(args))
+        if args.duration is not None and not args.duration > 0:
+            raise SceneError(f'--duration must be > 0 s, got {args.duration}')
+        schedule = [parse_timed_assignment(text) for text in args.set_at or []]
+        duration = run_duration(scene, args.duration)
+        for (at, change), text in zip(schedule, args.set_at or []):
+            if at > duration:
+                warn(f'--set-at {text} comes after the run ends ({duration:g} s): not applied')
+        out = Path(args.out) if args.out else fresh_folder(scene.name)
+        if not args.no_bag and (out / 'bag').exists():
+            raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
+                             'or pass --no-bag')
+        say_if_cold(scene)
+        if stop.is_set():  # before anything is written: nothing is
+            print('rft-sim: interrupted before the run started: nothing written',
+                  file=sys.stderr)
+            return 128 + stop.signal
+        created = next((folder for folder in reversed((out, *out.parents))
+                        if not folder.exists()), None)  # the first folder this run makes
+        output_folder(out)
+        try:
+            recorders = []
+            if not args.no_bag:
+                from .ros.recording import BagRecorder
+                recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
             summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
                                 recorders=recorders, schedule=schedule, stop=stop,
                                 log=lambda line: print(f'rft-sim: {line}', file=sys.stderr))
-    except (SceneError, ValueError):  # refused before it ran (e.g. the model does not load)
-        if created is not None:
-            shutil.rmtree(created, ignore_errors=True)
-        raise
+        except (SceneError, ValueError):  # refused before it ran (e.g. the model does not load)
+            if created is not None:
+                shutil.rmtree(created, ignore_errors=True)
+            raise
     keys = ('scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s', 'real_time_factor',
             'plates_total', 'plates_active_mean', 'stable', 'interrupted', 'reason')
     print(json.dumps(significant({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
@@ -443,7 +450,8 @@ def main(argv=None):
     except (SceneError, ValueError) as error:
         print(f'rft-sim: error: {error}', file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C outside a run's loop (start-up, or a second one)
+    except KeyboardInterrupt as interrupt:  # Ctrl-C outside a run's loop (or a second one)
+        release_quietly(interrupt)
         print('\nrft-sim: interrupted', file=sys.stderr)
         return 128 + signal.SIGINT
 

@@ -234,18 +234,89 @@ def test_signal_stops_a_run_with_its_bag_closed_and_summary_marked(tmp_path, sig
 
 
 def test_ctrl_c_while_the_cli_loads_exits_130_without_a_traceback(tmp_path):
-    """A Ctrl-C in the first second, while `rft-sim` is still importing numpy, MuJoCo and
-    numba, ends like any other: one line, exit 130 (the console script's entry guards it)."""
+    """A Ctrl-C while `rft-sim` is still importing numpy, MuJoCo and numba ends like any
+    other: one line, exit 130, nothing written (the console script's entry guards it). The
+    signal goes when the child reports numpy imported (Python's -X importtime lines, one per
+    finished import), well before the CLI's imports end, on any machine."""
+    env = dict(os.environ, PYTHONPROFILEIMPORTTIME='1')
     child = subprocess.Popen(
         [sys.executable, '-m', 'rft_sim_ros', 'run', 'plate_drop', '--out',
-         str(tmp_path / 'run'), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, preexec_fn=_as_in_a_terminal)
-    time.sleep(0.3)  # past the interpreter's start, well inside the CLI's imports
-    child.send_signal(signal.SIGINT)
+         str(tmp_path / 'run'), '--quiet'], env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, preexec_fn=_as_in_a_terminal)
+    lines = []
+    for line in child.stderr:
+        lines.append(line)
+        if line.split('|')[-1].strip() == 'numpy':
+            child.send_signal(signal.SIGINT)
+            break
     stdout, stderr = child.communicate(timeout=120)
+    assert not any(line.split('|')[-1].strip() == 'rft_sim_ros.cli' for line in lines)
     assert child.returncode == 130, stderr
-    assert 'Traceback' not in stderr and 'interrupted' in stderr
+    assert 'Traceback' not in stderr and 'rft-sim: interrupted' in stderr
     assert not (tmp_path / 'run').exists()
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT as in a terminal's foreground job (this test run may be a background one)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def _pressing_ctrl_c(function):
+    """`function`, with a Ctrl-C pressed while it runs."""
+    def pressed(*args, **kwargs):
+        signal.raise_signal(signal.SIGINT)  # (its handler runs here, in this thread)
+        return function(*args, **kwargs)
+    return pressed
+
+
+def test_ctrl_c_while_a_run_is_set_up_writes_nothing(tmp_path, capsys, monkeypatch,
+                                                     ctrl_c_raises):
+    from rft_sim_ros import cli
+    monkeypatch.setattr(cli, 'say_if_cold', _pressing_ctrl_c(cli.say_if_cold))
+    out = tmp_path / 'run'
+    assert main([*SHORT, '--out', str(out)]) == 130
+    err = capsys.readouterr().err
+    assert 'interrupted before the run started: nothing written' in err
+    assert 'Traceback' not in err and not out.exists()
+
+
+def test_ctrl_c_once_the_output_folder_exists_ends_in_a_complete_interrupted_run(
+        tmp_path, capsys, monkeypatch, ctrl_c_raises):
+    from rft_sim_ros.ros import recording
+    monkeypatch.setattr(recording, 'BagRecorder', _pressing_ctrl_c(recording.BagRecorder))
+    out = tmp_path / 'run'
+    assert main([*SHORT, '--out', str(out)]) == 130
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['interrupted'] is True and summary['sim_time_s'] == 0
+    assert 'SIGINT received' in summary['reason']
+    with AnyReader([out / 'bag']) as bag:  # closed, readable
+        assert bag.message_count == 0
+    assert 'Traceback' not in capsys.readouterr().err
+
+
+class _HalfBuilt:
+    """An object whose constructor a Ctrl-C cut short, and whose destructor then fails (as
+    llvmlite's ObjectRef does when `_as_parameter_` was never set)."""
+
+    def __init__(self):
+        raise KeyboardInterrupt  # between the constructor's two lines
+        self.handle = 1
+
+    def __del__(self):
+        del self.handle
+
+
+def test_an_object_a_ctrl_c_half_built_is_freed_without_a_traceback(capsys, monkeypatch):
+    from rft_sim_ros import cli
+    reported = []
+    monkeypatch.setattr(sys, 'unraisablehook', reported.append)
+    monkeypatch.setattr(cli, 'load_scene', lambda *args: _HalfBuilt())
+    assert main(SHORT) == 130
+    assert reported == [] and sys.unraisablehook == reported.append
+    assert capsys.readouterr().err.strip() == 'rft-sim: interrupted'
 
 
 # --- first run: a cold kernel cache is announced at once ---------------------------------------

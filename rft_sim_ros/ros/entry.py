@@ -6,12 +6,14 @@ callback that is publishing. SIGINT also raises KeyboardInterrupt in the main th
 signal surfaces as KeyboardInterrupt, as ExternalShutdownException, or as whatever error a
 ROS call inside a callback (a publish, a parameter update) raises once its context is gone
 (RCLError "publisher's context is invalid"). All of these are a requested shutdown, not a
-failure: the executable exits with status 0 and without a traceback. An error raised while
-the context is still valid is a real failure and propagates.
+failure: the executable exits with status 0 and without a traceback (`release_quietly`). An
+error raised while the context is still valid is a real failure and propagates.
 """
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
+
+from ..interrupts import release_quietly
 
 
 def run_node(make_node, name, startup_errors=(), args=None):
@@ -35,8 +37,8 @@ def run_node(make_node, name, startup_errors=(), args=None):
             rclpy.spin(node)
         finally:
             node.destroy_node()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException) as stop:
+        release_quietly(stop)
     except Exception:
         if rclpy.ok():  # the context is valid: a real failure
             raise
