@@ -297,28 +297,6 @@ def test_ctrl_c_once_the_output_folder_exists_ends_in_a_complete_interrupted_run
     assert 'Traceback' not in capsys.readouterr().err
 
 
-class _HalfBuilt:
-    """An object whose constructor a Ctrl-C cut short, and whose destructor then fails (as
-    llvmlite's ObjectRef does when `_as_parameter_` was never set)."""
-
-    def __init__(self):
-        raise KeyboardInterrupt  # between the constructor's two lines
-        self.handle = 1
-
-    def __del__(self):
-        del self.handle
-
-
-def test_an_object_a_ctrl_c_half_built_is_freed_without_a_traceback(capsys, monkeypatch):
-    from rft_sim_ros import cli
-    reported = []
-    monkeypatch.setattr(sys, 'unraisablehook', reported.append)
-    monkeypatch.setattr(cli, 'load_scene', lambda *args: _HalfBuilt())
-    assert main(SHORT) == 130
-    assert reported == [] and sys.unraisablehook == reported.append
-    assert capsys.readouterr().err.strip() == 'rft-sim: interrupted'
-
-
 # --- first run: a cold kernel cache is announced at once ---------------------------------------
 
 def test_a_cold_kernel_cache_is_announced_before_compiling(tmp_path):

@@ -7,15 +7,19 @@ signal surfaces as KeyboardInterrupt, as ExternalShutdownException, or as whatev
 ROS call inside a callback (a publish, a parameter update) raises once its context is gone
 (RCLError "publisher's context is invalid"). All of these are a requested shutdown, not a
 failure: the executable exits with status 0 and without a traceback (`release_quietly`). An
-error raised while the context is still valid is a real failure and propagates.
+error raised while the context is still valid is a real failure and propagates. A
+KeyboardInterrupt that lands where it cannot be raised (a callback of llvmlite's while numba
+compiles the kernels of a first start) is not printed but delivered again
+(`interrupts_never_lost`).
 """
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
-from ..interrupts import release_quietly
+from ..interrupts import release_quietly, interrupts_never_lost
 
 
+@interrupts_never_lost()
 def run_node(make_node, name, startup_errors=(), args=None):
     """Spin the node `make_node()` until Ctrl-C, SIGTERM or shutdown; returns the exit status.
 
