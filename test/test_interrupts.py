@@ -33,10 +33,11 @@ def _a_ctrl_c_lost():
     _RaisesWhenFreed(KeyboardInterrupt())
 
 
-def _wait(seconds):
-    """Python code running for `seconds` (where a delivered SIGINT acts)."""
+def _wait(seconds, until=lambda: False):
+    """Python code running for `seconds`, or until `until()` (a delivered SIGINT acts in
+    it; a handler does not run while this thread blocks in a wait of its own)."""
     end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    while time.monotonic() < end and not until():
         time.sleep(0.001)
 
 
@@ -128,14 +129,14 @@ def test_a_lost_ctrl_c_is_delivered_again(reported, ctrl_c_raises):
     with interrupts_never_lost():
         _a_ctrl_c_lost()
         with pytest.raises(KeyboardInterrupt):
-            _wait(100 * REDELIVERY_S)
+            _wait(500 * REDELIVERY_S)  # (ends at the KeyboardInterrupt, 10 ms in)
     assert reported == [] and sys.unraisablehook == reported.append
 
 
 def test_a_lost_ctrl_c_during_a_run_becomes_its_stop_request(reported, ctrl_c_raises):
     with interrupts_never_lost(), stop_on_signals() as stop:
         _a_ctrl_c_lost()
-        _wait(100 * REDELIVERY_S)
+        _wait(500 * REDELIVERY_S, until=stop.is_set)
         assert stop.is_set() and stop.signal == signal.SIGINT
     assert reported == []
 
