@@ -187,7 +187,9 @@ def _gather_plates(arrays, kind, deform):
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
     velocity W (9 multiply-adds), so only leading plates (n . v > TANGENTIAL x the body's
     speed scale), or all plates below the surface with TRAILING, are transformed to the
-    world.
+    world. Where a rigid grid is read (not level under the cluster), that motion test comes
+    before the depth, being cheaper than a bilinear look-up: a trailing plate is dropped
+    without one (the plates gathered are the same).
     With a zeta map (ZETA_MAP), a plate's zeta is multiplied by the map's factor at its (x, y).
     For each, column k of `table` (rows: kernel's NORMAL ... DIRECTION, then MOMENT, LEVER,
     SPEED; a trailing plate has SCALE and AREA 0, so it feels no force), out_plate[k] (plate
@@ -287,10 +289,19 @@ def _gather_plates(arrays, kind, deform):
             j1 = cluster_plate_start[c + 1]
             cluster, cluster_normals = positions[j0:j1], normals[j0:j1]  # (no wraparound)
             plain = not (slope or lookup or deform)  # a plane, or a rigid grid level here
+            # a rigid grid read here: the motion test (cheaper than a look-up) comes first
+            motion_first = kind == GRID and lookup and not deform
             touched = 0  # deformable sand: cells its plates in the sand are in
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
+                n_v = 0.0
+                if motion_first:
+                    if pz >= top:  # above the highest node under the cluster
+                        continue
+                    n_v = _normal_speed(cluster_normals, i_c, body_v, body_w, lx, ly, lz)
+                    if not (n_v > tangential or include_trailing):
+                        continue
                 if plain:
                     depth = level - pz
                 elif slope:
@@ -305,14 +316,13 @@ def _gather_plates(arrays, kind, deform):
                         touched = touch_cell(grid, u, v, pz, cells, cell_z, touched)
                 if depth <= 0.0:
                     continue
-                mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
-                              cluster_normals[i_c, 2])
-                n_v = (mx * (body_v[0] + body_w[1] * lz - body_w[2] * ly)
-                       + my * (body_v[1] + body_w[2] * lx - body_w[0] * lz)
-                       + mz * (body_v[2] + body_w[0] * ly - body_w[1] * lx))
+                if not motion_first:
+                    n_v = _normal_speed(cluster_normals, i_c, body_v, body_w, lx, ly, lz)
                 leading = n_v > tangential
                 if not (leading or include_trailing):
                     continue
+                mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
+                              cluster_normals[i_c, 2])
                 px = ox + r00 * lx + r01 * ly + r02 * lz
                 py = oy + r10 * lx + r11 * ly + r12 * lz
                 rx, ry, rz = px - cx, py - cy, pz - cz
@@ -346,6 +356,17 @@ def _gather_plates(arrays, kind, deform):
                    force[1], force[2])
     counters[STEPS] += 1
     counters[GATHERED], counters[LEADING], counters[SLOTS] = k, leading_count, slots
+
+
+@njit(inline='always')
+def _normal_speed(normals, i, body_v, body_w, lx, ly, lz):
+    """n . v of plate i at body-frame position l = (lx, ly, lz) with body-frame normal
+    normals[i], for the body-frame velocity V of the body origin and angular velocity W:
+    n . (V + W x l), m/s."""
+    mx, my, mz = normals[i, 0], normals[i, 1], normals[i, 2]
+    return (mx * (body_v[0] + body_w[1] * lz - body_w[2] * ly)
+            + my * (body_v[1] + body_w[2] * lx - body_w[0] * lz)
+            + mz * (body_v[2] + body_w[0] * ly - body_w[1] * lx))
 
 
 @njit(cache=True, error_model='numpy', fastmath={'contract'})
