@@ -16,7 +16,7 @@ import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
-from ..interrupts import release_quietly, interrupts_never_lost
+from ..interrupts import interrupts_never_lost, release_quietly
 
 
 @interrupts_never_lost()
