@@ -153,7 +153,8 @@ def test_unknown_scenario_lists_the_known_ones(tmp_path, capsys):
     scene.write_text(yaml.safe_dump({**load_scene('plate_drop').raw,
                                      'scenario': 'walking_on_water'}))
     assert exit_code(['run', str(scene), '--no-bag', '--out', str(tmp_path / 'o')]) == 2
-    one_error_line(capsys, "'walking_on_water'", 'unknown scenario', 'hexapod', 'plate_drop', 'external')
+    one_error_line(capsys, "'walking_on_water'", 'unknown scenario', 'hexapod', 'plate_drop',
+                   'external')
 
 
 def test_set_at_past_the_end_warns_and_the_schedule_is_recorded(tmp_path, capsys):
