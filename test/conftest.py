@@ -1,11 +1,14 @@
-"""Test configuration: reproducible property tests, a plate cache of the tests' own.
+"""Test configuration: reproducible property tests, a plate cache of the tests' own, and
+SIGINT as a terminal's foreground job has it (`ctrl_c_raises`).
 
 Hypothesis draws the same examples on every run (derandomize), so CI is deterministic; set
 HYPOTHESIS_PROFILE=explore for a long randomised search when changing the force law.
 """
 import os
+import signal
 import tempfile
 
+import pytest
 from hypothesis import settings
 
 # plates made by the tests are cached in a folder of their own, not the user's cache
@@ -14,3 +17,12 @@ os.environ['XDG_CACHE_HOME'] = tempfile.mkdtemp(prefix='rft-sim-test-cache-')
 settings.register_profile('default', max_examples=200, derandomize=True, deadline=None)
 settings.register_profile('explore', max_examples=5000, deadline=None)
 settings.load_profile(os.environ.get('HYPOTHESIS_PROFILE', 'default'))
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT as in a terminal's foreground job: a KeyboardInterrupt (this test run may be a
+    background job, whose SIGINT is ignored)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -257,14 +257,6 @@ def test_ctrl_c_while_the_cli_loads_exits_130_without_a_traceback(tmp_path):
     assert not (tmp_path / 'run').exists()
 
 
-@pytest.fixture
-def ctrl_c_raises():
-    """SIGINT as in a terminal's foreground job (this test run may be a background one)."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, previous)
-
-
 def _pressing_ctrl_c(function):
     """`function`, with a Ctrl-C pressed while it runs."""
     def pressed(*args, **kwargs):

@@ -49,14 +49,6 @@ def reported(monkeypatch):
     return errors
 
 
-@pytest.fixture
-def ctrl_c_raises():
-    """SIGINT as in a terminal's foreground job (this test run may be a background one)."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, previous)
-
-
 class _CtrlCWhileCompiling(event.Listener):
     """Presses Ctrl-C (SIGINT to this process) `times` times as numba starts compiling."""
 
