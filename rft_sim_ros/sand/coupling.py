@@ -39,7 +39,7 @@ from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, 
                           int32_matrix, int32_vector, int_matrix, int_vector)
 from .deformable import mark_cells, touch_cell
 from .surface import FLAT, GRID, SLOPE
-from .surface_kernels import grid_range, map_factor, node_height, surface_top
+from .surface_kernels import grid_range, map_factor, node_height, surface_range
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -178,7 +178,8 @@ def _gather_plates(arrays, kind, deform):
     depth is the surface height at its (x, y) minus its z (vertical, world axes): a
     horizontal plane (FLAT) keeps the original arithmetic, bit for bit, and so
     does a grid whose blocks under the cluster are level (block minimum == maximum: every
-    bilinear height there is that level exactly); elsewhere on a grid only plates below the
+    bilinear height there is that level exactly; where they are level under the body's whole
+    sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
     blocks' maximum read the grid. On deformable sand (`deform`) the plates below the surface
     mark their footprint cells (`deformable.mark_cells`), each cell once per cluster with
     its lowest plate z (the same marks, in the same order, as one per plate).
@@ -239,10 +240,12 @@ def _gather_plates(arrays, kind, deform):
     slots = 0
     for i in range(body_ids.shape[0]):
         b = body_ids[i]
-        top = surface_top(kind, surface_height, gx, gy, g_norm, grid, block_max, block_min,
-                          gx0, gy0, g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
-        if xpos[b, 2] - radii[i] >= top:
+        body_low, body_top = surface_range(kind, surface_height, gx, gy, g_norm, grid,
+                                           block_max, block_min, gx0, gy0, g_idx, g_idy,
+                                           xpos[b, 0], xpos[b, 1], radii[i])
+        if xpos[b, 2] - radii[i] >= body_top:
             continue
+        top = body_top
         first = k
         root = body_rootid[b]
         ox, oy, oz = xpos[b, 0], xpos[b, 1], xpos[b, 2]
@@ -277,7 +280,9 @@ def _gather_plates(arrays, kind, deform):
                         >= surface_height + cluster_radius[c] * g_norm):
                     continue
             else:
-                if not flat:
+                if flat or body_low == body_top:  # level under the body: under the cluster
+                    level = body_top
+                else:
                     low, top = grid_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
                                           ox + r00 * ccx + r01 * ccy + r02 * ccz,
                                           oy + r10 * ccx + r11 * ccy + r12 * ccz,

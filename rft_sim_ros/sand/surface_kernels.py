@@ -42,15 +42,16 @@ def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
 
 
 @njit(inline='always')
-def surface_top(kind, level, gx, gy, g_norm, grid, block_max, block_min, x0, y0, inv_dx, inv_dy,
-                x, y, r):
-    """An upper bound of the surface's height within horizontal distance r of (x, y), m
-    (g_norm: the slope's |gradient|)."""
+def surface_range(kind, level, gx, gy, g_norm, grid, block_max, block_min, x0, y0, inv_dx,
+                  inv_dy, x, y, r):
+    """Bounds (low, high) of the surface's height within horizontal distance r of (x, y), m
+    (g_norm: the slope's |gradient|); low == high: level there (a plane; a grid's blocks)."""
     if kind == FLAT:
-        return level
+        return level, level
     if kind == SLOPE:
-        return level + gx * x + gy * y + r * g_norm
-    return grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r)[1]
+        middle = level + gx * x + gy * y
+        return middle - r * g_norm, middle + r * g_norm
+    return grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r)
 
 
 @njit(inline='always')
