@@ -141,6 +141,80 @@ def test_mjcf_hfield_heights_match_mujocos_own_ray_casts():
             assert 1.0 - distance == pytest.approx(grid.height(*start[:2]), abs=2e-3)
 
 
+HFIELD_IN_A_BODY = """
+<mujoco>
+  <asset><hfield name="dunes" nrow="3" ncol="4" size="0.6 0.4 0.05 0.01"
+                 elevation="0 1 2 3  1 2 3 4  0 0 4 4"/></asset>
+  <worldbody>
+    <body name="ground" pos="0.3 0.1 0.0" euler="0 0 {body_deg}">
+      <body name="terrain_mount" pos="0.05 -0.1 0.02">
+        <geom name="terrain" type="hfield" hfield="dunes" euler="0 0 {geom_deg}"/>
+      </body>
+    </body>
+    <body name="robot"><freejoint/><geom size="0.01"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+@pytest.mark.parametrize('body_deg, geom_deg', [(0, 0), (90, 0), (0, 180), (180, 90), (-90, 0)])
+def test_hfield_in_a_body_fixed_to_the_world_turned_by_quarter_turns(body_deg, geom_deg):
+    """The hfield of a (nested) static body, turned about z by multiples of 90 deg in all:
+    its heights at each world point are the unturned field's at the point's place in the
+    geom's frame, and MuJoCo's own ray casts agree (exactly at the nodes)."""
+    model = mujoco.MjModel.from_xml_string(HFIELD_IN_A_BODY.format(body_deg=body_deg,
+                                                                    geom_deg=geom_deg))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    grid = HeightGrid.from_mjcf_hfield(model)  # the only hfield geom
+    g = model.geom('terrain').id
+    rotation, pos = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g]
+    flat = HeightGrid.from_mjcf_hfield(mujoco.MjModel.from_xml_string(HFIELD), 'terrain')
+    rng = np.random.default_rng(1)
+    local = rng.uniform([-0.6, -0.4], [0.6, 0.4], size=(50, 2))
+    world = pos[:2] + local @ rotation[:2, :2].T
+    # the same field (HFIELD's geom sits at 0.1, -0.2, 0.02: shift to its frame)
+    expected = flat.height(local[:, 0] + 0.1, local[:, 1] - 0.2) - 0.02 + pos[2]
+    assert np.allclose(grid.height(world[:, 0], world[:, 1]), expected, rtol=0, atol=1e-12)
+    geomid = np.zeros(1, dtype=np.int32)
+    for i in range(4):
+        for j in range(3):
+            node = pos[:2] + rotation[:2, :2] @ [-0.6 + 0.4 * i, -0.4 + 0.4 * j]
+            inside = pos[:2] + 0.999 * (node - pos[:2])  # (a ray exactly on the edge misses)
+            distance = mujoco.mj_ray(model, data, np.array([*inside, 1.0]),
+                                     np.array([0, 0, -1.0]), None, 1, -1, geomid)
+            assert geomid[0] == g
+            assert 1.0 - distance == pytest.approx(grid.height(*inside), abs=2e-3)
+
+
+def test_hfield_geoms_that_cannot_be_read_are_refused_with_the_reason():
+    def model(xml):
+        return mujoco.MjModel.from_xml_string(xml)
+    turned = HFIELD_IN_A_BODY.format(body_deg=30, geom_deg=0)
+    with pytest.raises(ValueError, match='turned 30 deg about z and tilted 0 deg'):
+        HeightGrid.from_mjcf_hfield(model(turned))
+    tilted = HFIELD_IN_A_BODY.format(body_deg=0, geom_deg=0).replace(
+        'euler="0 0 0"/>', 'euler="5 0 0"/>')
+    with pytest.raises(ValueError, match='tilted 5 deg'):
+        HeightGrid.from_mjcf_hfield(model(tilted), 'terrain')
+    moving = HFIELD_IN_A_BODY.format(body_deg=0, geom_deg=0).replace(
+        '<body name="ground" pos="0.3 0.1 0.0" euler="0 0 0">',
+        '<body name="ground" pos="0.3 0.1 0.0" euler="0 0 0"><joint type="slide"/>')
+    with pytest.raises(ValueError, match='must be fixed to the world'):
+        HeightGrid.from_mjcf_hfield(model(moving))
+    mocap = HFIELD.replace('<worldbody><geom', '<worldbody><body mocap="true"><geom').replace(
+        '</worldbody>', '</body></worldbody>')
+    with pytest.raises(ValueError, match='must be fixed to the world'):
+        HeightGrid.from_mjcf_hfield(model(mocap))
+    two = HFIELD.replace('</worldbody>', '<geom name="second" type="hfield" hfield="dunes" '
+                         'pos="3 0 0"/></worldbody>')
+    with pytest.raises(ValueError, match=r'name the hfield geom to read; the model has 2 '
+                                         r'\(terrain, second\)'):
+        HeightGrid.from_mjcf_hfield(model(two))
+    assert HeightGrid.from_mjcf_hfield(model(two), 'second').center == (3.0, 0.0)
+    with pytest.raises(ValueError, match=r'the model has 0 \(none\)'):
+        HeightGrid.from_mjcf_hfield(model('<mujoco/>'))
+
+
 def test_grid_files_png_and_npy(tmp_path):
     from matplotlib.image import imsave
     heights = np.linspace(0, 1, 12).reshape(3, 4)

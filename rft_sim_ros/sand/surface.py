@@ -169,28 +169,36 @@ class HeightGrid(Surface):
         return cls(base + values, size, center)
 
     @classmethod
-    def from_mjcf_hfield(cls, model, geom):
-        """The height field of the MuJoCo model's hfield geom `geom` (name), world frame.
-        The geom must be axis aligned (no rotation about any axis); its heights are
-        pos_z + data x size_z over x in pos_x +- size_x and y in pos_y +- size_y, as MuJoCo
-        places them."""
+    def from_mjcf_hfield(cls, model, geom=None):
+        """The height field of the MuJoCo model's hfield geom `geom` (name; None: the model's
+        only one, `hfield_geom`), world frame, as MuJoCo places it: heights pos_z + data x
+        size_z over the geom's local x in +-size_x and y in +-size_y. The geom must be fixed
+        to the world (in the world body, or a body welded to it) and level: turned about
+        world z by a multiple of 90 deg at most, which is read exactly (the data's rows and
+        columns turned with it)."""
         import mujoco
-        try:
-            g = model.geom(geom)
-        except KeyError:
-            raise ValueError(f'sand.surface.geom: no geom {geom!r} in the model') from None
-        if g.type[0] != mujoco.mjtGeom.mjGEOM_HFIELD:
-            raise ValueError(f'sand.surface.geom: geom {geom!r} is not an hfield geom')
-        if g.bodyid[0] != 0 or not np.allclose(g.quat, [1, 0, 0, 0]):
-            raise ValueError(f'sand.surface.geom: hfield geom {geom!r} must sit in the world '
-                             'body, axis aligned')
-        h = int(g.dataid[0])
+        g = hfield_geom(model, geom)
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)  # the pose of a geom fixed to the world
+        rotation, pos = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g].copy()
+        quarter = np.arctan2(rotation[1, 0], rotation[0, 0]) / (np.pi / 2)
+        turns = int(np.rint(quarter))
+        if abs(rotation[2, 2] - 1.0) > 1e-9 or abs(quarter - turns) > 1e-9:
+            tilt = np.degrees(np.arccos(np.clip(rotation[2, 2], -1.0, 1.0)))
+            raise ValueError(f'sand.surface.geom: hfield geom {model.geom(g).name!r} is turned '
+                             f'{np.degrees(quarter * np.pi / 2):.6g} deg about z and tilted '
+                             f'{tilt:.6g} deg: only level hfields turned by a multiple of '
+                             '90 deg about z are read')
+        h = int(model.geom_dataid[g])
         rows, cols = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
         start = int(model.hfield_adr[h])
-        data = model.hfield_data[start:start + rows * cols].reshape(rows, cols)
+        heights = model.hfield_data[start:start + rows * cols].reshape(rows, cols)
         sx, sy, sz, _ = model.hfield_size[h]
-        pos = g.pos
-        return cls(pos[2] + sz * data, (2 * sx, 2 * sy), (pos[0], pos[1]))
+        # rows are y (row 0 lowest), so a turn counterclockwise seen from above is rot90's
+        # clockwise one
+        heights = np.rot90(heights, -turns)
+        size = (2 * sx, 2 * sy) if turns % 2 == 0 else (2 * sy, 2 * sx)
+        return cls(pos[2] + sz * heights, size, (pos[0], pos[1]))
 
     def height(self, x, y):
         x, y = np.asarray(x, float), np.asarray(y, float)
@@ -208,6 +216,36 @@ class HeightGrid(Surface):
     def data(self):
         return SurfaceData(GRID, 0.0, (0.0, 0.0), self.grid, self.origin, self.spacing,
                            self.block_max, self.block_min)
+
+
+def hfield_geom(model, name=None):
+    """Id of the MuJoCo model's hfield geom `name`, or with name None of its only hfield
+    geom; the geom must be fixed to the world (no joint or mocap body between it and the
+    world). Raises ValueError with the reason."""
+    import mujoco
+    hfields = [g for g in range(model.ngeom)
+               if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_HFIELD]
+    if name is None:
+        if len(hfields) != 1:
+            names = [model.geom(g).name or f'#{g}' for g in hfields]
+            raise ValueError('sand.surface.geom: name the hfield geom to read; the model has '
+                             f'{len(hfields)} ({", ".join(names) or "none"})')
+        g = hfields[0]
+    else:
+        try:
+            g = model.geom(name).id
+        except KeyError:
+            raise ValueError(f'sand.surface.geom: no geom {name!r} in the model') from None
+        if g not in hfields:
+            raise ValueError(f'sand.surface.geom: geom {name!r} is not an hfield geom')
+    body = int(model.geom_bodyid[g])
+    while body != 0:
+        if model.body_jntnum[body] or model.body_mocapid[body] >= 0:
+            raise ValueError(f'sand.surface.geom: hfield geom {model.geom(g).name!r} must be '
+                             'fixed to the world (its body or a parent has a joint or is a '
+                             'mocap body)')
+        body = int(model.body_parentid[body])
+    return g
 
 
 def grey_levels(path):
@@ -260,9 +298,7 @@ def surface_from_settings(settings, base_height=0.0, model=None):
         return Slope(base_height, float(settings.get('angle_deg', 0.0)),
                      float(settings.get('downhill_deg', 0.0)))
     if kind == 'hfield':
-        if not isinstance(settings.get('geom'), str):
-            raise ValueError('sand.surface.geom must name the model\'s hfield geom')
-        return HeightGrid.from_mjcf_hfield(model, settings['geom'])
+        return HeightGrid.from_mjcf_hfield(model, settings.get('geom'))
     if 'file' not in settings or 'size' not in settings:
         raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
     return HeightGrid.from_file(settings['file'], settings['size'],

@@ -233,8 +233,9 @@ KEYS = (
         'centre.', _pair),
     Key('sand.surface.height_range', '[low, high]', 'm', None, 'Grid: heights that grey 0..1 '
         'maps to (required for a PNG; rescales a .npy).', _low_high),
-    Key('sand.surface.geom', 'text', '', None, "Hfield: name of the model's hfield geom (its "
-        'rigid collisions are switched off).', _optional_text),
+    Key('sand.surface.geom', 'text', '', None, "Hfield: name of the model's hfield geom, "
+        'fixed to the world (default: its only one; its rigid collisions are switched off).',
+        _optional_text),
     Key('sand.zeta_map', 'mapping or null', '', None, 'Factors multiplying zeta by position '
         '(docs/terrain.md); null: zeta everywhere.', _optional_section),
     Key('sand.zeta_map.regions', 'list of {x, y, factor}', 'm', None, 'Rectangles {x: [low, '

@@ -26,7 +26,7 @@ from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
-from ..sand.surface import SURFACE_KINDS, surface_from_settings
+from ..sand.surface import SURFACE_KINDS, hfield_geom, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
@@ -116,7 +116,7 @@ class Simulation:
         except ValueError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
         if scene.surface.get('type') == 'hfield':  # the sand carries bodies there, not MuJoCo
-            geom = self.model.geom(scene.surface['geom'])
+            geom = self.model.geom(hfield_geom(self.model, scene.surface.get('geom')))
             geom.contype[0] = geom.conaffinity[0] = 0
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
