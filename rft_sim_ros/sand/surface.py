@@ -226,10 +226,13 @@ def hfield_geom(model, name=None):
     hfields = [g for g in range(model.ngeom)
                if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_HFIELD]
     if name is None:
-        if len(hfields) != 1:
-            names = [model.geom(g).name or f'#{g}' for g in hfields]
+        if not hfields:
+            raise ValueError("sand.surface.type 'hfield' reads the model's own <hfield> geom; "
+                             'the model has none')
+        if len(hfields) > 1:
+            names = ', '.join(model.geom(g).name or f'#{g}' for g in hfields)
             raise ValueError('sand.surface.geom: name the hfield geom to read; the model has '
-                             f'{len(hfields)} ({", ".join(names) or "none"})')
+                             f'{len(hfields)} ({names})')
         g = hfields[0]
     else:
         try:
