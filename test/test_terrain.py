@@ -117,6 +117,55 @@ HFIELD = """
 </mujoco>"""
 
 
+def test_highest_surface_point_over_a_rectangle():
+    """`highest`: exact on the plane and the slope (a corner), and on a grid the highest node
+    of the cells the rectangle touches: never below the surface inside it, exact on nodes."""
+    rng = np.random.default_rng(3)
+    grid = HeightGrid(rng.uniform(0.0, 0.05, (9, 12)), (1.1, 0.8), (0.2, -0.1))
+    slope = Slope(0.1, angle_deg=12.0, downhill_deg=200.0)
+    assert Plane(0.3).highest(-1.0, 2.0, -3.0, 4.0) == 0.3
+    for x0, y0, wx, wy in rng.uniform([-0.8, -0.6, 0.0, 0.0], [0.8, 0.4, 0.3, 0.3], (30, 4)):
+        xs, ys = np.meshgrid(np.linspace(x0, x0 + wx, 41), np.linspace(y0, y0 + wy, 41))
+        for surface in (slope, grid):
+            top = surface.highest(x0, x0 + wx, y0, y0 + wy)
+            assert top >= surface.height(xs, ys).max() - 1e-15
+        assert slope.highest(x0, x0 + wx, y0, y0 + wy) == pytest.approx(
+            slope.height(xs, ys).max(), abs=1e-15)
+    # a rectangle from node (2, 3) to node (5, 6): exactly its nodes' highest
+    (ox, oy), (dx, dy) = grid.origin, grid.spacing
+    assert grid.highest(ox + 2 * dx, ox + 5 * dx, oy + 3 * dy, oy + 6 * dy) == \
+        grid.grid[3:7, 2:6].max()
+    assert grid.highest(-9.0, -8.0, -9.0, -8.0) == grid.grid[0, 0]  # outside: edge continued
+
+
+@pytest.mark.parametrize('surface', [{'type': 'slope', 'angle_deg': 15.0, 'downhill_deg': 30.0},
+                                     {'type': 'slope', 'angle_deg': 15.0, 'downhill_deg': 210.0},
+                                     {'type': 'grid', 'file': 'ridges.npy', 'size': [1.0, 1.0]}])
+def test_spawn_clears_the_surface_under_every_sand_body(surface, tmp_path):
+    """`robot.spawn: drop:H` on a slope or a grid (ridges 8 cm high): no plate of any sand
+    body starts in the sand or less than H above the surface under it, and the lowest starts
+    at most a few cm higher (each geom's bounding box is kept H above the surface's highest
+    point under the box; the sandbot's feet are 4 cm boxes, tilted)."""
+    from pathlib import Path
+    x = np.linspace(-0.5, 0.5, 51)
+    np.save(tmp_path / 'ridges.npy', np.tile(0.04 * np.sin(2 * np.pi * x / 0.3), (51, 1)))
+    package = Path(__file__).parent / 'robots' / 'sandbot_description'
+    for height in (0.02, 0.0):
+        overrides = {'robot.package_paths': {'sandbot_description': str(package)},
+                     'rft.plates_per_body': 100, 'robot.spawn': f'drop:{height}',
+                     **{f'sand.surface.{key}': str(tmp_path / value) if key == 'file' else value
+                        for key, value in surface.items()}}
+        sim = Simulation(load_scene(package / 'urdf' / 'sandbot.urdf.xacro', overrides))
+        engine, data = sim.engine, sim.data
+        lowest = np.inf
+        for n, body in enumerate(engine.body_ids):
+            local = engine.local_pos[engine.plate_start[n]:engine.plate_start[n + 1]]
+            world = data.xpos[body] + local @ data.xmat[body].reshape(3, 3).T
+            gap = world[:, 2] - engine.surface.height(world[:, 0], world[:, 1])
+            lowest = min(lowest, gap.min())
+        assert height - 1e-9 <= lowest < height + 0.03
+
+
 def test_mjcf_hfield_heights_match_mujocos_own_ray_casts():
     model = mujoco.MjModel.from_xml_string(HFIELD)
     data = mujoco.MjData(model)

@@ -6,16 +6,17 @@ initial values come this way too).
 
 Spawn (`robot.spawn`), for a robot whose root body has a free joint:
   model       the pose as the model (or scenario) gives it;
-  drop:H      moved vertically so that the lowest point of its sand bodies' geoms is H m above
-              the sand surface, at rest, then released;
-  rest        that lowest point at the surface, released, and settled before the run starts:
-              stepped (joints holding their initial targets) until the base moves slower than
-              REST_SPEED for REST_HOLD_S of sim time (at most SETTLE_LIMIT_S); the run's clock
-              then starts at 0 from that state.
+  drop:H      moved vertically so that its sand bodies' geoms are H m or more above the sand
+              surface under each (slopes, grids: the surface's highest point under each geom's
+              bounding box), and one exactly H, at rest, then released;
+  rest        that lowest clearance 0 (on the surface), released, and settled before the run
+              starts: stepped (joints holding their initial targets) until the base moves
+              slower than REST_SPEED for REST_HOLD_S of sim time (at most SETTLE_LIMIT_S); the
+              run's clock then starts at 0 from that state.
 """
 import mujoco
 
-from .sand_bodies import collision_geoms, geom_lowest_z
+from .sand_bodies import collision_geoms, geom_footprint, geom_lowest_z
 
 #: spawn 'rest' is settled once the base is slower than this (m/s) for REST_HOLD_S (s).
 REST_SPEED = 1e-3
@@ -59,25 +60,22 @@ def set_initial_pose(model, data, keyframe=None, initial_positions=None):
         data.qpos[model.jnt_qposadr[j]] = value
 
 
-def lowest_point(model, data, bodies):
-    """World z (m) of the lowest point of the geoms of `bodies` (ids; collision geoms where a
-    body has them, else all its geoms), in the current pose (after mj_kinematics)."""
-    lowest = float('inf')
-    for body in bodies:
-        start, count = model.body_geomadr[body], model.body_geomnum[body]
-        geoms = collision_geoms(model, body) or list(range(start, start + max(count, 0)))
-        for geom in geoms:
-            lowest = min(lowest, geom_lowest_z(model, data, geom))
-    return lowest
-
-
-def lift_to(model, data, base, bodies, height):
-    """Move the free root of body `base` vertically so that the lowest point of `bodies` is
-    at world z `height` (m), at rest; raises ValueError without a free root."""
+def lift_to(model, data, base, bodies, clearance, ground):
+    """Move the free root of body `base` vertically, at rest, so that the geoms of `bodies`
+    (ids; collision geoms where a body has them, else all its geoms) clear the sand surface by
+    `clearance` m: the lowest point of each one's bounding box at least `clearance` above
+    `ground(x0, x1, y0, y1)`, the surface's highest point over the box's horizontal extent
+    (m; `Surface.highest`), and one of them exactly. Raises ValueError without a free root."""
     root = model.body_rootid[base]
     joint = model.body_jntadr[root]
     if joint < 0 or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE:
         raise ValueError('spawn needs a floating base (a free joint on the root body)')
     mujoco.mj_kinematics(model, data)
-    data.qpos[model.jnt_qposadr[joint] + 2] += height - lowest_point(model, data, bodies)
+    lift = -float('inf')
+    for body in bodies:
+        start, count = model.body_geomadr[body], model.body_geomnum[body]
+        for geom in collision_geoms(model, body) or range(start, start + max(count, 0)):
+            top = ground(*geom_footprint(model, data, geom))
+            lift = max(lift, (top + clearance) - geom_lowest_z(model, data, geom))
+    data.qpos[model.jnt_qposadr[joint] + 2] += lift
     data.qvel[model.jnt_dofadr[joint]:model.jnt_dofadr[joint] + 6] = 0.0

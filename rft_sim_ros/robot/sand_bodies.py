@@ -43,6 +43,15 @@ def geom_lowest_z(model, data, geom):
     return float(data.geom_xpos[geom, 2] + rotation[2] @ center - np.abs(rotation[2]) @ half)
 
 
+def geom_footprint(model, data, geom):
+    """World (x0, x1, y0, y1) (m): the horizontal extent of geom `geom`'s bounding box in the
+    current pose."""
+    rotation = data.geom_xmat[geom].reshape(3, 3)[:2]
+    center, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+    middle, reach = data.geom_xpos[geom, :2] + rotation @ center, np.abs(rotation) @ half
+    return middle[0] - reach[0], middle[0] + reach[0], middle[1] - reach[1], middle[1] + reach[1]
+
+
 def _name(model, body):
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f'body{body}'
 

@@ -69,6 +69,12 @@ class Surface:
         """World z of the free surface at world (x, y) (m; arrays broadcast)."""
         raise NotImplementedError
 
+    def highest(self, x0, x1, y0, y1):
+        """World z (m) of the highest surface point over the rectangle x0 <= x <= x1,
+        y0 <= y <= y1 (m), or (a grid) an upper bound of it within that of the grid cells
+        the rectangle touches."""
+        raise NotImplementedError
+
     def normal(self, x, y, step=1e-4):
         """Unit upward normal of the surface at (x, y) ((..., 3)), from the height's central
         differences over +-step m."""
@@ -97,6 +103,9 @@ class Plane(Surface):
         return np.full(np.broadcast(x, y).shape, self.level) if np.ndim(x) or np.ndim(y) \
             else self.level
 
+    def highest(self, x0, x1, y0, y1):
+        return self.level
+
     @property
     def data(self):
         return SurfaceData(FLAT, self.level, (0.0, 0.0), _NO_GRID, (0.0, 0.0), (1.0, 1.0),
@@ -116,6 +125,9 @@ class Slope(Surface):
 
     def height(self, x, y):
         return self.level + self.gradient[0] * np.asarray(x) + self.gradient[1] * np.asarray(y)
+
+    def highest(self, x0, x1, y0, y1):
+        return float(np.max(self.height(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))))
 
     @property
     def data(self):
@@ -211,6 +223,16 @@ class HeightGrid(Surface):
         g = self.grid
         return ((1 - fv) * ((1 - fu) * g[j, i] + fu * g[j, i + 1])
                 + fv * ((1 - fu) * g[j + 1, i] + fu * g[j + 1, i + 1]))
+
+    def highest(self, x0, x1, y0, y1):
+        """The highest node of the cells the rectangle touches (the edge nodes outside)."""
+        ny, nx = self.grid.shape
+        (ox, oy), (dx, dy) = self.origin, self.spacing
+        i0, i1 = (int(np.clip(np.floor((x0 - ox) / dx), 0, nx - 1)),
+                  int(np.clip(np.ceil((x1 - ox) / dx), 0, nx - 1)))
+        j0, j1 = (int(np.clip(np.floor((y0 - oy) / dy), 0, ny - 1)),
+                  int(np.clip(np.ceil((y1 - oy) / dy), 0, ny - 1)))
+        return float(self.grid[j0:j1 + 1, i0:i1 + 1].max())
 
     @property
     def data(self):

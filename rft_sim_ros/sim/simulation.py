@@ -233,10 +233,9 @@ class Simulation:
         kind, height = self._spawn
         if kind != 'model':
             bodies = [self.model.body(b).id for b in self.sand_bodies]
-            x, y = self.data.xpos[self._base_id, :2]
-            try:  # onto (or above) the sand surface under the base
-                lift_to(self.model, self.data, self._base_id, bodies,
-                        float(self.engine.surface.height(x, y)) + (height or 0.0))
+            try:  # onto (or above) the sand surface under its sand bodies
+                lift_to(self.model, self.data, self._base_id, bodies, height or 0.0,
+                        self.engine.surface.highest)
             except ValueError as error:
                 raise self.scene.locator.error('robot.spawn', str(error)) from None
         mujoco.mj_forward(self.model, self.data)
