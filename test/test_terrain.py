@@ -348,6 +348,31 @@ def test_plate_drop_on_a_flat_height_grid_is_the_plane_drop_at_that_height(tmp_p
                   'sand.surface.size': [2.0, 2.0]}, duration=0.3)
     assert np.array_equal(plane.data.qpos, grid.data.qpos)
     assert np.array_equal(plane.data.qvel, grid.data.qvel)
+    # the grid's own heights at h (sand.surface_height 0): the plate starts above it and its
+    # depths are measured from it, as on the plane at h
+    np.save(tmp_path / 'raised.npy', np.full((9, 9), h))
+    raised = _drop({'sand.surface.type': 'grid', 'sand.surface.file': str(tmp_path / 'raised.npy'),
+                    'sand.surface.size': [2.0, 2.0]}, duration=0.3)
+    assert np.array_equal(plane.data.qpos, raised.data.qpos)
+    assert raised.scenario.metrics(raised) == plane.scenario.metrics(plane)
+
+
+def test_plate_press_on_a_raised_grid_and_on_a_slope_feels_zeta_a_per_depth(tmp_path):
+    """plate_press starts above the surface under the plate, whatever its shape: on a grid
+    raised 5 cm it is the plane's press at 5 cm; on a 10 deg slope a horizontal plate's force
+    is still zeta A times the depth at its centre once it is wholly in (depth linear across)."""
+    def press(overrides):
+        sim = Simulation(load_scene('plate_press', overrides))
+        sim.step(int(round(sim.scene.duration / sim.timestep)))
+        return sim.scenario.metrics(sim)
+    np.save(tmp_path / 'raised.npy', np.full((9, 9), 0.05))
+    plane = press({'sand.surface_height': 0.05})
+    raised = press({'sand.surface.type': 'grid', 'sand.surface.file': str(tmp_path / 'raised.npy'),
+                    'sand.surface.size': [2.0, 2.0]})
+    assert raised == pytest.approx(plane, rel=1e-12, abs=1e-12)  # (the slide offset rounds)
+    slope = press({'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0})
+    assert abs(slope['force_per_depth_error']) < 0.02
+    assert slope['max_depth_m'] == pytest.approx(plane['max_depth_m'], rel=1e-3)
 
 
 @pytest.mark.parametrize('angle', [10.0, 20.0])

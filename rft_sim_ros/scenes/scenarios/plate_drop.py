@@ -3,7 +3,9 @@
 Analytic reference: RFT resists only while the plate intrudes, with force zeta A z on the
 bottom face at depth z, so the impact depth solves m g (h + z) = zeta A z^2 / 2 (energy),
 z = (m g + sqrt((m g)^2 + 2 zeta A m g h)) / (zeta A). After impact the plate must stay in
-the sand (no bounce) and come to rest.
+the sand (no bounce) and come to rest. The plate starts `drop_height` above the sand surface
+under it when the scene starts (any surface shape; a second drop into deformable sand's
+crater starts there too), and its depth is measured from that surface.
 """
 import numpy as np
 
@@ -25,6 +27,7 @@ class Scenario(BaseScenario):
         self.side = self.number('side', positive=True)
         self.thickness = self.number('thickness', positive=True)
         self.drop_height = self.number('drop_height', minimum=0.0)
+        self.ground = None  # m: the sand surface under the plate when the scene starts
         self.depths = []
         self.speeds = []
 
@@ -34,13 +37,15 @@ class Scenario(BaseScenario):
         geom.mass = self.mass
 
     def initialize(self, sim):
+        if self.ground is None:
+            self.ground = float(sim.engine.surface.height(0.0, 0.0))
         qpos = sim.data.joint('plate_free').qpos
-        qpos[:3] = (0.0, 0.0, self.scene.surface_height + self.drop_height + self.thickness / 2)
+        qpos[:3] = (0.0, 0.0, self.ground + self.drop_height + self.thickness / 2)
         qpos[3:] = (1.0, 0.0, 0.0, 0.0)
 
     def observe(self, sim):
         bottom = sim.data.body('plate').xpos[2] - self.thickness / 2
-        self.depths.append(self.scene.surface_height - bottom)
+        self.depths.append(self.ground - bottom)
         self.speeds.append(float(np.linalg.norm(sim.data.joint('plate_free').qvel[:3])))
 
     def metrics(self, sim):

@@ -1,7 +1,9 @@
 """plate_press: a thin horizontal plate driven straight down into sand at constant speed.
 
 The vertical force on a horizontal plate pushed straight down is zeta A z (the definition
-of zeta), so the fitted slope of force against depth must equal zeta A (SI: N/m).
+of zeta), so the fitted slope of force against depth must equal zeta A (SI: N/m). The plate
+starts `start_height` above the sand surface under it (any surface shape), and its depth is
+measured from that surface.
 """
 import numpy as np
 
@@ -16,6 +18,7 @@ class Scenario(BaseScenario):
         self.thickness = self.number('thickness', positive=True)
         self.speed = self.number('speed', positive=True)
         self.start_height = self.number('start_height', minimum=0.0)
+        self.ground = None  # m: the sand surface under the plate when the scene starts
         self.depths = []
         self.forces = []
         self.lateral = []
@@ -26,7 +29,11 @@ class Scenario(BaseScenario):
                                   + self.thickness / 2]
 
     def initialize(self, sim):
-        sim.data.joint('press').qvel[:] = -self.speed
+        if self.ground is None:
+            self.ground = float(sim.engine.surface.height(0.0, 0.0))
+        press = sim.data.joint('press')  # (a vertical slide: from sand.surface_height)
+        press.qpos[:] = self.ground - self.scene.surface_height
+        press.qvel[:] = -self.speed
 
     def control(self, sim):
         sim.data.actuator('press').ctrl[:] = -self.speed
@@ -34,7 +41,7 @@ class Scenario(BaseScenario):
     def observe(self, sim):
         bottom = sim.data.body('plate').xpos[2] - self.thickness / 2
         wrench = sim.engine.body_wrenches[0]
-        self.depths.append(self.scene.surface_height - bottom)
+        self.depths.append(self.ground - bottom)
         self.forces.append(wrench[2])
         self.lateral.append(np.hypot(wrench[0], wrench[1]))
 
