@@ -67,6 +67,21 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
     assert ros.probe.clock_times()[-1] > 0.4             # sim time went on
 
 
+def test_a_late_subscriber_gets_the_whole_grid(ros):
+    """A subscriber that joins after the first publication (RViz opened later, `ros2 topic
+    echo`) gets every node at the next terrain publication, and the deformation marker."""
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
+        Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=1.0)]))
+    assert ros.spin_until(lambda: sim.runtime.sim.time > 0.3, timeout=20.0)
+    clouds, markers = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 10)
+    assert ros.spin_until(lambda: clouds and markers, timeout=20.0)
+    assert clouds[0].width == 51 * 51
+    assert markers[0].action == Marker.DELETE  # (the plate still in its footprint: pristine)
+
+
 def test_a_plane_publishes_no_terrain_and_reset_terrain_says_so(ros):
     reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[

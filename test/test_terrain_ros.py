@@ -79,6 +79,24 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
                                atol=1e-6)
 
 
+@pytest.mark.parametrize('deformable', [False, True])
+def test_resend_publishes_the_whole_grid_at_once_for_a_late_subscriber(deformable):
+    """What the node does when a subscriber joins: the next update carries every node (at the
+    grid's current heights, at once, whatever the rate), then changes only again."""
+    grid = HeightGrid(np.zeros((5, 6)), size=(0.5, 0.4))
+    surface = DeformableSand(grid, size=(0.2, 0.2), cell=0.02) if deformable else grid
+    feed = TerrainFeed(surface, rate=2.0)
+    assert len(feed.update(0.0).points) == surface.grid.size
+    assert feed.update(0.1) is None
+    surface.grid[2, 3] -= 0.01
+    feed.resend()
+    update = feed.update(0.2)  # within 0.5 s of the last publication: due anyway
+    assert len(update.points) == surface.grid.size
+    np.testing.assert_allclose(update.points[:, 2], surface.grid.ravel(), atol=1e-7)
+    assert len(update.deformed) == (1 if deformable else 0)
+    assert feed.update(0.8) is None  # nothing changed since
+
+
 def test_rate_is_checked():
     with pytest.raises(ValueError, match='terrain_rate must be a finite number > 0'):
         TerrainFeed(Plane(), rate=0.0)

@@ -6,7 +6,9 @@ height grid, an MJCF hfield, deformable sand); a plane or a slope is the same an
 all run long and publishes nothing, at no cost. The first call publishes every node of the
 grid; later calls, at most `rate` per second of sim time, publish the nodes whose height
 changed since the last publication (footprints, piles, a terrain reset) and nothing when none
-did. Heights in m, world z; x, y in m in the odom frame (the MuJoCo world frame).
+did. `resend()` (the node calls it when a subscriber joins) makes the next publication carry
+every node again, so that a late subscriber gets the whole surface. Heights in m, world z;
+x, y in m in the odom frame (the MuJoCo world frame).
 """
 import math
 from dataclasses import dataclass
@@ -52,6 +54,11 @@ class TerrainFeed:
         """Whether this surface is published at all (grids only)."""
         return self._surface is not None
 
+    def resend(self):
+        """Publish every node again at the next publication (due at once), changed or not."""
+        self._published = None
+        self._next = -math.inf
+
     def update(self, time, due=False):
         """The `TerrainUpdate` due at sim time `time` (s), or None (nothing due or changed).
         due: publish the changes now whatever the rate (e.g. the last state of a run)."""
@@ -59,7 +66,7 @@ class TerrainFeed:
             return None
         grid = self._surface.grid
         pristine = getattr(self._surface, 'pristine', None)  # only deformable sand changes
-        if self._published is None:
+        if self._published is None:  # the first publication, or resent
             changed = np.ones(grid.shape, dtype=bool)
         elif pristine is None:
             return None
