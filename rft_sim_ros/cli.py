@@ -39,8 +39,8 @@ from pathlib import Path
 from . import __version__
 from .interrupts import held_while_compiling, interrupts_never_lost, release_quietly
 from .sim.summary import significant
-from .scenes.config import (SceneError, bundled_scenes, load_scene, parse_assignment,
-                            robot_overrides)
+from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
+                            parse_assignment, robot_overrides)
 from .units import validated_zeta
 
 
@@ -74,7 +74,7 @@ def _scene_overrides(args):
         if value is not None:
             overrides[key] = value
     overrides.update(robot_overrides(args.sand_bodies, args.package_path, args.xacro_arg))
-    return overrides
+    return anchor_paths(overrides, Path.cwd())  # files named on the command line: from here
 
 
 def parse_timed_assignment(text):

@@ -399,3 +399,47 @@ def test_hexapod_standing_on_a_slope_holds_still():
     sim.step(int(round(1.0 / sim.timestep)))
     assert np.linalg.norm(sim.data.qvel[:3]) < 1e-3
     assert np.linalg.norm(sim.data.qpos[:3] - start) < 1e-3  # < 1 mm/s of creep
+
+
+def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read_from_there(
+        tmp_path, monkeypatch):
+    """A relative sand.surface.file (or zeta map, model, scenario file, package folder) given
+    with --set is read from the working directory, in a study from the study file's folder,
+    in the node's scene_overrides from its working directory; in a scene file from that file's
+    folder; a missing one is refused naming where it was looked for."""
+    from rft_sim_ros.cli import main
+    from rft_sim_ros.resources import config_dir
+    from rft_sim_ros.ros.parameters import scene_overrides
+    from rft_sim_ros.scenes.config import anchor_paths
+    from rft_sim_ros.study import study_from_mapping
+    here, there = tmp_path / 'here', tmp_path / 'there'
+    here.mkdir(), there.mkdir()
+    np.save(here / 'raised.npy', np.full((5, 5), 0.02))
+    np.save(there / 'lowered.npy', np.full((5, 5), -0.02))
+    grid = {'sand.surface.type': 'grid', 'sand.surface.size': [1.0, 1.0], 'duration': 0.05}
+    monkeypatch.chdir(here)
+    assert main(['run', 'plate_drop', '--set', 'sand.surface.type=grid', '--set',
+                 'sand.surface.file=raised.npy', '--set', 'sand.surface.size=[1, 1]',
+                 '--duration', '0.05', '--no-bag', '--quiet', '--out', str(tmp_path / 'run')]) == 0
+    assert scene_overrides(['sand.surface.file=raised.npy'])['sand.surface.file'] == \
+        str(here / 'raised.npy')
+    study = study_from_mapping({'scene': 'plate_drop', 'set': grid,
+                                'vary': {'sand.surface.file': ['lowered.npy']},
+                                'metrics': ['max_depth_m']}, base=there)
+    assert study.runs[0].overrides['sand.surface.file'] == str(there / 'lowered.npy')
+    assert study.runs[0].varied == {'sand.surface.file': 'lowered.npy'}  # as the user wrote it
+    sim = Simulation(load_scene('plate_drop', study.runs[0].overrides))
+    assert sim.engine.surface.height(0.0, 0.0) == pytest.approx(-0.02)
+    # left as given where not found here: the scene's own look-up (a model in models/)
+    assert anchor_paths({'model': 'plate_drop.xml', 'scenario': 'plate_drop',
+                         'robot.package_paths': {'a': 'there', 'b': 'nowhere'}}, tmp_path) == {
+        'model': 'plate_drop.xml', 'scenario': 'plate_drop',
+        'robot.package_paths': {'a': str(there), 'b': 'nowhere'}}
+    with pytest.raises(SceneError, match=r"sand.surface.file: 'lowered.npy' not found \(a "
+                                         'relative file is read from the scene file'):
+        load_scene('plate_drop', {**grid, 'sand.surface.file': 'lowered.npy'})
+    scene = tmp_path / 'scene.yaml'  # in a scene file: from its folder, whatever the cwd
+    scene.write_text((config_dir() / 'plate_drop.yaml').read_text().replace(
+        '  surface_height: 0.0  # m', '  surface: {type: grid, file: there/lowered.npy, '
+        'size: [1, 1]}', 1))
+    assert Simulation(load_scene(scene)).engine.surface.height(0.0, 0.0) == pytest.approx(-0.02)

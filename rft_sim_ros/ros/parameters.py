@@ -7,8 +7,9 @@ joint_names) are taken from the loaded scene by the node.
 """
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
-from rft_sim_ros.scenes.config import SceneError, parse_assignment
+from rft_sim_ros.scenes.config import SceneError, anchor_paths, parse_assignment
 from rft_sim_ros.units import zeta_problem
 
 
@@ -107,8 +108,10 @@ def publish_rate(value, name=PUBLISH_RATE):
 
 
 def scene_overrides(assignments):
-    """{key: value} from 'key=value' strings (values read as YAML); raises SceneError."""
+    """{key: value} from 'key=value' strings (values read as YAML; relative files from the
+    working directory, `anchor_paths`); raises SceneError."""
     if isinstance(assignments, str):
         raise SceneError(f"scene_overrides must be a list of 'key=value' strings, "
                          f'got the string {assignments!r}')
-    return dict(parse_assignment(str(text)) for text in assignments or ())
+    overrides = dict(parse_assignment(str(text)) for text in assignments or ())
+    return anchor_paths(overrides, Path.cwd())  # files it names: from the working directory

@@ -176,6 +176,33 @@ def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
     return overrides
 
 
+#: Scene keys whose text values name files (robot.package_paths: folders, per package).
+PATH_KEYS = ('model', 'scenario', 'sand.surface.file', 'sand.zeta_map.file',
+             'robot.package_paths')
+
+
+def anchor_paths(overrides, folder):
+    """A copy of `overrides` in which each relative file named by a PATH_KEYS value (a
+    scenario only as a .py file) that exists under `folder` is made absolute: overrides
+    given on a command line (`folder`: the working directory) or in a study file (its folder)
+    name files from there. Others are left as given, for the scene's own look-up (the scene
+    file's folder, the package's models/)."""
+    def anchored(value):
+        if not isinstance(value, str) or Path(value).is_absolute():
+            return value
+        there = Path(folder) / Path(value).expanduser()
+        return str(there.resolve()) if there.exists() else value
+    out = dict(overrides)
+    for key in PATH_KEYS:
+        value = out.get(key)
+        if key == 'robot.package_paths' and isinstance(value, dict):
+            out[key] = {name: anchored(path) for name, path in value.items()}
+        elif key != 'scenario' or (isinstance(value, str) and value.endswith('.py')):
+            if key in out:
+                out[key] = anchored(value)
+    return out
+
+
 def apply_overrides(raw, overrides):
     """A copy of the scene mapping `raw` with `overrides` applied (see module docstring)."""
     raw = copy.deepcopy(raw)
@@ -234,9 +261,9 @@ def _validate(raw, path, locator):
         duration=None if values['duration'] == 'auto' else values['duration'],
         zeta=values['zeta'],
         surface_height=values['sand.surface_height'],
-        surface=_subsection(values, 'sand.surface', path),
-        zeta_map=_subsection(values, 'sand.zeta_map', path) or None,
-        deformable=_subsection(values, 'sand.deformable', path),
+        surface=_subsection(values, 'sand.surface', path, locator),
+        zeta_map=_subsection(values, 'sand.zeta_map', path, locator) or None,
+        deformable=_subsection(values, 'sand.deformable', path, locator),
         sand_bodies=tuple(values['rft.bodies']),
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
@@ -266,14 +293,24 @@ def _validate(raw, path, locator):
     )
 
 
-def _subsection(values, section, scene_path):
+def _subsection(values, section, scene_path, locator):
     """{leaf: value} of the keys under `section` that have a value, a relative `file`
-    resolved against the scene file's folder."""
+    resolved against the scene file's folder (`anchor_paths` made those given on a command
+    line or in a study absolute); a file that is not there is refused."""
     prefix = section + '.'
     settings = {path[len(prefix):]: value for path, value in values.items()
                 if path.startswith(prefix) and value is not None}
-    if 'file' in settings and not Path(settings['file']).is_absolute():
-        settings['file'] = str(scene_path.parent / settings['file'])
+    if 'file' in settings:
+        file = Path(settings['file']).expanduser()
+        if not file.is_absolute():
+            file = scene_path.parent / file
+        if not file.is_file():
+            raise locator.error(f'{section}.file', f'{settings["file"]!r} not found (a '
+                                'relative file is read from the scene file\'s folder, '
+                                f'{scene_path.parent}, or, given with --set, in a study or in '
+                                'scene_overrides, from the working directory or the study '
+                                "file's folder)")
+        settings['file'] = str(file)
     return settings
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..scenes.config import SceneError, load_scene
+from ..scenes.config import SceneError, anchor_paths, load_scene
 from .cost import run_cost
 
 _KNOWN = {'scene', 'set', 'duration', 'vary', 'repeats', 'metrics', 'description'}
@@ -76,7 +76,8 @@ def load_study(path):
 
 def study_from_mapping(raw, base=Path('.'), where='study'):
     """Validate and expand a study given as a mapping (the content of a study file); scene
-    paths are relative to `base`. Raises StudyError."""
+    paths, and files named in set and vary (`anchor_paths`), are relative to `base`. Raises
+    StudyError."""
     if not isinstance(raw, dict):
         raise StudyError(f'{where}: a study file must hold a mapping')
     unknown = sorted(set(raw) - _KNOWN)
@@ -110,7 +111,7 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
     width = len(str(len(points) * repeats - 1))
     costs = {}
     for point in points:
-        overrides = {**fixed, **point}
+        overrides = anchor_paths({**fixed, **point}, base)  # files: from the study's folder
         key = _frozen(overrides)
         if key not in costs:
             try:
@@ -119,7 +120,7 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
                 raise StudyError(f'{where}: run with {overrides}: {error}') from None
     runs = []
     for i, point in enumerate(points):
-        overrides = {**fixed, **point}
+        overrides = anchor_paths({**fixed, **point}, base)
         for repeat in range(repeats):
             index = i * repeats + repeat
             runs.append(Run(f'{index:0{width}d}', point, repeat, overrides,
