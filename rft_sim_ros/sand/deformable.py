@@ -24,11 +24,14 @@ The rule (volume conserving):
    node within reach the node keeps its sand (no footprint there).
 4. **Avalanche.** Around the nodes that changed, any pair of neighbouring nodes (axis and
    diagonal neighbours) steeper than the angle of repose exchanges sand until the slope
-   between them is at most tan(repose) (Gauss-Seidel sweeps, each bringing a pair to the
-   limit; settled within `SETTLED` of it); pending nodes (under a body) neither give nor
-   take. The window of the sweeps grows while sand flows across its border, and an unsettled
-   window carries over to the next step, so cost follows the nodes under and around
-   intruding bodies, not the bed size.
+   between them is at most tan(repose) (each exchange bringing a pair to the limit; settled
+   within `SETTLED` of it); pending nodes (under a body) neither give nor take. The work
+   follows a queue of nodes: those that changed (committed, given sand) are queued, a
+   visited node exchanges with each neighbour too far above or below it and queues it, and
+   is queued again itself when it moved sand; the queue empties once every pair around the
+   changes is within the limit. Cost follows the exchanges, around intruding bodies only:
+   not the bed size, nor the area between distant feet. At most `MAX_VISITS` node visits a
+   step; the rest of the queue carries over to the next step (counted as unsettled).
 
 Every transfer moves the same amount out of one node and into another, so the bed's volume
 is conserved up to floating-point rounding (sum of height changes x cell^2; tested to 1e-9
@@ -36,21 +39,20 @@ of the displaced volume). `reset()` restores the pristine surface exactly (a cop
 import numpy as np
 from numba import njit
 
-from .surface import BLOCK, HeightGrid
+from .surface import BLOCK, HeightGrid, block_maximum, block_minimum
 
 #: Rings (Chebyshev distance, nodes) searched for the rim that takes displaced sand.
 DEPOSIT_REACH = 100
-#: Sweeps of the avalanche per step at most (the rest carries over to the next step).
-MAX_SWEEPS = 64
+#: Node visits of the avalanche per step at most (the rest carries over to the next step).
+MAX_VISITS = 200_000
 #: A pair whose height difference exceeds the repose limit by less than this fraction of
 #: the limit counts as settled (slopes end within 0.1 % of tan(repose)).
 SETTLED = 1e-3
 
-#: The small int64 state vector: pending count; avalanche window (inclusive node bounds
-#: i0, i1 (x), j0, j1 (y)) and whether it is open; steps that ended with an unsettled
-#: window.
-COUNT, WI0, WI1, WJ0, WJ1, OPEN, UNSETTLED = range(7)
-STATE_SIZE = 7
+#: The small int64 state vector: pending count; the avalanche's work queue (first entry,
+#: length); steps that ended with nodes still queued; dirty blocks listed.
+COUNT, HEAD, QUEUED, UNSETTLED, DIRTY = range(5)
+STATE_SIZE = 5
 
 
 class DeformableSand(HeightGrid):
@@ -85,6 +87,10 @@ class DeformableSand(HeightGrid):
         self.state = np.zeros(STATE_SIZE, dtype=np.int64)
         self._committed = np.zeros(self.grid.size, dtype=np.int64)  # work space
         self._amount = np.zeros(self.grid.size)
+        self._queue = np.zeros(self.grid.size, dtype=np.int64)  # the avalanche's nodes to visit
+        self._in_queue = np.zeros(self.grid.shape, dtype=np.int8)
+        self._dirty = np.zeros(self.block_max.shape, dtype=np.int8)  # blocks to refresh
+        self._dirty_list = np.zeros(self.block_max.size, dtype=np.int64)
 
     @property
     def cell_area(self):
@@ -94,18 +100,23 @@ class DeformableSand(HeightGrid):
         """Commit the nodes left by their bodies at `step`, deposit and avalanche (rules
         2-4). Called by the engine after each gather."""
         settle(self.grid, self.block_max, self.block_min, self.stamp, self.lowest, self.pending,
-               self.state, self._committed, self._amount, step, self.rise)
+               self.state, self._committed, self._amount, self._queue, self._in_queue,
+               self._dirty, self._dirty_list, step, self.rise)
 
     def relax_all(self):
         """Avalanche the whole bed until settled (e.g. a pile made by hand); returns the
-        sweeps it took."""
-        ny, nx = self.grid.shape
-        self.state[WI0:OPEN + 1] = (0, nx - 1, 0, ny - 1, 1)
-        sweeps = 0
-        while self.state[OPEN]:
-            sweeps += avalanche(self.grid, self.stamp, self.state, self.rise)
-        refresh_blocks(self.grid, self.block_max, self.block_min, 0, nx - 1, 0, ny - 1)
-        return sweeps
+        node visits it took."""
+        self._queue[:] = np.arange(self.grid.size)  # every node queued, in order
+        self._in_queue[:] = 1
+        self.state[HEAD], self.state[QUEUED] = 0, self.grid.size
+        visits = 0
+        while self.state[QUEUED]:
+            visits += avalanche(self.grid, self.stamp, self._queue, self._in_queue, self.state,
+                                self._dirty, self._dirty_list, self.rise, MAX_VISITS)
+        self.block_max[:], self.block_min[:] = block_maximum(self.grid), block_minimum(self.grid)
+        self._dirty[:] = 0
+        self.state[DIRTY] = 0
+        return visits
 
     def reset(self):
         """The pristine surface again, nothing pending."""
@@ -113,6 +124,8 @@ class DeformableSand(HeightGrid):
         self.block_max[:], self.block_min[:] = self._pristine_blocks
         self.stamp[:] = -1
         self.state[:] = 0
+        self._in_queue[:] = 0
+        self._dirty[:] = 0
 
     def volume_change(self):
         """Net change of the bed's sand volume since the start (m^3): should stay ~0."""
@@ -183,8 +196,8 @@ def _mark_node(stamp, lowest, pending, state, nx, step, i, j, z):
 
 
 @njit(cache=True)
-def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed, amount, step,
-           rise):
+def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed, amount, queue,
+           in_queue, dirty, dirty_list, step, rise):
     """Rules 2-4 (module docstring) for the nodes that were pending before `step`; `rise`:
     see `avalanche`."""
     ny, nx = grid.shape
@@ -204,123 +217,129 @@ def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed,
         grid[j, i] -= amount[n_committed]
         n_committed += 1
     state[COUNT] = kept
-    if n_committed == 0:
-        if state[OPEN]:
-            _continue_avalanche(grid, block_max, block_min, stamp, state, rise)
-        return
-    i_lo, i_hi, j_lo, j_hi = nx, -1, ny, -1
     for c in range(n_committed):
         j, i = committed[c] // nx, committed[c] % nx
-        reach = _deposit(grid, stamp, i, j, amount[c]) + 1  # the avalanche's margin
-        i_lo, i_hi = min(i_lo, i - reach), max(i_hi, i + reach)
-        j_lo, j_hi = min(j_lo, j - reach), max(j_hi, j + reach)
+        _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, amount[c])
     for c in range(n_committed):
-        stamp[committed[c] // nx, committed[c] % nx] = -1
-    i_lo, i_hi = max(i_lo, 0), min(i_hi, nx - 1)
-    j_lo, j_hi = max(j_lo, 0), min(j_hi, ny - 1)
-    if state[OPEN]:  # join the window still settling from earlier steps
-        i_lo, i_hi = min(i_lo, state[WI0]), max(i_hi, state[WI1])
-        j_lo, j_hi = min(j_lo, state[WJ0]), max(j_hi, state[WJ1])
-    state[WI0], state[WI1], state[WJ0], state[WJ1], state[OPEN] = i_lo, i_hi, j_lo, j_hi, 1
-    _continue_avalanche(grid, block_max, block_min, stamp, state, rise)
+        j, i = committed[c] // nx, committed[c] % nx
+        stamp[j, i] = -1
+        _enqueue(queue, in_queue, state, nx, i, j)  # free again: its slopes are checked
+        _mark_dirty(dirty, dirty_list, state, i, j)
+    if state[QUEUED]:
+        avalanche(grid, stamp, queue, in_queue, state, dirty, dirty_list, rise, MAX_VISITS)
+        state[UNSETTLED] += state[QUEUED] > 0
+    _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, state)
 
 
 @njit(cache=True, inline='always')
-def _continue_avalanche(grid, block_max, block_min, stamp, state, rise):
-    """Avalanche the open window, refresh its blocks, count it if it is still unsettled."""
-    avalanche(grid, stamp, state, rise)
-    refresh_blocks(grid, block_max, block_min, state[WI0], state[WI1], state[WJ0], state[WJ1])
-    if not state[OPEN]:
+def _enqueue(queue, in_queue, state, nx, i, j):
+    """Add node (i, j) to the avalanche's queue, unless it is in it."""
+    if in_queue[j, i]:
         return
-    state[UNSETTLED] += 1
+    in_queue[j, i] = 1
+    size = queue.shape[0]
+    queue[(state[HEAD] + state[QUEUED]) % size] = j * nx + i
+    state[QUEUED] += 1
+
+
+@njit(cache=True, inline='always')
+def _mark_dirty(dirty, dirty_list, state, i, j):
+    """Note the blocks holding node (i, j) for `_refresh_dirty`."""
+    nby, nbx = dirty.shape
+    for bj in range(max((j - 1) // BLOCK, 0), min(j // BLOCK, nby - 1) + 1):
+        for bi in range(max((i - 1) // BLOCK, 0), min(i // BLOCK, nbx - 1) + 1):
+            if not dirty[bj, bi]:
+                dirty[bj, bi] = 1
+                dirty_list[state[DIRTY]] = bj * nbx + bi
+                state[DIRTY] += 1
 
 
 @njit(cache=True)
-def _deposit(grid, stamp, i, j, volume_height):
+def _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, state):
+    """Recompute the maxima and minima of the blocks `_mark_dirty` noted."""
+    ny, nx = grid.shape
+    nbx = dirty.shape[1]
+    for d in range(state[DIRTY]):
+        bj, bi = dirty_list[d] // nbx, dirty_list[d] % nbx
+        low, high = 1e300, -1e300
+        for j in range(bj * BLOCK, min((bj + 1) * BLOCK, ny - 1) + 1):
+            for i in range(bi * BLOCK, min((bi + 1) * BLOCK, nx - 1) + 1):
+                low, high = min(low, grid[j, i]), max(high, grid[j, i])
+        block_max[bj, bi], block_min[bj, bi] = high, low
+        dirty[bj, bi] = 0
+    state[DIRTY] = 0
+
+
+@njit(cache=True)
+def _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, volume_height):
     """Rule 3: spread `volume_height` (m of one node) evenly over the nearest ring of free
-    nodes around (i, j); keep it at (i, j) without one. Returns the ring's distance (nodes)."""
+    nodes around (i, j) (queued for the avalanche); keep it at (i, j) without one."""
     if volume_height <= 0.0:
-        return 0
+        return
     ny, nx = grid.shape
     for r in range(1, DEPOSIT_REACH + 1):
         free = 0
         for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
-            for ii in range(max(i - r, 0), min(i + r, nx - 1) + 1):
-                if max(abs(ii - i), abs(jj - j)) == r and stamp[jj, ii] == -1:
+            edge = abs(jj - j) == r
+            step = 1 if edge else 2 * r
+            for ii in range(i - r if edge else i - r, i + r + 1, step):
+                if 0 <= ii < nx and stamp[jj, ii] == -1:
                     free += 1
         if free == 0:
             continue
         share = volume_height / free
         given = 0.0
         for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
-            for ii in range(max(i - r, 0), min(i + r, nx - 1) + 1):
-                if max(abs(ii - i), abs(jj - j)) == r and stamp[jj, ii] == -1:
+            edge = abs(jj - j) == r
+            step = 1 if edge else 2 * r
+            for ii in range(i - r, i + r + 1, step):
+                if 0 <= ii < nx and stamp[jj, ii] == -1:
                     free -= 1
                     part = volume_height - given if free == 0 else share
                     grid[jj, ii] += part
                     given += part
-        return r
+                    _enqueue(queue, in_queue, state, nx, ii, jj)
+                    _mark_dirty(dirty, dirty_list, state, ii, jj)
+        return
     grid[j, i] += volume_height
-    return 0
 
 
 @njit(cache=True)
-def avalanche(grid, stamp, state, rise):
-    """Rule 4 within the window in `state` (up to MAX_SWEEPS sweeps): `rise` (m) is the
-    largest height difference allowed between axis neighbours (tan(repose) x cell; x sqrt 2
-    between diagonal ones). Grows the window where sand crosses its border, closes it
-    (state[OPEN] = 0) once settled. Returns the sweeps."""
+def avalanche(grid, stamp, queue, in_queue, state, dirty, dirty_list, rise, visits):
+    """Rule 4 over the queued nodes (up to `visits` of them): `rise` (m) is the largest
+    height difference allowed between axis neighbours (tan(repose) x cell; x sqrt 2 between
+    diagonal ones). A visited node that is not pending brings each free neighbour that is
+    too far above or below it to the limit (half the excess each way) and queues it, and is
+    queued again itself when it moved sand. Returns the visits made."""
     ny, nx = grid.shape
-    sweeps = 0
-    while sweeps < MAX_SWEEPS:
-        sweeps += 1
-        i0, i1, j0, j1 = state[WI0], state[WI1], state[WJ0], state[WJ1]
+    size = queue.shape[0]
+    done = 0
+    while state[QUEUED] > 0 and done < visits:
+        index = queue[state[HEAD]]
+        state[HEAD] = (state[HEAD] + 1) % size
+        state[QUEUED] -= 1
+        j, i = index // nx, index % nx
+        in_queue[j, i] = 0
+        done += 1
+        if stamp[j, i] >= 0:
+            continue
         moved = False
-        grow_i0 = grow_i1 = grow_j0 = grow_j1 = False
-        for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                if stamp[j, i] >= 0:
+        for jj in range(max(j - 1, 0), min(j + 1, ny - 1) + 1):
+            for ii in range(max(i - 1, 0), min(i + 1, nx - 1) + 1):
+                if (ii == i and jj == j) or stamp[jj, ii] >= 0:
                     continue
-                for d in range(4):  # neighbours (+1, 0), (0, +1), (+1, +1), (-1, +1)
-                    di = 1 if d != 1 else 0
-                    if d == 3:
-                        di = -1
-                    dj = 0 if d == 0 else 1
-                    ii, jj = i + di, j + dj
-                    if ii < 0 or ii >= nx or jj >= ny or stamp[jj, ii] >= 0:
-                        continue
-                    diff = grid[j, i] - grid[jj, ii]
-                    excess = abs(diff) - rise * (1.4142135623730951 if d >= 2 else 1.0)
-                    if excess <= SETTLED * rise:
-                        continue
-                    transfer = 0.5 * excess if diff > 0 else -0.5 * excess
-                    grid[j, i] -= transfer
-                    grid[jj, ii] += transfer
-                    moved = True
-                    grow_i0 |= min(i, ii) <= i0
-                    grow_i1 |= max(i, ii) >= i1
-                    grow_j0 |= j <= j0
-                    grow_j1 |= jj >= j1
-        if not moved:
-            state[OPEN] = 0
-            return sweeps
-        state[WI0] = max(i0 - 1, 0) if grow_i0 else i0
-        state[WI1] = min(i1 + 1, nx - 1) if grow_i1 else i1
-        state[WJ0] = max(j0 - 1, 0) if grow_j0 else j0
-        state[WJ1] = min(j1 + 1, ny - 1) if grow_j1 else j1
-    return sweeps
-
-
-@njit(cache=True)
-def refresh_blocks(grid, block_max, block_min, i_lo, i_hi, j_lo, j_hi):
-    """Recompute the block maxima and minima of the blocks holding nodes [i_lo, i_hi] x
-    [j_lo, j_hi] (a node n sits in blocks n // BLOCK and, at a block's end, (n - 1) // BLOCK)."""
-    ny, nx = grid.shape
-    for bj in range(max((j_lo - 1) // BLOCK, 0), min(j_hi // BLOCK, block_max.shape[0] - 1) + 1):
-        for bi in range(max((i_lo - 1) // BLOCK, 0),
-                        min(i_hi // BLOCK, block_max.shape[1] - 1) + 1):
-            low, high = 1e300, -1e300
-            for j in range(bj * BLOCK, min((bj + 1) * BLOCK, ny - 1) + 1):
-                for i in range(bi * BLOCK, min((bi + 1) * BLOCK, nx - 1) + 1):
-                    low, high = min(low, grid[j, i]), max(high, grid[j, i])
-            block_max[bj, bi], block_min[bj, bi] = high, low
+                limit = rise * (1.4142135623730951 if ii != i and jj != j else 1.0)
+                diff = grid[j, i] - grid[jj, ii]
+                excess = abs(diff) - limit
+                if excess <= SETTLED * rise:
+                    continue
+                transfer = 0.5 * excess if diff > 0 else -0.5 * excess
+                grid[j, i] -= transfer
+                grid[jj, ii] += transfer
+                moved = True
+                _enqueue(queue, in_queue, state, nx, ii, jj)
+                _mark_dirty(dirty, dirty_list, state, ii, jj)
+        if moved:
+            _enqueue(queue, in_queue, state, nx, i, j)
+            _mark_dirty(dirty, dirty_list, state, i, j)
+    return done
