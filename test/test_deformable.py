@@ -164,6 +164,23 @@ def test_a_deformable_run_saves_its_final_surface_and_reports_its_volume(tmp_pat
                       progress=False)
     assert 'sand_volume_change_m3' not in rigid['metrics']
     assert not (tmp_path / 'rigid' / 'terrain.npy').exists()
+    assert metrics['plates_in_sand_outside_bed'] == 0
+    assert not any('outside the deformable bed' in notice for notice in summary['notices'])
+
+
+def test_plates_in_the_sand_outside_the_bed_are_counted_and_warned_about_once(tmp_path):
+    """A bed smaller than the plate (0.06 m against 0.1 m): the plate's rim is in the sand
+    outside it, leaves no footprint there, and the run says so once, with what to change."""
+    from rft_sim_ros.sim.runner import run_scene
+    lines = []
+    small = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.06, 0.06]}
+    summary = run_scene(load_scene('plate_drop', small), out_dir=tmp_path, duration=0.3,
+                        progress=False, log=lines.append)
+    assert summary['metrics']['plates_in_sand_outside_bed'] > 0
+    warned = [line for line in lines if 'outside the deformable bed' in line]
+    assert len(warned) == 1 and 'x -0.03 .. 0.03 m' in warned[0]
+    assert 'sand.deformable.size' in warned[0] and warned[0] in [
+        f'warning: {notice}' for notice in summary['notices']]
 
 
 @pytest.mark.slow

@@ -180,6 +180,21 @@ def test_runtime_publishes_terrain_with_the_state_and_resets_it():
     assert len(sink.terrain[-1].deformed) == 0  # the pristine surface was published
 
 
+def test_runtime_warns_once_when_plates_are_in_the_sand_outside_the_bed():
+    small = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.06, 0.06]}
+    warnings = []
+    sim = Simulation(load_scene('plate_drop', small))
+    runtime = SimRuntime(sim, _Sink(), publish_rate=100.0, paused=True,
+                         terrain=TerrainFeed(sim.engine.surface), warn=warnings.append)
+    for _ in range(30):
+        runtime.step()
+    assert len(warnings) == 1 and 'outside the deformable bed' in warnings[0]
+    runtime.reset()  # a new run: warned again if it happens again
+    for _ in range(30):
+        runtime.step()
+    assert len(warnings) == 2
+
+
 def test_reset_terrain_on_rigid_sand_says_there_is_nothing_to_reset():
     runtime = SimRuntime(Simulation(load_scene('plate_drop')), _Sink(), publish_rate=100.0)
     result = runtime.reset_terrain()

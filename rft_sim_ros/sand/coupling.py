@@ -318,7 +318,8 @@ def _gather_plates(arrays, kind, deform):
                     v = (oy + r10 * lx + r11 * ly + r12 * lz - gy0) * g_idy
                     depth = (node_height(grid, u, v) if lookup else level) - pz
                     if deform and depth > 0.0:
-                        touched = touch_cell(grid, u, v, pz, cells, cell_z, touched)
+                        touched = touch_cell(grid, u, v, pz, cells, cell_z, touched,
+                                             deform_state)
                 if depth <= 0.0:
                     continue
                 if not motion_first:

@@ -50,9 +50,10 @@ MAX_VISITS = 200_000
 SETTLED = 1e-3
 
 #: The small int64 state vector: pending count; the avalanche's work queue (first entry,
-#: length); steps that ended with nodes still queued; dirty blocks listed.
-COUNT, HEAD, QUEUED, UNSETTLED, DIRTY = range(5)
-STATE_SIZE = 5
+#: length); steps that ended with nodes still queued; dirty blocks listed; plates found in
+#: the sand outside the bed (where they leave no footprint).
+COUNT, HEAD, QUEUED, UNSETTLED, DIRTY, OUTSIDE = range(6)
+STATE_SIZE = 6
 
 
 class DeformableSand(HeightGrid):
@@ -143,22 +144,30 @@ class DeformableSand(HeightGrid):
         """Deepest point below the pristine surface, m."""
         return float(max(0.0, (self.pristine - self.grid).max()))
 
+    @property
+    def plates_outside(self):
+        """Plates found in the sand outside the bed so far (each step each counts once):
+        there the surface stays as it is and they leave no footprint."""
+        return int(self.state[OUTSIDE])
+
     def metrics(self):
         """Summary metrics of a deformable run (SI)."""
         return {'sand_volume_change_m3': self.volume_change(),
                 'max_footprint_depth_m': self.max_footprint_depth(),
                 'sand_displaced_m3': self.displaced_volume(),
-                'sand_piled_m3': self.piled_volume()}
+                'sand_piled_m3': self.piled_volume(),
+                'plates_in_sand_outside_bed': self.plates_outside}
 
 
 @njit(cache=True, inline='always')
-def touch_cell(grid, u, v, z, cells, cell_z, count):
+def touch_cell(grid, u, v, z, cells, cell_z, count, state):
     """Note a plate at height z (m) at node coordinates (u, v) in the list of cells a body's
     plates are in (`cells[:count]`, flat indices j * nx + i of each cell's lower-left node,
-    in order of first touch; `cell_z`: the lowest z in each); outside the bed: nothing.
-    Returns the new count."""
+    in order of first touch; `cell_z`: the lowest z in each); outside the bed: only counted
+    (state[OUTSIDE]). Returns the new count."""
     ny, nx = grid.shape
     if u < 0.0 or v < 0.0 or u >= nx - 1 or v >= ny - 1:
+        state[OUTSIDE] += 1
         return count
     cell = int(v) * nx + int(u)
     m = count - 1

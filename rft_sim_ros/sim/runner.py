@@ -214,6 +214,11 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
                     recorder.record(state)
                 recording += time.perf_counter() - recording_started
                 bar.update(done)
+                left_bed = sim.terrain_warning()
+                if left_bed:
+                    sim.notices.append(left_bed)
+                    if log is not None:
+                        log(f'warning: {left_bed}')
             _run_due(actions, done, sim, changes)
     except SimulationDiverged as error:
         reason = f'diverged {error}'

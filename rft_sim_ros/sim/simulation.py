@@ -228,6 +228,7 @@ class Simulation:
         handler holding it, cleared divergence flags."""
         self.diverged = None
         self._warnings = self._warning_count()
+        self._left_bed = False
         self._initial_pose()
         self.scenario.initialize(self)
         kind, height = self._spawn
@@ -364,6 +365,18 @@ class Simulation:
     def terrain_metrics(self):
         """Deformable sand's summary metrics (`DeformableSand.metrics`); {} on rigid sand."""
         return self.engine.surface.metrics() if self.engine.deformable else {}
+
+    def terrain_warning(self):
+        """Once a run (and after each reset): why part of the robot leaves no footprints, the
+        first time its plates are found in the sand outside the deformable bed; else None."""
+        sand = self.engine.surface
+        if self._left_bed or not self.engine.deformable or not sand.plates_outside:
+            return None
+        self._left_bed = True
+        (x0, y0), (sx, sy) = sand.origin, sand.size
+        return (f'by t = {self.time:.2f} s plates were in the sand outside the deformable bed '
+                f'(x {x0:.3g} .. {x0 + sx:.3g} m, y {y0:.3g} .. {y0 + sy:.3g} m): they leave no '
+                'footprints there; enlarge sand.deformable.size or move sand.deformable.center')
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean
