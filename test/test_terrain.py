@@ -6,6 +6,7 @@ import pytest
 from test_engine import _arm, _random_state
 
 from rft_sim_ros.rft import body_wrench
+from rft_sim_ros.sand.deformable import COUNT, DeformableSand
 from rft_sim_ros.sand.engine import LowVelocity
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,
@@ -74,6 +75,53 @@ def test_depth_below_a_shaped_surface_is_vertical_below_the_local_height(surface
         torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
         assert np.allclose(wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
         assert np.allclose(wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
+
+
+#: Per _random_state seed: (x, y) m near the middle of the plates in the sand.
+IN_SAND = {0: (0.065, 0.095), 1: (0.2, 0.008), 2: (0.145, -0.006)}
+
+
+@pytest.mark.parametrize('seed', range(3))
+@pytest.mark.parametrize('base', [
+    Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
+    HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
+               size=(1.5, 1.2), center=(0.05, 0.0))])
+def test_beyond_a_deformable_bed_its_base_surface_carries_the_plates(base, seed):
+    """A deformable bed over part of the plates in the sand (its edge through their middle):
+    the plates over the bed read the bed, the others its base (a slope, a grid), each at its
+    own (x, y) as the reference law; only those over the bed mark footprints."""
+    x, y = IN_SAND[seed]
+    bed = DeformableSand(base, size=(0.1, 0.2), cell=0.01, center=(x - 0.05, y))
+    model, data, engine, wrenches = _wrenches(bed, seed)
+    assert bed.plates_outside > 0 and bed.state[COUNT] > 0  # plates beyond it, and over it
+    beyond = np.array([[x + 0.01, y], [x + 0.3, y + 0.2], [x - 0.5, y - 0.4]])
+    assert np.array_equal(bed.height(beyond[:, 0], beyond[:, 1]),
+                          base.height(beyond[:, 0], beyond[:, 1]))
+    for i, name in enumerate(engine.body_names):
+        body = model.body(name).id
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, body, velocity, 0)
+        plates = body_plates(model, body, count=300)
+        rotation = data.xmat[body].reshape(3, 3)
+        world = plates.centroids @ rotation.T + data.xpos[body]
+        heights = bed.height(world[:, 0], world[:, 1])
+        force, torque = body_wrench(plates, data.xpos[body], rotation, velocity[3:],
+                                    velocity[:3], 2.0, surface_height=heights)
+        torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
+        assert np.allclose(wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
+        assert np.allclose(wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_far_from_its_deformable_bed_a_slope_acts_as_the_slope_itself(seed):
+    """Bodies wholly beyond the bed: they are found in the sand by the base's own bounds
+    (a 12 deg slope rising under them) and feel what the rigid slope gives them."""
+    slope = Slope(0.02, angle_deg=12.0, downhill_deg=35.0)
+    bed = DeformableSand(slope, size=(0.2, 0.2), cell=0.01, center=(3.0, 3.0))
+    *_, rigid = _wrenches(slope, seed)
+    *_, engine, far = _wrenches(bed, seed)
+    assert engine.plates_active > 0 and bed.plates_outside > 0 and bed.state[COUNT] == 0
+    assert np.allclose(far, rigid, rtol=1e-9, atol=1e-12)
 
 
 def test_bodies_above_a_hill_are_skipped_but_not_bodies_in_it():

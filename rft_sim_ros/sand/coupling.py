@@ -37,9 +37,10 @@ from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
-from .deformable import mark_cells, touch_cell
+from .deformable import OUTSIDE, mark_cells, touch_cell
 from .surface import FLAT, GRID, SLOPE
-from .surface_kernels import grid_range, map_factor, node_height, surface_range
+from .surface_kernels import (base_height, bed_range, beyond_grid, grid_range, map_factor,
+                              node_height, surface_range)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -89,12 +90,15 @@ PLATE_ROWS = LAW_ROWS + 7
 #: (1/0), and the implicit law's rest speed v_reg (m/s), joint damping and actuator velocity
 #: gains (1/0) implicit; then the surface (`surface.SurfaceData`; its kind is the gather
 #: kernel's, `gather_kernel`): the slope's gradient dh/dx, dh/dy, the grid's node [0, 0]
-#: (x, y) m and 1/spacing (1/m); and the zeta map: whether there is one (1/0), its cell
-#: [0, 0] corner (x, y) m and 1/cell (1/m).
+#: (x, y) m and 1/spacing (1/m); the zeta map: whether there is one (1/0), its cell
+#: [0, 0] corner (x, y) m and 1/cell (1/m); and, for deformable sand, its base beyond the
+#: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
+#: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
- ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY) = range(20)
-SETTING_COUNT = 20
+ ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY,
+ BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY) = range(25)
+SETTING_COUNT = 25
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
@@ -108,8 +112,10 @@ GatherArrays = namedtuple('GatherArrays', [
     # the engine's settings and counters, plates and clusters
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
     'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
-    # the surface's grid, block maximum and minimum (`surface.SurfaceData`); zeta map factors
+    # the surface's grid, block maximum and minimum (`surface.SurfaceData`); zeta map factors;
+    # deformable sand's base grid, block maximum and minimum (beyond the bed; a grid base)
     'surface_grid', 'surface_block_max', 'surface_block_min', 'zeta_factors',
+    'base_grid', 'base_block_max', 'base_block_min',
     # deformable sand's footprint marks (`deformable.DeformableSand`) and the cells one
     # cluster's plates touch (work space, one entry per plate of the largest cluster)
     'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cells',
@@ -182,7 +188,9 @@ def _gather_plates(arrays, kind, deform):
     sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
     blocks' maximum read the grid. On deformable sand (`deform`) the plates below the surface
     mark their footprint cells (`deformable.mark_cells`), each cell once per cluster with
-    its lowest plate z (the same marks, in the same order, as one per plate).
+    its lowest plate z (the same marks, in the same order, as one per plate); beyond the
+    bed its base (plane, slope or grid: `_deformable_base`) gives the depth, and bounds the
+    bodies and clusters that reach out there, and a plate there marks nothing.
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
     that the depth test reads positions only). A plate below the surface first has
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
@@ -219,6 +227,8 @@ def _gather_plates(arrays, kind, deform):
     pending = int_vector(arrays, a.deform_pending)
     deform_state = int_vector(arrays, a.deform_state)
     cells, cell_z = int_vector(arrays, a.deform_cells), float_vector(arrays, a.deform_cell_z)
+    bed_u, bed_v = grid.shape[1] - 1.0, grid.shape[0] - 1.0  # deformable sand: the bed's
+    # last node coordinates; beyond them its base (`_deformable_base`)
     step = counters[STEPS]
     body_ids, radii = int_vector(arrays, a.body_ids), float_vector(arrays, a.radii)
     body_cluster_start = int_vector(arrays, a.body_cluster_start)
@@ -240,9 +250,17 @@ def _gather_plates(arrays, kind, deform):
     slots = 0
     for i in range(body_ids.shape[0]):
         b = body_ids[i]
-        body_low, body_top = surface_range(kind, surface_height, gx, gy, g_norm, grid,
-                                           block_max, block_min, gx0, gy0, g_idx, g_idy,
-                                           xpos[b, 0], xpos[b, 1], radii[i])
+        # deformable sand: whether plates of this body may lie beyond the bed (on its base)
+        off_bed = deform and beyond_grid(grid, gx0, gy0, g_idx, g_idy, xpos[b, 0], xpos[b, 1],
+                                         radii[i])
+        if deform:
+            body_low, body_top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
+                                           xpos[b, 0], xpos[b, 1], radii[i],
+                                           _deformable_base(arrays))
+        else:
+            body_low, body_top = surface_range(kind, surface_height, gx, gy, g_norm, grid,
+                                               block_max, block_min, gx0, gy0, g_idx, g_idy,
+                                               xpos[b, 0], xpos[b, 1], radii[i])
         if xpos[b, 2] - radii[i] >= body_top:
             continue
         top = body_top
@@ -283,10 +301,15 @@ def _gather_plates(arrays, kind, deform):
                 if flat or body_low == body_top:  # level under the body: under the cluster
                     level = body_top
                 else:
-                    low, top = grid_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
-                                          ox + r00 * ccx + r01 * ccy + r02 * ccz,
-                                          oy + r10 * ccx + r11 * ccy + r12 * ccz,
-                                          cluster_radius[c])
+                    wx_c = ox + r00 * ccx + r01 * ccy + r02 * ccz  # the cluster's centre
+                    wy_c = oy + r10 * ccx + r11 * ccy + r12 * ccz
+                    if deform:
+                        low, top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx,
+                                             g_idy, wx_c, wy_c, cluster_radius[c],
+                                             _deformable_base(arrays))
+                    else:
+                        low, top = grid_range(grid, block_max, block_min, gx0, gy0, g_idx,
+                                              g_idy, wx_c, wy_c, cluster_radius[c])
                     level, lookup = top, low != top
                 if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= top:
                     continue
@@ -316,10 +339,18 @@ def _gather_plates(arrays, kind, deform):
                 else:  # a grid, at the plate's node coordinates (u, v)
                     u = (ox + r00 * lx + r01 * ly + r02 * lz - gx0) * g_idx
                     v = (oy + r10 * lx + r11 * ly + r12 * lz - gy0) * g_idy
-                    depth = (node_height(grid, u, v) if lookup else level) - pz
-                    if deform and depth > 0.0:
-                        touched = touch_cell(grid, u, v, pz, cells, cell_z, touched,
-                                             deform_state)
+                    if off_bed and (u < 0.0 or v < 0.0 or u > bed_u or v > bed_v):
+                        # beyond the bed: its base, where a plate leaves no footprint
+                        depth = (base_height(_deformable_base(arrays),
+                                             ox + r00 * lx + r01 * ly + r02 * lz,
+                                             oy + r10 * lx + r11 * ly + r12 * lz)
+                                 if lookup else level) - pz
+                        deform_state[OUTSIDE] += depth > 0.0
+                    else:
+                        depth = (node_height(grid, u, v) if lookup else level) - pz
+                        if deform and depth > 0.0:
+                            touched = touch_cell(grid, u, v, pz, cells, cell_z, touched,
+                                                 deform_state)
                 if depth <= 0.0:
                     continue
                 if not motion_first:
@@ -362,6 +393,19 @@ def _gather_plates(arrays, kind, deform):
                    force[1], force[2])
     counters[STEPS] += 1
     counters[GATHERED], counters[LEADING], counters[SLOTS] = k, leading_count, slots
+
+
+@njit(inline='always')
+def _deformable_base(arrays):
+    """Deformable sand's base beyond the bed (`surface_kernels.base_height`), from the gather
+    table's settings (BASE_KIND; SURFACE, SLOPE_X, SLOPE_Y; BASE_X0 ...) and base arrays."""
+    a = GATHER
+    settings = float_vector(arrays, a.settings)
+    gx, gy = settings[SLOPE_X], settings[SLOPE_Y]
+    return (np.int64(settings[BASE_KIND]), settings[SURFACE], gx, gy, np.sqrt(gx * gx + gy * gy),
+            float_matrix(arrays, a.base_grid), float_matrix(arrays, a.base_block_max),
+            float_matrix(arrays, a.base_block_min), settings[BASE_X0], settings[BASE_Y0],
+            settings[BASE_INV_DX], settings[BASE_INV_DY])
 
 
 @njit(inline='always')

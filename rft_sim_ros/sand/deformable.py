@@ -3,7 +3,9 @@
 `DeformableSand` is a `HeightGrid` (so the kernels read its depth like any height field)
 over a bed of `size` [x, y] m centred on `center`, with square cells of side `cell` m (one
 node per cell; a node's sand column holds height x cell^2 of volume), initialised from a
-base surface (plane, slope, grid) at the nodes. Outside the bed the edge values continue.
+base surface (plane, slope, grid) at the nodes. Beyond the bed its base carries the plates,
+unchanged (`height`; the gather kernel reads it there too) and they leave no footprints
+(counted: `plates_outside`).
 
 The rule (volume conserving):
 
@@ -92,6 +94,20 @@ class DeformableSand(HeightGrid):
         self._in_queue = np.zeros(self.grid.shape, dtype=np.int8)
         self._dirty = np.zeros(self.block_max.shape, dtype=np.int8)  # blocks to refresh
         self._dirty_list = np.zeros(self.block_max.size, dtype=np.int64)
+
+    def height(self, x, y):
+        """The bed's height (bilinear between its nodes) over the bed, the base's beyond."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        (x0, y0), (sx, sy) = self.origin, self.size
+        inside = (x >= x0) & (x <= x0 + sx) & (y >= y0) & (y <= y0 + sy)
+        return np.where(inside, super().height(x, y), self.base.height(x, y))
+
+    def highest(self, x0, x1, y0, y1):
+        top = super().highest(x0, x1, y0, y1)  # (the bed's edge nodes, where it reaches out)
+        (bx, by), (sx, sy) = self.origin, self.size
+        if x0 < bx or y0 < by or x1 > bx + sx or y1 > by + sy:
+            top = max(top, self.base.highest(x0, x1, y0, y1))
+        return top
 
     @property
     def cell_area(self):

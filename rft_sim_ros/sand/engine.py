@@ -112,8 +112,8 @@ class SandEngine:
         self._settings = np.zeros(coupling.SETTING_COUNT)
         self._counters = np.zeros(coupling.COUNTER_COUNT, dtype=np.int64)
         self.surface = Plane(surface_height) if surface is None else surface
-        self._set_surface(self.surface.data)
         self.deformable = isinstance(self.surface, DeformableSand)
+        self._set_surface(self.surface)
         self._gather = coupling.gather_kernel(self.surface.data.kind, self.deformable)
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
@@ -158,16 +158,27 @@ class SandEngine:
         self._views()
         self._load_kernels()
 
-    def _set_surface(self, data):
-        """Write a `surface.SurfaceData` into the kernels' settings; keep its arrays."""
+    def _set_surface(self, surface):
+        """Write the surface's `surface.SurfaceData` into the kernels' settings and keep its
+        arrays; deformable sand's is its bed's, and its base's (read beyond the bed) goes
+        in too: a plane or slope as SURFACE, SLOPE_X, SLOPE_Y, a grid as the BASE_ settings
+        and arrays."""
         settings = self._settings
-        settings[coupling.SURFACE] = data.height
-        settings[coupling.SLOPE_X], settings[coupling.SLOPE_Y] = data.gradient
+        data = surface.data
+        base = surface.base.data if self.deformable else data
+        settings[coupling.SURFACE] = base.height
+        settings[coupling.SLOPE_X], settings[coupling.SLOPE_Y] = base.gradient
         settings[coupling.GRID_X0], settings[coupling.GRID_Y0] = data.origin
         settings[coupling.GRID_INV_DX] = 1.0 / data.spacing[0]
         settings[coupling.GRID_INV_DY] = 1.0 / data.spacing[1]
+        settings[coupling.BASE_KIND] = base.kind
+        settings[coupling.BASE_X0], settings[coupling.BASE_Y0] = base.origin
+        settings[coupling.BASE_INV_DX] = 1.0 / base.spacing[0]
+        settings[coupling.BASE_INV_DY] = 1.0 / base.spacing[1]
         self._surface_grid = data.grid
         self._surface_block_max, self._surface_block_min = data.block_max, data.block_min
+        self._base_arrays = dict(base_grid=base.grid, base_block_max=base.block_max,
+                                 base_block_min=base.block_min)
 
     def _cluster(self, plates):
         """Store all plates, body by body and within a body cluster by cluster, with the
@@ -227,6 +238,7 @@ class SandEngine:
             normals=self.local_normal, areas=self.areas, surface_grid=self._surface_grid,
             surface_block_max=self._surface_block_max,
             surface_block_min=self._surface_block_min, zeta_factors=self._zeta_factors,
+            **self._base_arrays,
             **self._footprint_arrays(),
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,

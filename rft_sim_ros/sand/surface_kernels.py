@@ -1,5 +1,6 @@
-"""Compiled look-ups of the sand surface (`surface.SurfaceData`) and of the zeta map, inlined
-into the gather kernels (`coupling.gather_kernel`). World frame, m.
+"""Compiled look-ups of the sand surface (`surface.SurfaceData`), of deformable sand's base
+beyond its bed, and of the zeta map, inlined into the gather kernels
+(`coupling.gather_kernel`). World frame, m.
 
 The grid is read in node coordinates u = (x - x0) / dx, v = (y - y0) / dy, clamped to the
 grid, so the edge values continue outside it.
@@ -7,7 +8,7 @@ grid, so the edge values continue outside it.
 import numpy as np
 from numba import njit
 
-from .surface import BLOCK, FLAT, SLOPE
+from .surface import BLOCK, FLAT, GRID, SLOPE
 
 
 @njit(inline='always')
@@ -52,6 +53,39 @@ def surface_range(kind, level, gx, gy, g_norm, grid, block_max, block_min, x0, y
         middle = level + gx * x + gy * y
         return middle - r * g_norm, middle + r * g_norm
     return grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r)
+
+
+@njit(inline='always')
+def base_height(base, x, y):
+    """Height of deformable sand's base at world (x, y), m (beyond the bed). base: (kind,
+    level, gx, gy, g_norm, grid, block_max, block_min, x0, y0, inv_dx, inv_dy) of a plane or
+    slope (level, gradient) or a grid (its arrays, node [0, 0] and 1/spacing)."""
+    kind, level, gx, gy, _, grid, _, _, x0, y0, inv_dx, inv_dy = base
+    if kind == GRID:
+        return node_height(grid, (x - x0) * inv_dx, (y - y0) * inv_dy)
+    return level + gx * x + gy * y
+
+
+@njit(inline='always')
+def beyond_grid(grid, x0, y0, inv_dx, inv_dy, x, y, r):
+    """Whether the square |x' - x|, |y' - y| <= r (m) reaches beyond the grid's nodes."""
+    ny, nx = grid.shape
+    return ((x - r - x0) * inv_dx < 0.0 or (y - r - y0) * inv_dy < 0.0
+            or (x + r - x0) * inv_dx > nx - 1.0 or (y + r - y0) * inv_dy > ny - 1.0)
+
+
+@njit(inline='always')
+def bed_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r, base):
+    """Bounds (low, high) of deformable sand's surface within horizontal distance r of (x, y),
+    m: the bed's blocks (`grid_range`), and where the square reaches beyond the bed also the
+    base's bounds there (`surface_range`; base as in `base_height`)."""
+    low, high = grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r)
+    if beyond_grid(grid, x0, y0, inv_dx, inv_dy, x, y, r):
+        kind, level, gx, gy, g_norm, b_grid, b_max, b_min, b_x0, b_y0, b_idx, b_idy = base
+        b_low, b_high = surface_range(kind, level, gx, gy, g_norm, b_grid, b_max, b_min,
+                                      b_x0, b_y0, b_idx, b_idy, x, y, r)
+        low, high = min(low, b_low), max(high, b_high)
+    return low, high
 
 
 @njit(inline='always')
