@@ -303,7 +303,7 @@ def _gather_plates(arrays, kind, deform):
                 else:
                     wx_c = ox + r00 * ccx + r01 * ccy + r02 * ccz  # the cluster's centre
                     wy_c = oy + r10 * ccx + r11 * ccy + r12 * ccz
-                    if deform:
+                    if off_bed:  # (deformable sand, a body reaching beyond the bed)
                         low, top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx,
                                              g_idy, wx_c, wy_c, cluster_radius[c],
                                              _deformable_base(arrays))
