@@ -16,6 +16,13 @@ from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 
+#: A slope and a rippled height grid, for the tests of depth below a shaped surface.
+SHAPED = [
+    Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
+    HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
+               size=(1.5, 1.2), center=(0.05, 0.0))]
+
+
 def _engine(surface=None, zeta_map=None, **options):
     return _arm(surface=surface, zeta_map=zeta_map, **options)
 
@@ -26,6 +33,24 @@ def _wrenches(surface, seed, zeta_map=None):
     mujoco.mj_step1(model, data)
     engine.apply()
     return model, data, engine, engine.body_wrenches.copy()
+
+
+def _assert_reference_law(model, data, engine, wrenches, surface):
+    """Each body's engine wrench equals the reference law's (`rft.body_wrench`) with every
+    plate's depth measured vertically below `surface.height` at its own (x, y)."""
+    for i, name in enumerate(engine.body_names):
+        body = model.body(name).id
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, body, velocity, 0)
+        plates = body_plates(model, body, count=300)
+        rotation = data.xmat[body].reshape(3, 3)
+        world = plates.centroids @ rotation.T + data.xpos[body]
+        heights = surface.height(world[:, 0], world[:, 1])
+        force, torque = body_wrench(plates, data.xpos[body], rotation, velocity[3:],
+                                    velocity[:3], 2.0, surface_height=heights)
+        torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
+        assert np.allclose(wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
+        assert np.allclose(wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize('seed', range(3))
@@ -53,28 +78,13 @@ def test_a_grid_level_under_the_bodies_only_gives_exactly_the_planes_forces(seed
 
 
 @pytest.mark.parametrize('seed', range(3))
-@pytest.mark.parametrize('surface', [
-    Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
-    HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
-               size=(1.5, 1.2), center=(0.05, 0.0))])
+@pytest.mark.parametrize('surface', SHAPED)
 def test_depth_below_a_shaped_surface_is_vertical_below_the_local_height(surface, seed):
     """The engine's wrench equals the reference law with each plate's depth measured
     vertically below the surface height at its own (x, y)."""
     model, data, engine, wrenches = _wrenches(surface, seed)
     assert engine.plates_active > 0
-    for i, name in enumerate(engine.body_names):
-        body = model.body(name).id
-        velocity = np.zeros(6)
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, body, velocity, 0)
-        plates = body_plates(model, body, count=300)
-        rotation = data.xmat[body].reshape(3, 3)
-        world = plates.centroids @ rotation.T + data.xpos[body]
-        heights = surface.height(world[:, 0], world[:, 1])
-        force, torque = body_wrench(plates, data.xpos[body], rotation, velocity[3:],
-                                    velocity[:3], 2.0, surface_height=heights)
-        torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
-        assert np.allclose(wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
-        assert np.allclose(wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
+    _assert_reference_law(model, data, engine, wrenches, surface)
 
 
 #: Per _random_state seed: (x, y) m near the middle of the plates in the sand.
@@ -82,10 +92,7 @@ IN_SAND = {0: (0.065, 0.095), 1: (0.2, 0.008), 2: (0.145, -0.006)}
 
 
 @pytest.mark.parametrize('seed', range(3))
-@pytest.mark.parametrize('base', [
-    Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
-    HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
-               size=(1.5, 1.2), center=(0.05, 0.0))])
+@pytest.mark.parametrize('base', SHAPED)
 def test_beyond_a_deformable_bed_its_base_surface_carries_the_plates(base, seed):
     """A deformable bed over part of the plates in the sand (its edge through their middle):
     the plates over the bed read the bed, the others its base (a slope, a grid), each at its
@@ -97,19 +104,7 @@ def test_beyond_a_deformable_bed_its_base_surface_carries_the_plates(base, seed)
     beyond = np.array([[x + 0.01, y], [x + 0.3, y + 0.2], [x - 0.5, y - 0.4]])
     assert np.array_equal(bed.height(beyond[:, 0], beyond[:, 1]),
                           base.height(beyond[:, 0], beyond[:, 1]))
-    for i, name in enumerate(engine.body_names):
-        body = model.body(name).id
-        velocity = np.zeros(6)
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, body, velocity, 0)
-        plates = body_plates(model, body, count=300)
-        rotation = data.xmat[body].reshape(3, 3)
-        world = plates.centroids @ rotation.T + data.xpos[body]
-        heights = bed.height(world[:, 0], world[:, 1])
-        force, torque = body_wrench(plates, data.xpos[body], rotation, velocity[3:],
-                                    velocity[:3], 2.0, surface_height=heights)
-        torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)
-        assert np.allclose(wrenches[i, :3], force, rtol=1e-9, atol=1e-12)
-        assert np.allclose(wrenches[i, 3:], torque_about_com, rtol=1e-9, atol=1e-12)
+    _assert_reference_law(model, data, engine, wrenches, bed)
 
 
 @pytest.mark.parametrize('seed', range(3))
