@@ -228,3 +228,47 @@ def test_a_xacro_urdf_robot_gets_its_limits_initial_values_and_feet(tmp_path):
     sim.step(1000)
     assert np.linalg.norm(sim.data.xpos[base] - start) < 2e-3  # settled by spawn rest
     assert sim.data.qpos[hip] == pytest.approx(0.4, abs=0.02)
+
+
+FLOORBOT = """
+<mujoco model="floorbot">
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <geom name="rock" type="box" pos="3 0 0" size="0.1 0.1 0.1"/>
+    <geom name="backdrop" type="plane" pos="0 0 -1" contype="0" conaffinity="0"/>
+    <body name="base" pos="0 0 0.3">
+      <freejoint/>
+      <geom type="box" size="0.1 0.06 0.02" mass="2"/>
+      <body name="leg1" pos="0.08 0 -0.02"><joint name="j1" axis="0 1 0" range="-1 1"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.12" size="0.012" mass="0.1"/></body>
+      <body name="leg2" pos="-0.08 0 -0.02"><joint name="j2" axis="0 1 0" range="-1 1"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.12" size="0.012" mass="0.1"/></body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_a_models_own_floor_plane_gives_way_to_the_sand_unless_kept(tmp_path):
+    """A vendor scene's floor plane would hold the robot up at the sand's surface: its
+    collisions are switched off (said in a notice), so the legs sink into the sand; other
+    world geoms (a rock) and a plane that touches nothing stay as they are; with
+    sand.keep_floor the floor stays rigid and the legs never enter the sand."""
+    path = tmp_path / 'floorbot.xml'
+    path.write_text(FLOORBOT)
+    depths = {}
+    for keep in (False, True):
+        sim = Simulation(load_scene(path, {'sand.keep_floor': keep, 'robot.spawn': 'drop:0.0'}))
+        floor, rock = sim.model.geom('floor').id, sim.model.geom('rock').id
+        assert bool(sim.model.geom_contype[floor]) == keep
+        assert sim.model.geom_contype[rock] == 1  # an obstacle, not a floor
+        said = [n for n in sim.notices if n.startswith('floor plane floor: rigid collisions')]
+        assert len(said) == (0 if keep else 1) and 'backdrop' not in ' '.join(sim.notices)
+        engine, deepest = sim.engine, []
+        for _ in range(50):
+            sim.step(10)
+            deepest.append(max(-(sim.data.xpos[b, 2] + engine.local_pos[
+                engine.plate_start[n]:engine.plate_start[n + 1]]
+                @ sim.data.xmat[b].reshape(3, 3)[2]).min() for n, b in enumerate(engine.body_ids)))
+        depths[keep] = max(deepest)  # of the deepest plate below the sand surface (z 0), m
+    assert depths[False] > 0.01  # the feet sink into the sand
+    assert depths[True] < 0.003  # held by the floor (MuJoCo's soft contact: a mm or so)

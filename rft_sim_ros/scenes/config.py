@@ -42,6 +42,7 @@ class SceneConfig:
     duration: float
     zeta: float
     surface_height: float
+    keep_floor: bool  # sand.keep_floor: the model's floor planes stay rigid
     surface: dict     # sand.surface.* (sand.surface.surface_from_settings), file resolved
     zeta_map: dict    # sand.zeta_map.* (sand.zeta_map.zeta_map_from_settings) or None
     deformable: dict  # sand.deformable.* (sand.deformable.DeformableSand)
@@ -261,6 +262,7 @@ def _validate(raw, path, locator):
         duration=None if values['duration'] == 'auto' else values['duration'],
         zeta=values['zeta'],
         surface_height=values['sand.surface_height'],
+        keep_floor=values['sand.keep_floor'],
         surface=_subsection(values, 'sand.surface', path, locator),
         zeta_map=_subsection(values, 'sand.zeta_map', path, locator) or None,
         deformable=_subsection(values, 'sand.deformable', path, locator),

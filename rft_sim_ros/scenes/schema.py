@@ -215,6 +215,9 @@ KEYS = (
     Key('sand', 'mapping', '', {}, 'The sand bed.', _section),
     Key('sand.surface_height', 'number', 'm', 0.0, 'z of the horizontal sand surface.',
         _finite),
+    Key('sand.keep_floor', 'true or false', '', False, "Keep the model's own floor planes "
+        '(plane geoms fixed to the world that can touch the robot) as rigid MuJoCo floors; by '
+        'default their collisions are switched off, since the sand carries the robot.', _flag),
     Key('sand.surface', 'mapping', '', {}, 'Shape of the sand surface (docs/terrain.md).',
         _section),
     Key('sand.surface.type', "'plane', 'slope', 'grid' or 'hfield'", '', 'plane',

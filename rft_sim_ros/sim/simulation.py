@@ -52,6 +52,17 @@ def can_collide(model):
                 & np.bitwise_or.reduce(model.geom_conaffinity, initial=0))
 
 
+def floor_planes(model):
+    """Ids of the plane geoms fixed to the world (their body welded to it) that can collide
+    with a geom of a moving body (contype/conaffinity bits): a model's own floor."""
+    moving = model.body_weldid[model.geom_bodyid] != 0
+    contype = np.bitwise_or.reduce(model.geom_contype[moving], initial=0)
+    conaffinity = np.bitwise_or.reduce(model.geom_conaffinity[moving], initial=0)
+    planes = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE) & ~moving)
+    return [int(g) for g in planes
+            if model.geom_contype[g] & conaffinity or model.geom_conaffinity[g] & contype]
+
+
 def compile_notice(scene):
     """The line to show before building `scene` (SceneConfig) when its sand kernels are not
     in numba's cache yet: 'compiling kernels, first run only, ~N s'; None when cached."""
@@ -118,6 +129,13 @@ class Simulation:
         if scene.surface.get('type') == 'hfield':  # the sand carries bodies there, not MuJoCo
             geom = self.model.geom(hfield_geom(self.model, scene.surface.get('geom')))
             geom.contype[0] = geom.conaffinity[0] = 0
+        floors = [] if scene.keep_floor else floor_planes(self.model)
+        for geom in floors:  # the sand carries the robot, not the model's own floor
+            self.model.geom_contype[geom] = self.model.geom_conaffinity[geom] = 0
+        if floors:
+            names = ', '.join(self.model.geom(g).name or f'#{g}' for g in floors)
+            self.notices.append(f'floor plane {names}: rigid collisions switched off, the sand '
+                                'carries the robot (sand.keep_floor: true keeps it)')
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
