@@ -236,6 +236,7 @@ FLOORBOT = """
     <geom name="floor" type="plane" size="5 5 0.1"/>
     <geom name="rock" type="box" pos="3 0 0" size="0.1 0.1 0.1"/>
     <geom name="backdrop" type="plane" pos="0 0 -1" contype="0" conaffinity="0"/>
+    <geom name="wall" type="plane" pos="2 0 0" euler="0 -90 0" size="1 1 0.1"/>
     <body name="base" pos="0 0 0.3">
       <freejoint/>
       <geom type="box" size="0.1 0.06 0.02" mass="2"/>
@@ -251,7 +252,7 @@ FLOORBOT = """
 def test_a_models_own_floor_plane_gives_way_to_the_sand_unless_kept(tmp_path):
     """A vendor scene's floor plane would hold the robot up at the sand's surface: its
     collisions are switched off (said in a notice), so the legs sink into the sand; other
-    world geoms (a rock) and a plane that touches nothing stay as they are; with
+    world geoms (a rock, a wall) and a plane that touches nothing stay as they are; with
     sand.keep_floor the floor stays rigid and the legs never enter the sand."""
     path = tmp_path / 'floorbot.xml'
     path.write_text(FLOORBOT)
@@ -261,6 +262,7 @@ def test_a_models_own_floor_plane_gives_way_to_the_sand_unless_kept(tmp_path):
         floor, rock = sim.model.geom('floor').id, sim.model.geom('rock').id
         assert bool(sim.model.geom_contype[floor]) == keep
         assert sim.model.geom_contype[rock] == 1  # an obstacle, not a floor
+        assert sim.model.geom('wall').contype[0] == 1  # a plane standing up: a wall
         said = [n for n in sim.notices if n.startswith('floor plane floor: rigid collisions')]
         assert len(said) == (0 if keep else 1) and 'backdrop' not in ' '.join(sim.notices)
         engine, deepest = sim.engine, []

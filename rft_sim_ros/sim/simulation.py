@@ -52,15 +52,26 @@ def can_collide(model):
                 & np.bitwise_or.reduce(model.geom_conaffinity, initial=0))
 
 
+#: A plane whose upward normal is within this angle of +z is a floor (steeper: a wall).
+FLOOR_TILT_DEG = 45.0
+
+
 def floor_planes(model):
-    """Ids of the plane geoms fixed to the world (their body welded to it) that can collide
-    with a geom of a moving body (contype/conaffinity bits): a model's own floor."""
+    """Ids of the floor planes of a model: plane geoms fixed to the world (their body welded
+    to it), facing up (within FLOOR_TILT_DEG of +z; a wall is not a floor), that can collide
+    with a geom of a moving body (contype/conaffinity bits)."""
     moving = model.body_weldid[model.geom_bodyid] != 0
     contype = np.bitwise_or.reduce(model.geom_contype[moving], initial=0)
     conaffinity = np.bitwise_or.reduce(model.geom_conaffinity[moving], initial=0)
     planes = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE) & ~moving)
-    return [int(g) for g in planes
-            if model.geom_contype[g] & conaffinity or model.geom_conaffinity[g] & contype]
+    if not planes.size:
+        return []
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)  # the poses of geoms fixed to the world
+    up = data.geom_xmat[planes, 8]  # z of each plane's normal (its local z axis)
+    return [int(g) for g, z in zip(planes, up)
+            if z >= np.cos(np.radians(FLOOR_TILT_DEG))
+            and (model.geom_contype[g] & conaffinity or model.geom_conaffinity[g] & contype)]
 
 
 def compile_notice(scene):
