@@ -179,6 +179,12 @@ def test_highest_surface_point_over_a_rectangle():
     assert grid.highest(ox + 2 * dx, ox + 5 * dx, oy + 3 * dy, oy + 6 * dy) == \
         grid.grid[3:7, 2:6].max()
     assert grid.highest(-9.0, -8.0, -9.0, -8.0) == grid.grid[0, 0]  # outside: edge continued
+    # deformable sand: its bed, and beyond the bed its base (a slope rising to -x here)
+    bed = DeformableSand(slope, size=(0.4, 0.4), cell=0.02)
+    bed.grid[10, 10] += 0.05  # a pile in the middle of the bed
+    assert bed.highest(-0.05, 0.05, -0.05, 0.05) == pytest.approx(bed.grid[10, 10])
+    assert bed.highest(0.5, 0.6, 0.0, 0.1) == pytest.approx(slope.highest(0.5, 0.6, 0.0, 0.1))
+    assert bed.highest(0.1, 0.5, 0.0, 0.1) >= slope.highest(0.1, 0.5, 0.0, 0.1)
 
 
 @pytest.mark.parametrize('surface', [{'type': 'slope', 'angle_deg': 15.0, 'downhill_deg': 30.0},
