@@ -307,7 +307,7 @@ def _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, volum
         for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
             edge = abs(jj - j) == r
             step = 1 if edge else 2 * r
-            for ii in range(i - r if edge else i - r, i + r + 1, step):
+            for ii in range(i - r, i + r + 1, step):
                 if 0 <= ii < nx and stamp[jj, ii] == -1:
                     free += 1
         if free == 0:

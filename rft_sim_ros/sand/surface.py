@@ -263,13 +263,10 @@ def hfield_geom(model, name=None):
             raise ValueError(f'sand.surface.geom: no geom {name!r} in the model') from None
         if g not in hfields:
             raise ValueError(f'sand.surface.geom: geom {name!r} is not an hfield geom')
-    body = int(model.geom_bodyid[g])
-    while body != 0:
-        if model.body_jntnum[body] or model.body_mocapid[body] >= 0:
-            raise ValueError(f'sand.surface.geom: hfield geom {model.geom(g).name!r} must be '
-                             'fixed to the world (its body or a parent has a joint or is a '
-                             'mocap body)')
-        body = int(model.body_parentid[body])
+    if model.body_weldid[model.geom_bodyid[g]] != 0:  # (a joint or a mocap body between)
+        raise ValueError(f'sand.surface.geom: hfield geom {model.geom(g).name!r} must be '
+                         'fixed to the world (its body or a parent has a joint or is a '
+                         'mocap body)')
     return g
 
 

@@ -137,16 +137,7 @@ class Simulation:
                                          bed['center'])
         except ValueError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
-        if scene.surface.get('type') == 'hfield':  # the sand carries bodies there, not MuJoCo
-            geom = self.model.geom(hfield_geom(self.model, scene.surface.get('geom')))
-            geom.contype[0] = geom.conaffinity[0] = 0
-        floors = [] if scene.keep_floor else floor_planes(self.model)
-        for geom in floors:  # the sand carries the robot, not the model's own floor
-            self.model.geom_contype[geom] = self.model.geom_conaffinity[geom] = 0
-        if floors:
-            names = ', '.join(self.model.geom(g).name or f'#{g}' for g in floors)
-            self.notices.append(f'floor plane {names}: rigid collisions switched off, the sand '
-                                'carries the robot (sand.keep_floor: true keeps it)')
+        self._ground_to_sand()
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
@@ -394,6 +385,20 @@ class Simulation:
     def terrain_metrics(self):
         """Deformable sand's summary metrics (`DeformableSand.metrics`); {} on rigid sand."""
         return self.engine.surface.metrics() if self.engine.deformable else {}
+
+    def _ground_to_sand(self):
+        """Switch off the rigid collisions of the model's ground that the sand replaces: the
+        hfield geom that is the sand's surface, and the floor planes (`floor_planes`, said in
+        a notice) unless sand.keep_floor."""
+        scene, model = self.scene, self.model
+        ground = [] if scene.keep_floor else floor_planes(model)
+        if ground:
+            names = ', '.join(model.geom(g).name or f'#{g}' for g in ground)
+            self.notices.append(f'floor plane {names}: rigid collisions switched off, the sand '
+                                'carries the robot (sand.keep_floor: true keeps it)')
+        if scene.surface.get('type') == 'hfield':
+            ground.append(hfield_geom(model, scene.surface.get('geom')))
+        model.geom_contype[ground] = model.geom_conaffinity[ground] = 0
 
     def terrain_warning(self):
         """Once a run (and after each reset): why part of the robot leaves no footprints, the
