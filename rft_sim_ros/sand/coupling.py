@@ -37,10 +37,10 @@ from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
-from .deformable import OUTSIDE, mark_cells, touch_cell
+from .deformable import OUTSIDE, mark_cells, note_cell, settle, touch_cell
 from .surface import FLAT, GRID, SLOPE
-from .surface_kernels import (base_height, bed_range, beyond_grid, grid_range, map_factor,
-                              node_height, surface_range)
+from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
+                              map_factor, node_height, surface_range)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -93,12 +93,13 @@ PLATE_ROWS = LAW_ROWS + 7
 #: (x, y) m and 1/spacing (1/m); the zeta map: whether there is one (1/0), its cell
 #: [0, 0] corner (x, y) m and 1/cell (1/m); and, for deformable sand, its base beyond the
 #: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
-#: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use).
+#: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use),
+#: and the height difference of axis neighbours at the angle of repose (m; `settle`).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
  ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY,
- BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY) = range(25)
-SETTING_COUNT = 25
+ BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE) = range(26)
+SETTING_COUNT = 26
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
@@ -116,10 +117,11 @@ GatherArrays = namedtuple('GatherArrays', [
     # deformable sand's base grid, block maximum and minimum (beyond the bed; a grid base)
     'surface_grid', 'surface_block_max', 'surface_block_min', 'zeta_factors',
     'base_grid', 'base_block_max', 'base_block_min',
-    # deformable sand's footprint marks (`deformable.DeformableSand`) and the cells one
-    # cluster's plates touch (work space, one entry per plate of the largest cluster)
-    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cells',
-    'deform_cell_z',
+    # deformable sand's footprint marks and settling (`DeformableSand.kernel_arrays`) and
+    # the cells one cluster's plates touch (work space, one per plate of the largest cluster)
+    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_committed',
+    'deform_amount', 'deform_queue', 'deform_in_queue', 'deform_dirty', 'deform_dirty_list',
+    'deform_cells', 'deform_cell_z',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -250,9 +252,11 @@ def _gather_plates(arrays, kind, deform):
     slots = 0
     for i in range(body_ids.shape[0]):
         b = body_ids[i]
-        # deformable sand: whether plates of this body may lie beyond the bed (on its base)
-        off_bed = deform and beyond_grid(grid, gx0, gy0, g_idx, g_idy, xpos[b, 0], xpos[b, 1],
-                                         radii[i])
+        # a grid reaching a cell beyond the body's sphere all round: its plates are looked
+        # up unclamped; on deformable sand, otherwise they may lie beyond the bed (its base)
+        inside = kind == GRID and inside_grid(grid, gx0, gy0, g_idx, g_idy, xpos[b, 0],
+                                              xpos[b, 1], radii[i])
+        off_bed = deform and not inside
         if deform:
             body_low, body_top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
                                            xpos[b, 0], xpos[b, 1], radii[i],
@@ -339,7 +343,14 @@ def _gather_plates(arrays, kind, deform):
                 else:  # a grid, at the plate's node coordinates (u, v)
                     u = (ox + r00 * lx + r01 * ly + r02 * lz - gx0) * g_idx
                     v = (oy + r10 * lx + r11 * ly + r12 * lz - gy0) * g_idy
-                    if off_bed and (u < 0.0 or v < 0.0 or u > bed_u or v > bed_v):
+                    if inside:  # (1 <= u <= nx - 2, likewise v)
+                        i_u, i_v = int(u), int(v)
+                        depth = (cell_height(grid, i_u, i_v, u - i_u, v - i_v) if lookup
+                                 else level) - pz
+                        if deform and depth > 0.0:
+                            touched = note_cell(i_v * grid.shape[1] + i_u, pz, cells, cell_z,
+                                                touched)
+                    elif off_bed and (u < 0.0 or v < 0.0 or u > bed_u or v > bed_v):
                         # beyond the bed: its base, where a plate leaves no footprint
                         depth = (base_height(_deformable_base(arrays),
                                              ox + r00 * lx + r01 * ly + r02 * lz,
@@ -439,8 +450,18 @@ def gather_grid(arrays):
 
 @njit(cache=True, error_model='numpy', fastmath={'contract'})
 def gather_deformable(arrays):
-    """`_gather_plates` on deformable sand (a height grid the plates mark)."""
+    """`_gather_plates` on deformable sand (a height grid the plates mark), then rules 2-4
+    for the footprints the bodies left in this step (`deformable.settle`): one call."""
     _gather_plates(arrays, GRID, True)
+    a = GATHER
+    settle(float_matrix(arrays, a.surface_grid), float_matrix(arrays, a.surface_block_max),
+           float_matrix(arrays, a.surface_block_min), int_matrix(arrays, a.deform_stamp),
+           float_matrix(arrays, a.deform_lowest), int_vector(arrays, a.deform_pending),
+           int_vector(arrays, a.deform_state), int_vector(arrays, a.deform_committed),
+           float_vector(arrays, a.deform_amount), int_vector(arrays, a.deform_queue),
+           int8_matrix(arrays, a.deform_in_queue), int8_matrix(arrays, a.deform_dirty),
+           int_vector(arrays, a.deform_dirty_list), int_vector(arrays, a.counters)[STEPS] - 1,
+           float_vector(arrays, a.settings)[DEFORM_RISE])
 
 
 def gather_kernel(kind, deformable=False):

@@ -57,6 +57,19 @@ SETTLED = 1e-3
 COUNT, HEAD, QUEUED, UNSETTLED, DIRTY, OUTSIDE = range(6)
 STATE_SIZE = 6
 
+#: Element type and rank of each array of `DeformableSand.kernel_arrays`.
+KERNEL_ARRAYS = {'deform_stamp': (np.int64, 2), 'deform_lowest': (np.float64, 2),
+                 'deform_pending': (np.int64, 1), 'deform_state': (np.int64, 1),
+                 'deform_committed': (np.int64, 1), 'deform_amount': (np.float64, 1),
+                 'deform_queue': (np.int64, 1), 'deform_in_queue': (np.int8, 2),
+                 'deform_dirty': (np.int8, 2), 'deform_dirty_list': (np.int64, 1)}
+
+
+def no_bed_arrays():
+    """One-element stand-ins for `DeformableSand.kernel_arrays` on rigid sand, whose gather
+    kernels never read them."""
+    return {name: np.zeros((1,) * rank, dtype) for name, (dtype, rank) in KERNEL_ARRAYS.items()}
+
 
 class DeformableSand(HeightGrid):
     """A deformable bed over a base surface (see module docstring).
@@ -113,12 +126,14 @@ class DeformableSand(HeightGrid):
     def cell_area(self):
         return self.cell * self.cell
 
-    def settle(self, step):
-        """Commit the nodes left by their bodies at `step`, deposit and avalanche (rules
-        2-4). Called by the engine after each gather."""
-        settle(self.grid, self.block_max, self.block_min, self.stamp, self.lowest, self.pending,
-               self.state, self._committed, self._amount, self._queue, self._in_queue,
-               self._dirty, self._dirty_list, step, self.rise)
+    def kernel_arrays(self):
+        """The bed's arrays that the deformable gather kernel marks (rule 1) and settles
+        (`settle`, rules 2-4) in, by `coupling.GatherArrays` name (`KERNEL_ARRAYS`)."""
+        return dict(deform_stamp=self.stamp, deform_lowest=self.lowest,
+                    deform_pending=self.pending, deform_state=self.state,
+                    deform_committed=self._committed, deform_amount=self._amount,
+                    deform_queue=self._queue, deform_in_queue=self._in_queue,
+                    deform_dirty=self._dirty, deform_dirty_list=self._dirty_list)
 
     def relax_all(self):
         """Avalanche the whole bed until settled (e.g. a pile made by hand); returns the
@@ -177,15 +192,20 @@ class DeformableSand(HeightGrid):
 
 @njit(cache=True, inline='always')
 def touch_cell(grid, u, v, z, cells, cell_z, count, state):
-    """Note a plate at height z (m) at node coordinates (u, v) in the list of cells a body's
-    plates are in (`cells[:count]`, flat indices j * nx + i of each cell's lower-left node,
-    in order of first touch; `cell_z`: the lowest z in each); outside the bed: only counted
-    (state[OUTSIDE]). Returns the new count."""
+    """`note_cell` for a plate at node coordinates (u, v), anywhere; outside the bed it is
+    only counted (state[OUTSIDE]). Returns the new count."""
     ny, nx = grid.shape
     if u < 0.0 or v < 0.0 or u >= nx - 1 or v >= ny - 1:
         state[OUTSIDE] += 1
         return count
-    cell = int(v) * nx + int(u)
+    return note_cell(int(v) * nx + int(u), z, cells, cell_z, count)
+
+
+@njit(cache=True, inline='always')
+def note_cell(cell, z, cells, cell_z, count):
+    """Note a plate at height z (m) in cell `cell` (the flat index j * nx + i of its lower-left
+    node) in the list of cells a body's plates are in (`cells[:count]`, in order of first
+    touch; `cell_z`: the lowest z in each). Returns the new count."""
     m = count - 1
     while m >= 0 and cells[m] != cell:  # from the latest: neighbours share cells
         m -= 1

@@ -22,7 +22,7 @@ from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import coupling
 from .array_table import TABLE_SIGNATURE, ArrayTable
-from .deformable import DeformableSand
+from .deformable import DeformableSand, no_bed_arrays
 from .surface import FLAT, Plane
 from .zeta_map import ZetaMap
 
@@ -175,6 +175,8 @@ class SandEngine:
         settings[coupling.BASE_X0], settings[coupling.BASE_Y0] = base.origin
         settings[coupling.BASE_INV_DX] = 1.0 / base.spacing[0]
         settings[coupling.BASE_INV_DY] = 1.0 / base.spacing[1]
+        if self.deformable:
+            settings[coupling.DEFORM_RISE] = surface.rise
         self._surface_grid = data.grid
         self._surface_block_max, self._surface_block_min = data.block_max, data.block_min
         self._base_arrays = dict(base_grid=base.grid, base_block_max=base.block_max,
@@ -266,18 +268,13 @@ class SandEngine:
             **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
 
     def _footprint_arrays(self):
-        """The gather's deformable-sand arrays (1-element placeholders on rigid sand) and its
-        work space for one cluster's footprint cells (one per plate of the largest)."""
-        sand = self.surface
+        """The gather's deformable-sand arrays (`DeformableSand.kernel_arrays`; stand-ins on
+        rigid sand) and its work space for one cluster's footprint cells (one per plate of
+        the largest)."""
         largest = int(np.diff(self._cluster_plate_start).max(initial=1))
-        work = dict(deform_cells=np.zeros(largest, dtype=np.int64),
+        bed = self.surface.kernel_arrays() if self.deformable else no_bed_arrays()
+        return dict(**bed, deform_cells=np.zeros(largest, dtype=np.int64),
                     deform_cell_z=np.zeros(largest))
-        if self.deformable:
-            return dict(deform_stamp=sand.stamp, deform_lowest=sand.lowest,
-                        deform_pending=sand.pending, deform_state=sand.state, **work)
-        return dict(deform_stamp=np.full((1, 1), -1, dtype=np.int64),
-                    deform_lowest=np.zeros((1, 1)), deform_pending=np.zeros(1, dtype=np.int64),
-                    deform_state=np.zeros(1, dtype=np.int64), **work)
 
     @property
     def zeta(self):
@@ -332,8 +329,6 @@ class SandEngine:
             self._gather(self._gather_arrays.table)
             if self._counters[coupling.SLOTS] or had_slots:  # (zeros once the last leave)
                 self._explicit()
-        if self.deformable:  # footprints left by their bodies in this step
-            self.surface.settle(self._counters[coupling.STEPS] - 1)
 
     def _explicit(self):
         """Explicit sand wrenches ('ema' or 'none': coupling.smoothed_wrenches) of the plates

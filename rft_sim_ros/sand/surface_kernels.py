@@ -12,17 +12,22 @@ from .surface import BLOCK, FLAT, GRID, SLOPE
 
 
 @njit(inline='always')
+def cell_height(grid, i, j, fu, fv):
+    """Bilinear height in the cell of lower-left node [j, i] (0 <= i < nx - 1, 0 <= j < ny - 1,
+    not checked) at fractions fu, fv in [0, 1] of it, m."""
+    ui, uj, one = np.uint64(i), np.uint64(j), np.uint64(1)  # (no negative-index handling)
+    low = grid[uj, ui] + fu * (grid[uj, ui + one] - grid[uj, ui])
+    high = grid[uj + one, ui] + fu * (grid[uj + one, ui + one] - grid[uj + one, ui])
+    return low + fv * (high - low)
+
+
+@njit(inline='always')
 def node_height(grid, u, v):
     """Bilinear height of the grid at node coordinates (u, v), m."""
     ny, nx = grid.shape
     i = min(max(int(u), 0), nx - 2)  # (clamped as integers: any u gives a node inside)
     j = min(max(int(v), 0), ny - 2)
-    fu = min(max(u - i, 0.0), 1.0)
-    fv = min(max(v - j, 0.0), 1.0)
-    ui, uj, one = np.uint64(i), np.uint64(j), np.uint64(1)  # (no negative-index handling)
-    low = grid[uj, ui] + fu * (grid[uj, ui + one] - grid[uj, ui])
-    high = grid[uj + one, ui] + fu * (grid[uj + one, ui + one] - grid[uj + one, ui])
-    return low + fv * (high - low)
+    return cell_height(grid, i, j, min(max(u - i, 0.0), 1.0), min(max(v - j, 0.0), 1.0))
 
 
 @njit(inline='always')
@@ -72,6 +77,17 @@ def beyond_grid(grid, x0, y0, inv_dx, inv_dy, x, y, r):
     ny, nx = grid.shape
     return ((x - r - x0) * inv_dx < 0.0 or (y - r - y0) * inv_dy < 0.0
             or (x + r - x0) * inv_dx > nx - 1.0 or (y + r - y0) * inv_dy > ny - 1.0)
+
+
+@njit(inline='always')
+def inside_grid(grid, x0, y0, inv_dx, inv_dy, x, y, r):
+    """Whether the square |x' - x|, |y' - y| <= r (m) lies a whole cell inside the grid's
+    outer nodes: every point of it has node coordinates 1 <= u <= nx - 2 (likewise v), so a
+    look-up there needs no clamping (`cell_height` at int(u), int(v)), with room to spare
+    for the rounding of a point computed inside the square."""
+    ny, nx = grid.shape
+    return ((x - r - x0) * inv_dx >= 1.0 and (y - r - y0) * inv_dy >= 1.0
+            and (x + r - x0) * inv_dx <= nx - 2.0 and (y + r - y0) * inv_dy <= ny - 2.0)
 
 
 @njit(inline='always')
