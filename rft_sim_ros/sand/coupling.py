@@ -37,7 +37,7 @@ from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
-from .deformable import OUTSIDE, mark_cells, note_cell, settle, touch_cell
+from .deformable import OUTSIDE, mark_cell, settle, touch_cell
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
                               map_factor, node_height, surface_range)
@@ -117,11 +117,10 @@ GatherArrays = namedtuple('GatherArrays', [
     # deformable sand's base grid, block maximum and minimum (beyond the bed; a grid base)
     'surface_grid', 'surface_block_max', 'surface_block_min', 'zeta_factors',
     'base_grid', 'base_block_max', 'base_block_min',
-    # deformable sand's footprint marks and settling (`DeformableSand.kernel_arrays`) and
-    # the cells one cluster's plates touch (work space, one per plate of the largest cluster)
-    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_committed',
-    'deform_amount', 'deform_queue', 'deform_in_queue', 'deform_dirty', 'deform_dirty_list',
-    'deform_cells', 'deform_cell_z',
+    # deformable sand's footprint marks and settling (`DeformableSand.kernel_arrays`)
+    'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cell_stamp',
+    'deform_cell_low', 'deform_committed', 'deform_amount', 'deform_queue', 'deform_in_queue',
+    'deform_dirty', 'deform_dirty_list',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -188,9 +187,10 @@ def _gather_plates(arrays, kind, deform):
     does a grid whose blocks under the cluster are level (block minimum == maximum: every
     bilinear height there is that level exactly; where they are level under the body's whole
     sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
-    blocks' maximum read the grid. On deformable sand (`deform`) the plates below the surface
-    mark their footprint cells (`deformable.mark_cells`), each cell once per cluster with
-    its lowest plate z (the same marks, in the same order, as one per plate); beyond the
+    blocks' maximum read the grid (a body a cell inside the grid all round without
+    clamping: `inside_grid`). On deformable sand (`deform`) the plates below the surface
+    mark their footprint cells (`deformable.mark_cell`), and the footprints the bodies left
+    are settled after the plates are gathered (`gather_deformable`); beyond the
     bed its base (plane, slope or grid: `_deformable_base`) gives the depth, and bounds the
     bodies and clusters that reach out there, and a plate there marks nothing.
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
@@ -225,10 +225,10 @@ def _gather_plates(arrays, kind, deform):
     factors = float_matrix(arrays, a.zeta_factors)
     mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
     m_idx, m_idy = settings[MAP_INV_DX], settings[MAP_INV_DY]
-    stamp, lowest = int_matrix(arrays, a.deform_stamp), float_matrix(arrays, a.deform_lowest)
-    pending = int_vector(arrays, a.deform_pending)
     deform_state = int_vector(arrays, a.deform_state)
-    cells, cell_z = int_vector(arrays, a.deform_cells), float_vector(arrays, a.deform_cell_z)
+    footprints = (int_matrix(arrays, a.deform_stamp), float_matrix(arrays, a.deform_lowest),
+                  int_vector(arrays, a.deform_pending), deform_state,
+                  int_matrix(arrays, a.deform_cell_stamp), float_matrix(arrays, a.deform_cell_low))
     bed_u, bed_v = grid.shape[1] - 1.0, grid.shape[0] - 1.0  # deformable sand: the bed's
     # last node coordinates; beyond them its base (`_deformable_base`)
     step = counters[STEPS]
@@ -248,6 +248,7 @@ def _gather_plates(arrays, kind, deform):
     table = float_matrix(arrays, a.table)
     force = float_matrix(arrays, a.force)
     k = np.int64(0)  # (typed, not Literal[int](0): that compiled the calls below twice)
+    px = py = 0.0  # a plate's world x, y (m), as the depth on a grid needs them
     leading_count = 0
     slots = 0
     for i in range(body_ids.shape[0]):
@@ -323,7 +324,6 @@ def _gather_plates(arrays, kind, deform):
             plain = not (slope or lookup or deform)  # a plane, or a rigid grid level here
             # a rigid grid read here: the motion test (cheaper than a look-up) comes first
             motion_first = kind == GRID and lookup and not deform
-            touched = 0  # deformable sand: cells its plates in the sand are in
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
@@ -341,27 +341,24 @@ def _gather_plates(arrays, kind, deform):
                 elif lookup and pz >= top:  # above the highest node under the cluster
                     continue
                 else:  # a grid, at the plate's node coordinates (u, v)
-                    u = (ox + r00 * lx + r01 * ly + r02 * lz - gx0) * g_idx
-                    v = (oy + r10 * lx + r11 * ly + r12 * lz - gy0) * g_idy
+                    px = ox + r00 * lx + r01 * ly + r02 * lz
+                    py = oy + r10 * lx + r11 * ly + r12 * lz
+                    u, v = (px - gx0) * g_idx, (py - gy0) * g_idy
                     if inside:  # (1 <= u <= nx - 2, likewise v)
                         i_u, i_v = int(u), int(v)
                         depth = (cell_height(grid, i_u, i_v, u - i_u, v - i_v) if lookup
                                  else level) - pz
                         if deform and depth > 0.0:
-                            touched = note_cell(i_v * grid.shape[1] + i_u, pz, cells, cell_z,
-                                                touched)
+                            mark_cell(footprints, step, i_u, i_v, pz)
                     elif off_bed and (u < 0.0 or v < 0.0 or u > bed_u or v > bed_v):
                         # beyond the bed: its base, where a plate leaves no footprint
-                        depth = (base_height(_deformable_base(arrays),
-                                             ox + r00 * lx + r01 * ly + r02 * lz,
-                                             oy + r10 * lx + r11 * ly + r12 * lz)
-                                 if lookup else level) - pz
+                        depth = (base_height(_deformable_base(arrays), px, py) if lookup
+                                 else level) - pz
                         deform_state[OUTSIDE] += depth > 0.0
                     else:
                         depth = (node_height(grid, u, v) if lookup else level) - pz
                         if deform and depth > 0.0:
-                            touched = touch_cell(grid, u, v, pz, cells, cell_z, touched,
-                                                 deform_state)
+                            touch_cell(footprints, step, u, v, pz)
                 if depth <= 0.0:
                     continue
                 if not motion_first:
@@ -371,8 +368,9 @@ def _gather_plates(arrays, kind, deform):
                     continue
                 mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
                               cluster_normals[i_c, 2])
-                px = ox + r00 * lx + r01 * ly + r02 * lz
-                py = oy + r10 * lx + r11 * ly + r12 * lz
+                if plain or slope:  # (a grid's: above)
+                    px = ox + r00 * lx + r01 * ly + r02 * lz
+                    py = oy + r10 * lx + r11 * ly + r12 * lz
                 rx, ry, rz = px - cx, py - cy, pz - cz
                 table[DIRECTION, k] = vcx + wy * rz - wz * ry  # v, made d by _directions
                 table[DIRECTION + 1, k] = vcy + wz * rx - wx * rz
@@ -393,7 +391,6 @@ def _gather_plates(arrays, kind, deform):
                 out_slot[k] = slots
                 leading_count += leading
                 k += 1
-            mark_cells(stamp, lowest, pending, deform_state, step, cells, cell_z, touched)
         if k > first:
             slot_body[slots] = i
             slot_start[slots] = first

@@ -13,7 +13,8 @@ The rule (volume conserving):
    four nodes of the cell its centroid lies in (in `coupling.gather_deformable`): they are
    "pending" and keep the lowest plate z seen. (Four nodes, not the nearest one, so that a
    body whose plates are no farther apart than a cell leaves no unmarked node inside its
-   footprint; footprints are resolved to one cell.) A pending node's height does not change:
+   footprint; footprints are resolved to one cell. A cell is marked once a step, again only
+   for a lower plate: `mark_cell`.) A pending node's height does not change:
    a body that is in the sand feels the depth below the surface around it, the very depth
    the RFT coefficients were measured against (intruders moved through a bed whose free
    surface is level around them).
@@ -60,6 +61,7 @@ STATE_SIZE = 6
 #: Element type and rank of each array of `DeformableSand.kernel_arrays`.
 KERNEL_ARRAYS = {'deform_stamp': (np.int64, 2), 'deform_lowest': (np.float64, 2),
                  'deform_pending': (np.int64, 1), 'deform_state': (np.int64, 1),
+                 'deform_cell_stamp': (np.int64, 2), 'deform_cell_low': (np.float64, 2),
                  'deform_committed': (np.int64, 1), 'deform_amount': (np.float64, 1),
                  'deform_queue': (np.int64, 1), 'deform_in_queue': (np.int8, 2),
                  'deform_dirty': (np.int8, 2), 'deform_dirty_list': (np.int64, 1)}
@@ -99,6 +101,10 @@ class DeformableSand(HeightGrid):
         self._pristine_blocks = self.block_max.copy(), self.block_min.copy()
         self.stamp = np.full(self.grid.shape, -1, dtype=np.int64)  # last step marked; -1: not
         self.lowest = np.zeros(self.grid.shape)           # lowest plate z while pending, m
+        # per cell (by its lower-left node): the last step a plate marked it, and the lowest
+        # plate z in it then (`mark_cell`)
+        self.cell_stamp = np.full(self.grid.shape, -1, dtype=np.int64)
+        self.cell_low = np.zeros(self.grid.shape)
         self.pending = np.zeros(self.grid.size, dtype=np.int64)  # flat indices of pending nodes
         self.state = np.zeros(STATE_SIZE, dtype=np.int64)
         self._committed = np.zeros(self.grid.size, dtype=np.int64)  # work space
@@ -131,6 +137,7 @@ class DeformableSand(HeightGrid):
         (`settle`, rules 2-4) in, by `coupling.GatherArrays` name (`KERNEL_ARRAYS`)."""
         return dict(deform_stamp=self.stamp, deform_lowest=self.lowest,
                     deform_pending=self.pending, deform_state=self.state,
+                    deform_cell_stamp=self.cell_stamp, deform_cell_low=self.cell_low,
                     deform_committed=self._committed, deform_amount=self._amount,
                     deform_queue=self._queue, deform_in_queue=self._in_queue,
                     deform_dirty=self._dirty, deform_dirty_list=self._dirty_list)
@@ -155,6 +162,7 @@ class DeformableSand(HeightGrid):
         self.grid[:] = self.pristine
         self.block_max[:], self.block_min[:] = self._pristine_blocks
         self.stamp[:] = -1
+        self.cell_stamp[:] = -1
         self.state[:] = 0
         self._in_queue[:] = 0
         self._dirty[:] = 0
@@ -191,42 +199,33 @@ class DeformableSand(HeightGrid):
 
 
 @njit(cache=True, inline='always')
-def touch_cell(grid, u, v, z, cells, cell_z, count, state):
-    """`note_cell` for a plate at node coordinates (u, v), anywhere; outside the bed it is
-    only counted (state[OUTSIDE]). Returns the new count."""
-    ny, nx = grid.shape
+def touch_cell(footprints, step, u, v, z):
+    """`mark_cell` for a plate at node coordinates (u, v), anywhere; outside the bed it is
+    only counted (state[OUTSIDE])."""
+    ny, nx = footprints[0].shape
     if u < 0.0 or v < 0.0 or u >= nx - 1 or v >= ny - 1:
-        state[OUTSIDE] += 1
-        return count
-    return note_cell(int(v) * nx + int(u), z, cells, cell_z, count)
+        footprints[3][OUTSIDE] += 1
+        return
+    mark_cell(footprints, step, int(u), int(v), z)
 
 
 @njit(cache=True, inline='always')
-def note_cell(cell, z, cells, cell_z, count):
-    """Note a plate at height z (m) in cell `cell` (the flat index j * nx + i of its lower-left
-    node) in the list of cells a body's plates are in (`cells[:count]`, in order of first
-    touch; `cell_z`: the lowest z in each). Returns the new count."""
-    m = count - 1
-    while m >= 0 and cells[m] != cell:  # from the latest: neighbours share cells
-        m -= 1
-    if m < 0:
-        cells[count], cell_z[count] = cell, z
-        return count + 1
-    cell_z[m] = min(cell_z[m], z)
-    return count
-
-
-@njit(cache=True, inline='always')
-def mark_cells(stamp, lowest, pending, state, step, cells, cell_z, count):
-    """Rule 1: mark the four nodes of each of `cells[:count]` (`touch_cell`) as under a
-    plate at height cell_z (m) at `step`, in order."""
+def mark_cell(footprints, step, i, j, z):
+    """Rule 1 for a plate at height z (m) in the cell of lower-left node (i, j), at `step`:
+    the cell's four nodes marked as under a plate at z. A cell is marked once a step, and
+    again only for a lower z (its step and lowest z in cell_stamp, cell_low), so each node
+    ends the step with the lowest z of the plates in its cells, and nodes join `pending` in
+    the order their cells were first touched. footprints: (stamp, lowest, pending, state,
+    cell_stamp, cell_low) (`DeformableSand.kernel_arrays`)."""
+    stamp, lowest, pending, state, cell_stamp, cell_low = footprints
+    if cell_stamp[j, i] == step and z >= cell_low[j, i]:
+        return
+    cell_stamp[j, i], cell_low[j, i] = step, z
     nx = stamp.shape[1]
-    for m in range(count):
-        j, i, z = cells[m] // nx, cells[m] % nx, cell_z[m]
-        _mark_node(stamp, lowest, pending, state, nx, step, i, j, z)
-        _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j, z)
-        _mark_node(stamp, lowest, pending, state, nx, step, i, j + 1, z)
-        _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j + 1, z)
+    _mark_node(stamp, lowest, pending, state, nx, step, i, j, z)
+    _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j, z)
+    _mark_node(stamp, lowest, pending, state, nx, step, i, j + 1, z)
+    _mark_node(stamp, lowest, pending, state, nx, step, i + 1, j + 1, z)
 
 
 @njit(cache=True, inline='always')

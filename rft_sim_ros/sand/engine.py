@@ -269,12 +269,8 @@ class SandEngine:
 
     def _footprint_arrays(self):
         """The gather's deformable-sand arrays (`DeformableSand.kernel_arrays`; stand-ins on
-        rigid sand) and its work space for one cluster's footprint cells (one per plate of
-        the largest)."""
-        largest = int(np.diff(self._cluster_plate_start).max(initial=1))
-        bed = self.surface.kernel_arrays() if self.deformable else no_bed_arrays()
-        return dict(**bed, deform_cells=np.zeros(largest, dtype=np.int64),
-                    deform_cell_z=np.zeros(largest))
+        rigid sand)."""
+        return self.surface.kernel_arrays() if self.deformable else no_bed_arrays()
 
     @property
     def zeta(self):
