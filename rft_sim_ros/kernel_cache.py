@@ -1,26 +1,127 @@
-"""The package's compiled kernels in numba's on-disk cache: which are there, and warming it.
+"""The package's compiled kernels in numba's on-disk cache: which are there, whether they are
+still those of the package's sources, and warming it.
 
 The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`) and the gaits'
 (`scenes.gaits`, `scenes.leg_kinematics`) are numba functions compiled with cache=True: the
 first run after an install (or after their source changed) compiles them, about 12 s on two
 cores (`BackgroundCompile` puts a share in a second process); every later run loads them
-from the cache in a fraction of a second. numba checks only the source file of each kernel:
-after editing a module that a kernel inlines from another file (e.g. `sand/surface_kernels.py`
-into the gather kernels of `sand/coupling.py`), clear the cache (`__pycache__/*.nb*`) or touch
-that file. `sand.engine.kernels_cached` (and `sim.simulation.compile_notice`, which the CLI and
-the node show) asks `is_cached` about the kernels one engine needs (one gather kernel per
-kind of surface); `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
+from the cache in a fraction of a second. `sand.engine.kernels_cached` (and
+`sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
+kernels one engine needs (one gather kernel per kind of surface); `warm_up()` compiles every
+kernel ahead (`rft-sim warmup`).
+
+numba checks a cached kernel against its own source file only, but a kernel compiles in
+helpers and constants from other files too (`sand/surface_kernels.py`, `sand/deformable.py`
+and `sand/array_table.py` into the gather kernels of `sand/coupling.py`): an upgrade or an
+edit that changed only those would load kernels compiled from the old code. So each kernel
+module ends by calling `forget_stale(globals())`, before any of its kernels can load: the
+fingerprint of every source the kernels are compiled from (`kernel_sources`) is kept in a
+marker file beside the module's cached kernels, and where it differs, their cache entries
+are dropped and compile afresh.
 
 The cache is numba's: `__pycache__` beside the sources, or NUMBA_CACHE_DIR. A kernel counts as
 cached when numba's index for it holds at least one compiled signature for its current source.
 """
+import ast
+import functools
+import hashlib
 import importlib
+import importlib.util
 from pathlib import Path
 
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.coupling',
                   'rft_sim_ros.sand.deformable', 'rft_sim_ros.scenes.gaits',
                   'rft_sim_ros.scenes.leg_kinematics')
+#: The package's folder.
+PACKAGE = Path(__file__).resolve().parent
+
+
+def _module_file(name):
+    """The source file of the package's module `name` (dotted), or None for a module that
+    is not one of the package's."""
+    parts = name.split('.')
+    if parts[0] != PACKAGE.name:
+        return None
+    path = PACKAGE.joinpath(*parts[1:])
+    for candidate in (path.with_suffix('.py'), path / '__init__.py'):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _imports(name, path):
+    """Dotted names that module `name` (source `path`) imports at its top level (what its
+    functions import when called is not compiled into a kernel), and of each name it
+    imports from a module, as if a submodule (the caller keeps those that are modules)."""
+    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+    for node in ast.parse(path.read_bytes()).body:
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = importlib.util.resolve_name('.' * node.level + (node.module or ''), package)
+            yield base
+            yield from (f'{base}.{alias.name}' for alias in node.names)
+
+
+def kernel_sources():
+    """The package's source files its cached kernels are compiled from: the kernel modules
+    and, transitively, every module of the package they import (read, not imported)."""
+    found, pending = {}, list(KERNEL_MODULES)
+    while pending:
+        name = pending.pop()
+        path = _module_file(name)
+        if path is not None and name not in found:
+            found[name] = path
+            pending.extend(_imports(name, path))
+    return sorted(set(found.values()))
+
+
+@functools.lru_cache(maxsize=None)
+def sources_fingerprint():
+    """SHA-256 (hex) of the package's `kernel_sources`, names and contents."""
+    digest = hashlib.sha256()
+    for path in kernel_sources():
+        digest.update(path.relative_to(PACKAGE).as_posix().encode() + b'\0')
+        digest.update(path.read_bytes() + b'\0')
+    return digest.hexdigest()
+
+
+def _module_kernels(module_name, namespace):
+    """{name: dispatcher} of the separately compiled, cached numba kernels defined in the
+    module namespace `namespace` (numba never compiles inline='always' helpers on their own:
+    they are left out)."""
+    from numba.core.caching import NullCache
+    from numba.core.dispatcher import Dispatcher
+    return {name: value for name, value in namespace.items()
+            if isinstance(value, Dispatcher) and value.__module__ == module_name
+            and not isinstance(value._cache, NullCache)
+            and value.targetoptions.get('inline', 'never') == 'never'}
+
+
+def forget_stale(namespace, fingerprint=None):
+    """Drop the cached kernels of the module whose globals are `namespace` when they were
+    compiled from other sources than `fingerprint` (default: `sources_fingerprint()`, the
+    package's now), as a marker file beside them in numba's cache records; then record
+    `fingerprint` there. Called by each kernel module at the end of its import. Returns
+    whether it dropped them."""
+    fingerprint = fingerprint or sources_fingerprint()
+    kernels = _module_kernels(namespace['__name__'], namespace).values()
+    if not kernels:  # (e.g. NUMBA_DISABLE_JIT: no dispatchers)
+        return False
+    marker = Path(next(iter(kernels))._cache._cache_path) / f'{namespace["__name__"]}.sources'
+    try:
+        if marker.read_text() == fingerprint:
+            return False
+    except OSError:
+        pass  # no marker yet: kernels cached before this check, if any, are dropped too
+    for kernel in kernels:
+        kernel._cache.flush()
+    try:
+        marker.write_text(fingerprint)
+    except OSError:
+        pass  # a cache folder numba cannot write to either: nothing is cached there
+    return True
 
 
 def is_cached(kernel):
@@ -31,18 +132,12 @@ def is_cached(kernel):
 
 
 def cached_kernels():
-    """{qualified name: numba dispatcher} of every cached, separately compiled kernel (numba
-    never compiles inline='always' helpers on their own: they are left out)."""
-    from numba.core.caching import NullCache
-    from numba.core.dispatcher import Dispatcher
+    """{qualified name: numba dispatcher} of every cached, separately compiled kernel."""
     kernels = {}
     for module_name in KERNEL_MODULES:
         module = importlib.import_module(module_name)
-        for name, value in vars(module).items():
-            if (isinstance(value, Dispatcher) and value.__module__ == module_name
-                    and not isinstance(value._cache, NullCache)
-                    and value.targetoptions.get('inline', 'never') == 'never'):
-                kernels[f'{module_name}.{name}'] = value
+        kernels.update({f'{module_name}.{name}': kernel
+                        for name, kernel in _module_kernels(module_name, vars(module)).items()})
     return kernels
 
 

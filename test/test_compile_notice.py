@@ -1,10 +1,14 @@
 """Cold starts: the notice that the kernels compile (shown exactly when numba's cache lacks
 them), and kernels compiled into the cache by a second process (`BackgroundCompile`)."""
+import importlib
 import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
+from rft_sim_ros.kernel_cache import (KERNEL_MODULES, PACKAGE, cached_kernels, forget_stale,
+                                      is_cached, kernel_sources, sources_fingerprint)
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
 
@@ -134,3 +138,50 @@ def test_a_compiling_process_that_cannot_start_says_why(monkeypatch):
                                                      'float64)')]) as compiling:
         ok, why = compiling.wait()
     assert ok is False and why.startswith('no compiling process:'), why
+
+
+def test_the_kernels_sources_include_the_helpers_and_constants_they_compile_in():
+    names = {path.relative_to(PACKAGE).as_posix() for path in kernel_sources()}
+    assert {'sand/coupling.py', 'sand/deformable.py', 'sand/surface_kernels.py',
+            'sand/array_table.py', 'sand/surface.py', 'rft/kernel.py', 'rft/force_law.py',
+            'scenes/gaits.py', 'scenes/leg_kinematics.py'} <= names
+    assert 'cli.py' not in names and 'sim/simulation.py' not in names
+
+
+_KERNEL_MODULE = '''
+from numba import njit
+
+SCALE = 3.0  # a constant compiled in
+
+
+@njit(cache=True)
+def triple(x):
+    return SCALE * x
+'''
+
+
+def test_kernels_compiled_from_other_sources_are_dropped(tmp_path, monkeypatch):
+    """A module's cached kernels are kept while the sources fingerprint is the one they were
+    compiled from, and dropped (compiled afresh) once it differs: an edit to a file the
+    kernel compiles in from, which numba's own check (the kernel's file) would miss."""
+    (tmp_path / 'fingerprinted_kernels.py').write_text(_KERNEL_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = importlib.import_module('fingerprinted_kernels')
+    assert module.triple(2.0) == 6.0 and is_cached(module.triple)
+    assert forget_stale(vars(module), 'sources A')      # no marker yet: dropped
+    assert not is_cached(module.triple)
+    module.triple.recompile()                           # (compiles and caches again)
+    assert is_cached(module.triple)
+    assert not forget_stale(vars(module), 'sources A')  # the same sources: kept
+    assert is_cached(module.triple)
+    assert forget_stale(vars(module), 'sources B')      # other sources: dropped
+    assert not is_cached(module.triple)
+
+
+def test_every_kernel_module_records_the_sources_of_its_cached_kernels():
+    kernels = cached_kernels()
+    for name in KERNEL_MODULES:
+        kernel = next(kernel for qualified, kernel in kernels.items()
+                      if qualified.rpartition('.')[0] == name)
+        marker = Path(kernel._cache._cache_path) / f'{name}.sources'
+        assert marker.read_text() == sources_fingerprint(), name

@@ -108,6 +108,20 @@ def test_beyond_a_deformable_bed_its_base_surface_carries_the_plates(base, seed)
 
 
 @pytest.mark.parametrize('seed', range(3))
+def test_across_a_grids_edge_its_edge_heights_continue(seed):
+    """A rippled grid whose edge runs through the middle of the plates in the sand: bodies
+    a cell inside it (read without clamping), bodies across its edge and beyond it (edge
+    heights continued) all feel the reference law at their plates' own heights."""
+    x, y = IN_SAND[seed]
+    u, v = np.meshgrid(np.linspace(0, 3, 21), np.linspace(0, 2, 31))
+    grid = HeightGrid(0.02 * np.sin(4 * u) * np.cos(5 * v), size=(0.2, 0.3),
+                      center=(x - 0.1, y))
+    model, data, engine, wrenches = _wrenches(grid, seed)
+    assert engine.plates_active > 0
+    _assert_reference_law(model, data, engine, wrenches, grid)
+
+
+@pytest.mark.parametrize('seed', range(3))
 def test_far_from_its_deformable_bed_a_slope_acts_as_the_slope_itself(seed):
     """Bodies wholly beyond the bed: they are found in the sand by the base's own bounds
     (a 12 deg slope rising under them) and feel what the rigid slope gives them."""

@@ -18,6 +18,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from ..kernel_cache import forget_stale
 from . import coefficients as co
 from .force_law import HORIZONTAL_NZ, TANGENTIAL
 
@@ -202,3 +203,6 @@ def plate_forces_compiled(positions, normals, areas, velocities, zeta_si, surfac
     forces = np.empty((3, n))
     leading_forces(n, table, 1.0 / a4, 1.0 / b4, dyn_lam_rho, forces[0], forces[1], forces[2])
     return forces.T.copy()
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -32,6 +32,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import forget_stale
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
@@ -1250,3 +1251,6 @@ def smoothed_wrenches(k, slots, out_plate, out_slot, table, force, alpha, step,
         wrench[s, 3] += ry * fz - rz * fy
         wrench[s, 4] += rz * fx - rx * fz
         wrench[s, 5] += rx * fy - ry * fx
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -42,6 +42,7 @@ of the displaced volume). `reset()` restores the pristine surface exactly (a cop
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import forget_stale
 from .surface import BLOCK, HeightGrid, block_maximum, block_minimum
 
 #: Rings (Chebyshev distance, nodes) searched for the rim that takes displaced sand.
@@ -387,3 +388,6 @@ def avalanche(grid, stamp, queue, in_queue, state, dirty, dirty_list, rise, visi
             _enqueue(queue, in_queue, state, nx, i, j)
             _mark_dirty(dirty, dirty_list, state, i, j)
     return done
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -16,6 +16,7 @@ from typing import Mapping
 import numpy as np
 from numba import njit
 
+from rft_sim_ros.kernel_cache import forget_stale
 from rft_sim_ros.scenes import hexapod
 from rft_sim_ros.scenes.leg_kinematics import LateralLegs, leg_inverse
 
@@ -213,3 +214,6 @@ def make_gait(name, legs=hexapod.LEGS, **params):
     except KeyError:
         raise ValueError(f'unknown gait {name!r}; choose one of {sorted(GAITS)}') from None
     return cls(legs=legs, **params)
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -24,6 +24,8 @@ from typing import Tuple
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import forget_stale
+
 
 @njit(cache=True)
 def leg_inverse(foot_x, foot_z, knee_xyz, mid_length, dactyl_length, dactyl_neutral_angle):
@@ -120,3 +122,6 @@ class LateralLegs:
     def _drop_ratio(self, foot_z):
         """cos(theta): depth of the foot below the ankle axis over the dactyl length."""
         return (self.knee_xyz[:, 2] - np.asarray(foot_z, dtype=float)) / self.dactyl_length
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)
