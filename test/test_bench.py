@@ -86,5 +86,5 @@ def test_terrain_cost_writes_every_surface_against_the_plane(tmp_path):
     main(['--out', str(tmp_path), '--rounds', '1'])
     results = json.loads((tmp_path / 'terrain_cost.json').read_text())
     assert results['cases']['plane']['ratio_to_plane'] == 1.0
-    assert len(results['cases']) == 8 and results['machine']['cores'] >= 1
+    assert len(results['cases']) == 9 and results['machine']['cores'] >= 1
     assert '| deformable 8 m x 8 m, 1 cm |' in (tmp_path / 'terrain_cost.md').read_text()

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import resources
+from ..sand.surface import Slope
 from ..sim.runner import machine_info
 
 WORKER = Path(__file__).with_name('engine_step_worker.py')
@@ -42,12 +43,17 @@ def rippled_heights():
 
 
 def grid_files(folder):
-    """Two 2 m x 2 m height grids at 1 cm (.npy, m) in `folder`: flat at 0 (the plane's
-    physics on the grid path) and rippled (`rippled_heights`)."""
+    """Three 2 m x 2 m height grids at 1 cm (.npy, m) in `folder`: flat at 0 (the plane's
+    physics on the grid path), rippled (`rippled_heights`), and the 10 deg slope of the
+    slope case sampled at the nodes (the slope's physics on the grid path: bilinear
+    interpolation of a plane is that plane)."""
     flat, rippled = Path(folder) / 'flat_grid.npy', Path(folder) / 'rippled_grid.npy'
+    sloped = Path(folder) / 'sloped_grid.npy'
     np.save(flat, np.zeros((201, 201)))
     np.save(rippled, rippled_heights())
-    return flat, rippled
+    x = np.linspace(-1.0, 1.0, 201)
+    np.save(sloped, Slope(0.0, angle_deg=10.0).height(*np.meshgrid(x, x)))
+    return flat, rippled, sloped
 
 
 def hfield_model(folder):
@@ -72,7 +78,7 @@ def hfield_model(folder):
 
 def cases(folder):
     """(label, scene overrides) of the surfaces measured; 'plane' is the reference."""
-    flat, rippled = grid_files(folder)
+    flat, rippled, sloped = grid_files(folder)
     grid = {'sand.surface.type': 'grid', 'sand.surface.size': [2.0, 2.0]}
     return (
         ('plane', {}),
@@ -80,6 +86,8 @@ def cases(folder):
         ('slope 10 deg', {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0}),
         ('height grid 2 m at 1 cm, flat (grid path, the plane\'s physics)',
          {**grid, 'sand.surface.file': str(flat)}),
+        ('height grid 2 m at 1 cm, the 10 deg slope (the slope\'s physics)',
+         {**grid, 'sand.surface.file': str(sloped)}),
         ('height grid 2 m at 1 cm, rippled +-1 cm', {**grid, 'sand.surface.file': str(rippled)}),
         ('the model\'s own hfield, the same ripples', {
             'model': str(hfield_model(folder)), 'sand.surface.type': 'hfield',
