@@ -307,6 +307,8 @@ def _gather_plates(arrays, kind, deform):
                 if flat or body_low == body_top:  # level under the body: under the cluster
                     level = body_top
                 else:
+                    if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= body_top:
+                        continue  # (above the body's bound: its blocks need not be read)
                     wx_c = ox + r00 * ccx + r01 * ccy + r02 * ccz  # the cluster's centre
                     wy_c = oy + r10 * ccx + r11 * ccy + r12 * ccz
                     if off_bed:  # (deformable sand, a body reaching beyond the bed)
