@@ -10,17 +10,20 @@ from rft_sim_ros.sand.deformable import COUNT, DeformableSand
 from rft_sim_ros.sand.engine import LowVelocity
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,
-                                      surface_from_settings)
+                                      surface_from_settings, tile_planes)
 from rft_sim_ros.sand.zeta_map import ZetaMap, zeta_map_from_settings
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 
-#: A slope and a rippled height grid, for the tests of depth below a shaped surface.
+#: A slope, a rippled height grid and a tilted, gently curved one (bounded by the tiles'
+#: planes: `surface.tile_planes`), for the tests of depth below a shaped surface.
 SHAPED = [
     Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
     HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
-               size=(1.5, 1.2), center=(0.05, 0.0))]
+               size=(1.5, 1.2), center=(0.05, 0.0)),
+    HeightGrid(0.02 - 0.2 * np.linspace(-0.6, 0.6, 121)[None, :]
+               + 0.005 * np.cos(np.linspace(0, 4, 101))[:, None], size=(1.2, 1.0))]
 
 
 def _engine(surface=None, zeta_map=None, **options):
@@ -155,6 +158,36 @@ def test_block_maximum_and_minimum_bound_every_node():
             for bj in {j // 8, max(j - 1, 0) // 8}:  # a node at a block's end is in both
                 for bi in {i // 8, max(i - 1, 0) // 8}:
                     assert low[bj, bi] <= grid[j, i] <= high[bj, bi]
+
+
+@pytest.mark.parametrize('shape', ['tilted', 'random'])
+def test_tile_planes_bound_the_surface_over_each_tile(shape):
+    """Over each tile (nodes [t*step, t*step + 2*step], clipped), the bilinear surface never
+    exceeds the tile's plane and touches it at a node; a tilted, gently curved grid gets
+    usable planes, a random one none."""
+    rng = np.random.default_rng(2)
+    x, y = np.meshgrid(np.linspace(0, 1, 43), np.linspace(0, 1, 31))
+    heights = (0.2 * x - 0.1 * y + 0.01 * np.sin(3 * x) * np.cos(2 * y) if shape == 'tilted'
+               else rng.normal(size=x.shape))
+    grid = HeightGrid(heights, size=(0.84, 0.6), center=(0.3, -0.2))
+    step = 5
+    tiles = tile_planes(grid.grid, grid.origin, grid.spacing, step)
+    ntx = (43 - 2) // step + 1
+    assert tiles.shape == (((31 - 2) // step + 1) * ntx, 4)
+    assert tiles[:, 3].all() if shape == 'tilted' else not tiles[:, 3].any()
+    (x0, y0), (dx, dy) = grid.origin, grid.spacing
+    for row, (a, gx, gy, _) in enumerate(tiles):
+        tj, ti = divmod(row, ntx)
+        i1, j1 = min(ti * step + 2 * step, 42), min(tj * step + 2 * step, 30)
+        u = rng.uniform(ti * step, i1, 200)
+        v = rng.uniform(tj * step, j1, 200)
+        px, py = x0 + u * dx, y0 + v * dy
+        assert np.all(grid.height(px, py) <= a + gx * px + gy * py + 1e-12)
+        nodes_x = x0 + dx * np.arange(ti * step, i1 + 1)
+        nodes_y = y0 + dy * np.arange(tj * step, j1 + 1)
+        nx_, ny_ = np.meshgrid(nodes_x, nodes_y)
+        gap = a + gx * nx_ + gy * ny_ - grid.grid[tj * step:j1 + 1, ti * step:i1 + 1]
+        assert gap.min() == pytest.approx(0.0, abs=1e-12)
 
 
 def test_slope_heights_and_normal():

@@ -41,7 +41,7 @@ from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, 
 from .deformable import OUTSIDE, mark_cell, settle, touch_cell
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
-                              map_factor, node_height, surface_range)
+                              map_factor, node_height, surface_range, tile_plane)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -95,12 +95,13 @@ PLATE_ROWS = LAW_ROWS + 7
 #: [0, 0] corner (x, y) m and 1/cell (1/m); and, for deformable sand, its base beyond the
 #: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
 #: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use),
-#: and the height difference of axis neighbours at the angle of repose (m; `settle`).
+#: the height difference of axis neighbours at the angle of repose (m; `settle`), and a
+#: rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0: none).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
  ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY,
- BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE) = range(26)
-SETTING_COUNT = 26
+ BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE, TILE_STEP) = range(27)
+SETTING_COUNT = 27
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
@@ -114,9 +115,10 @@ GatherArrays = namedtuple('GatherArrays', [
     # the engine's settings and counters, plates and clusters
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
     'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
-    # the surface's grid, block maximum and minimum (`surface.SurfaceData`); zeta map factors;
-    # deformable sand's base grid, block maximum and minimum (beyond the bed; a grid base)
-    'surface_grid', 'surface_block_max', 'surface_block_min', 'zeta_factors',
+    # the surface's grid, block maximum and minimum (`surface.SurfaceData`), a rigid grid's
+    # tile planes (`surface.tile_planes`); zeta map factors; deformable sand's base grid,
+    # block maximum and minimum (beyond the bed; a grid base)
+    'surface_grid', 'surface_block_max', 'surface_block_min', 'surface_tiles', 'zeta_factors',
     'base_grid', 'base_block_max', 'base_block_min',
     # deformable sand's footprint marks and settling (`DeformableSand.kernel_arrays`)
     'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cell_stamp',
@@ -189,7 +191,8 @@ def _gather_plates(arrays, kind, deform):
     bilinear height there is that level exactly; where they are level under the body's whole
     sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
     blocks' maximum read the grid (a body a cell inside the grid all round without
-    clamping: `inside_grid`). On deformable sand (`deform`) the plates below the surface
+    clamping: `inside_grid`), or on a rigid grid, where a plane bounds it over the body's
+    square (`tile_plane`), below that plane's highest point over the cluster. On deformable sand (`deform`) the plates below the surface
     mark their footprint cells (`deformable.mark_cell`), and the footprints the bodies left
     are settled after the plates are gathered (`gather_deformable`); beyond the
     bed its base (plane, slope or grid: `_deformable_base`) gives the depth, and bounds the
@@ -222,6 +225,7 @@ def _gather_plates(arrays, kind, deform):
     grid = float_matrix(arrays, a.surface_grid)
     block_max = float_matrix(arrays, a.surface_block_max)
     block_min = float_matrix(arrays, a.surface_block_min)
+    tiles, tile_step = float_matrix(arrays, a.surface_tiles), np.int64(settings[TILE_STEP])
     zeta_map = settings[ZETA_MAP] != 0.0
     factors = float_matrix(arrays, a.zeta_factors)
     mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
@@ -270,6 +274,11 @@ def _gather_plates(arrays, kind, deform):
         if xpos[b, 2] - radii[i] >= body_top:
             continue
         top = body_top
+        # a rigid grid, not level under the body: a plane bounding it over the body's square
+        planar, p_a, p_gx, p_gy = False, 0.0, 0.0, 0.0
+        if kind == GRID and not deform and inside and body_low != body_top and tile_step > 0:
+            planar, p_a, p_gx, p_gy = tile_plane(tiles, tile_step, grid.shape[1], gx0, gy0,
+                                                 g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         first = k
         root = body_rootid[b]
         ox, oy, oz = xpos[b, 0], xpos[b, 1], xpos[b, 2]
@@ -306,6 +315,11 @@ def _gather_plates(arrays, kind, deform):
             else:
                 if flat or body_low == body_top:  # level under the body: under the cluster
                     level = body_top
+                elif planar:  # the body's tile plane, at its highest over the cluster
+                    top = (p_a + p_gx * (ox + r00 * ccx + r01 * ccy + r02 * ccz)
+                           + p_gy * (oy + r10 * ccx + r11 * ccy + r12 * ccz)
+                           + cluster_radius[c] * (abs(p_gx) + abs(p_gy)))
+                    level, lookup = top, True
                 else:
                     if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= body_top:
                         continue  # (above the body's bound: its blocks need not be read)

@@ -23,7 +23,7 @@ from ..units import validated_zeta, zeta_to_si
 from . import coupling
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand, no_bed_arrays
-from .surface import FLAT, Plane
+from .surface import FLAT, GRID, Plane, tile_planes
 from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
@@ -162,7 +162,8 @@ class SandEngine:
         """Write the surface's `surface.SurfaceData` into the kernels' settings and keep its
         arrays; deformable sand's is its bed's, and its base's (read beyond the bed) goes
         in too: a plane or slope as SURFACE, SLOPE_X, SLOPE_Y, a grid as the BASE_ settings
-        and arrays."""
+        and arrays. A rigid grid gets its bounding planes over tiles of TILE_STEP nodes,
+        enough for the largest sand body's square (`surface.tile_planes`)."""
         settings = self._settings
         data = surface.data
         base = surface.base.data if self.deformable else data
@@ -179,6 +180,12 @@ class SandEngine:
             settings[coupling.DEFORM_RISE] = surface.rise
         self._surface_grid = data.grid
         self._surface_block_max, self._surface_block_min = data.block_max, data.block_min
+        # a rigid grid's bounding planes over tiles that hold any body's square
+        step = int(np.ceil(2 * self.radii.max(initial=0.0) / min(data.spacing)))
+        rigid_grid = data.kind == GRID and not self.deformable and step > 0
+        settings[coupling.TILE_STEP] = step if rigid_grid else 0
+        self._surface_tiles = (tile_planes(data.grid, data.origin, data.spacing, step)
+                               if rigid_grid else np.zeros((1, 4)))
         self._base_arrays = dict(base_grid=base.grid, base_block_max=base.block_max,
                                  base_block_min=base.block_min)
 
@@ -239,7 +246,8 @@ class SandEngine:
             cluster_radius=self._cluster_radius, positions=self.local_pos,
             normals=self.local_normal, areas=self.areas, surface_grid=self._surface_grid,
             surface_block_max=self._surface_block_max,
-            surface_block_min=self._surface_block_min, zeta_factors=self._zeta_factors,
+            surface_block_min=self._surface_block_min, surface_tiles=self._surface_tiles,
+            zeta_factors=self._zeta_factors,
             **self._base_arrays,
             **self._footprint_arrays(),
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,

@@ -19,7 +19,9 @@ the literature behind this choice): depth = height(x, y) - z of the plate.
 The grid carries a coarse "block maximum" and "block minimum" (the highest and lowest node
 of each BLOCK x BLOCK tile) so that a kernel can tell in a few reads whether a bounding sphere
 lies wholly above the sand, and whether the surface under it is level (block minimum ==
-maximum: the bilinear height there is that level exactly, no look-up needed).
+maximum: the bilinear height there is that level exactly, no look-up needed). On a rigid
+grid the engine adds planes that bound the surface over tiles the size of its bodies
+(`tile_planes`): a body on a smooth slope is bounded as on the analytic slope.
 """
 from collections import namedtuple
 from pathlib import Path
@@ -49,6 +51,38 @@ def block_maximum(grid, block=BLOCK):
 def block_minimum(grid, block=BLOCK):
     """As `block_maximum`, with each block's lowest node (the surface never goes below)."""
     return _blocks(grid, block, np.min)
+
+
+def tile_planes(grid, origin, spacing, step):
+    """Upper-bound planes of a grid over overlapping tiles, read by the gather kernels as
+    one bound for a whole body (`surface_kernels.tile_plane`). Tile [tj, ti] covers the
+    nodes [tj*step .. tj*step + 2*step] x [ti*step .. ti*step + 2*step] (clipped to the
+    grid), so that a square of up to `step` node spacings a side lies in one. Returns
+    (ntx * nty, 4), row tj * ntx + ti (ntx = (nx - 2) // step + 1): the least-squares plane
+    z = a + gx x + gy y (world, m) of the tile's nodes, raised by their largest height above
+    it, so that the bilinear surface over the tile never exceeds it (a bilinear function
+    less a plane peaks at a node), as (a, gx, gy, usable). usable is 0 where that rise is
+    more than a quarter of the tile's height range (a surface far from a plane there:
+    ripples, steps), where the grid's blocks bound it better."""
+    grid = np.asarray(grid, float)
+    ny, nx = grid.shape
+    nty, ntx = (ny - 2) // step + 1, (nx - 2) // step + 1
+    out = np.zeros((nty * ntx, 4))
+    for tj in range(nty):
+        for ti in range(ntx):
+            rows = slice(tj * step, min(tj * step + 2 * step, ny - 1) + 1)
+            cols = slice(ti * step, min(ti * step + 2 * step, nx - 1) + 1)
+            h = grid[rows, cols]
+            x = origin[0] + spacing[0] * np.arange(cols.start, cols.stop)
+            y = origin[1] + spacing[1] * np.arange(rows.start, rows.stop)
+            dx, dy = x - x.mean(), y - y.mean()  # (a full lattice: x and y fit apart)
+            gx = (h * dx[None, :]).sum() / (dx @ dx * len(y))
+            gy = (h * dy[:, None]).sum() / (dy @ dy * len(x))
+            plane = h.mean() + gx * dx[None, :] + gy * dy[:, None]
+            rise = (h - plane).max()
+            a = h.mean() - gx * x.mean() - gy * y.mean() + rise
+            out[tj * ntx + ti] = a, gx, gy, float(rise <= 0.25 * (h.max() - h.min()))
+    return out
 
 
 def _blocks(grid, block, reduce):

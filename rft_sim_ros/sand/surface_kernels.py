@@ -48,6 +48,22 @@ def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
 
 
 @njit(inline='always')
+def tile_plane(tiles, step, nx, x0, y0, inv_dx, inv_dy, x, y, r):
+    """The plane bounding a grid of nx node columns from above over the square
+    |x' - x|, |y' - y| <= r (m), from its `surface.tile_planes(.., step)` (`tiles`):
+    (usable, a, gx, gy), z = a + gx x + gy y (m, world). usable is False where no tile holds
+    the square (it spans more than `step` nodes) or its tile's plane is marked unusable.
+    The square must lie inside the grid's nodes (`inside_grid`)."""
+    u0, v0 = (x - r - x0) * inv_dx, (y - r - y0) * inv_dy
+    ti, tj = int(u0) // step, int(v0) // step
+    row = tj * ((nx - 2) // step + 1) + ti
+    if ((x + r - x0) * inv_dx > (ti + 2) * step or (y + r - y0) * inv_dy > (tj + 2) * step
+            or tiles[row, 3] == 0.0):
+        return False, 0.0, 0.0, 0.0
+    return True, tiles[row, 0], tiles[row, 1], tiles[row, 2]
+
+
+@njit(inline='always')
 def surface_range(kind, level, gx, gy, g_norm, grid, block_max, block_min, x0, y0, inv_dx,
                   inv_dy, x, y, r):
     """Bounds (low, high) of the surface's height within horizontal distance r of (x, y), m
