@@ -6,8 +6,8 @@ terrain work).
     python -m rft_sim_ros.bench.terrain_cost [--out DIR] [--rounds 5] [--baseline CODE_DIR]
 
 Every case runs in its own worker process (`engine_step_worker.py`: one hexapod walking on
-one surface); the cases take turns, one gait cycle each, for `rounds` rounds, so machine noise
-hits all alike. Reported: the median CPU time per engine step of each case, and its ratio to
+one surface); the cases take turns, one gait cycle each, for `rounds` rounds, each round
+starting with the next case, so machine noise and the order of turns hit all alike. Reported: the median CPU time per engine step of each case, and its ratio to
 the plane as the median of the per-round ratios (a ratio taken within one round). The workers
 of the code under test import this package; the baseline worker imports CODE_DIR's (a
 `git worktree add` checkout) with the same interpreter. Writes terrain_cost.json and
@@ -138,9 +138,11 @@ def surface_costs(rounds=5, baseline=None, log=print):
                 log(f'starting: {label}')
                 workers[label] = Worker(code, overrides, folder)
             samples = {label: [] for label in workers}
+            turns = list(workers.items())
             for r in range(rounds):
                 log(f'round {r + 1}/{rounds}')
-                for label, worker in workers.items():
+                shift = r % len(turns)  # each round starts with the next case: no case
+                for label, worker in turns[shift:] + turns[:shift]:  # always goes first
                     samples[label].append(worker.chunk())
         finally:
             for worker in workers.values():
