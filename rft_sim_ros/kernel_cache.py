@@ -1,7 +1,8 @@
 """The package's compiled kernels in numba's on-disk cache: which are there, whether they are
 still those of the package's sources, and warming it.
 
-The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`) and the gaits'
+The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`,
+`sand.surface_kernels`) and the gaits'
 (`scenes.gaits`, `scenes.leg_kinematics`) are numba functions compiled with cache=True: the
 first run after an install (or after their source changed) compiles them, about 12 s on two
 cores (`BackgroundCompile` puts a share in a second process); every later run loads them
@@ -31,8 +32,8 @@ from pathlib import Path
 
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.coupling',
-                  'rft_sim_ros.sand.deformable', 'rft_sim_ros.scenes.gaits',
-                  'rft_sim_ros.scenes.leg_kinematics')
+                  'rft_sim_ros.sand.deformable', 'rft_sim_ros.sand.surface_kernels',
+                  'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics')
 #: The package's folder.
 PACKAGE = Path(__file__).resolve().parent
 

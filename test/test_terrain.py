@@ -38,9 +38,47 @@ def _wrenches(surface, seed, zeta_map=None):
     return model, data, engine, engine.body_wrenches.copy()
 
 
+def _numpy_height(surface, x, y):
+    """The surface's height at world (x, y) computed here with numpy, independently of the
+    compiled look-up the engine (and `HeightGrid.height`) use: bilinear between a grid's
+    nodes, its edge values continued; a deformable bed's base beyond the bed."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if isinstance(surface, DeformableSand):
+        (x0, y0), (sx, sy) = surface.origin, surface.size
+        inside = (x >= x0) & (x <= x0 + sx) & (y >= y0) & (y <= y0 + sy)
+        return np.where(inside, _bilinear(surface, x, y), _numpy_height(surface.base, x, y))
+    if isinstance(surface, HeightGrid):
+        return _bilinear(surface, x, y)
+    return surface.height(x, y)
+
+
+def _bilinear(grid, x, y):
+    ny, nx = grid.grid.shape
+    u = np.clip((x - grid.origin[0]) / grid.spacing[0], 0.0, nx - 1)
+    v = np.clip((y - grid.origin[1]) / grid.spacing[1], 0.0, ny - 1)
+    i = np.minimum(u.astype(int), nx - 2)
+    j = np.minimum(v.astype(int), ny - 2)
+    fu, fv = u - i, v - j
+    g = grid.grid
+    return ((1 - fv) * ((1 - fu) * g[j, i] + fu * g[j, i + 1])
+            + fv * ((1 - fu) * g[j + 1, i] + fu * g[j + 1, i + 1]))
+
+
+def test_a_grids_height_is_bilinear_between_its_nodes_and_continues_its_edges():
+    rng = np.random.default_rng(4)
+    grid = HeightGrid(rng.normal(size=(23, 31)), size=(0.9, 0.6), center=(0.2, -0.1))
+    x, y = rng.uniform(-0.6, 1.0, (3, 400)), rng.uniform(-0.7, 0.5, (3, 400))  # some beyond
+    assert np.allclose(grid.height(x, y), _bilinear(grid, x, y), rtol=0, atol=1e-13)
+    nodes_x = grid.origin[0] + grid.spacing[0] * np.arange(31)
+    nodes_y = grid.origin[1] + grid.spacing[1] * np.arange(23)
+    assert np.allclose(grid.height(*np.meshgrid(nodes_x, nodes_y)), grid.grid, atol=1e-14)
+    assert grid.height(0.2, -0.1).shape == ()
+
+
 def _assert_reference_law(model, data, engine, wrenches, surface):
     """Each body's engine wrench equals the reference law's (`rft.body_wrench`) with every
-    plate's depth measured vertically below `surface.height` at its own (x, y)."""
+    plate's depth measured vertically below the surface's height at its own (x, y)
+    (`_numpy_height`)."""
     for i, name in enumerate(engine.body_names):
         body = model.body(name).id
         velocity = np.zeros(6)
@@ -48,7 +86,7 @@ def _assert_reference_law(model, data, engine, wrenches, surface):
         plates = body_plates(model, body, count=300)
         rotation = data.xmat[body].reshape(3, 3)
         world = plates.centroids @ rotation.T + data.xpos[body]
-        heights = surface.height(world[:, 0], world[:, 1])
+        heights = _numpy_height(surface, world[:, 0], world[:, 1])
         force, torque = body_wrench(plates, data.xpos[body], rotation, velocity[3:],
                                     velocity[:3], 2.0, surface_height=heights)
         torque_about_com = torque + np.cross(data.xpos[body] - data.xipos[body], force)

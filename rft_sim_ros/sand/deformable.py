@@ -120,7 +120,8 @@ class DeformableSand(HeightGrid):
         x, y = np.asarray(x, float), np.asarray(y, float)
         (x0, y0), (sx, sy) = self.origin, self.size
         inside = (x >= x0) & (x <= x0 + sx) & (y >= y0) & (y <= y0 + sy)
-        return np.where(inside, super().height(x, y), self.base.height(x, y))
+        bed = super().height(x, y)
+        return bed if inside.all() else np.where(inside, bed, self.base.height(x, y))
 
     def highest(self, x0, x1, y0, y1):
         top = super().highest(x0, x1, y0, y1)  # (the bed's edge nodes, where it reaches out)

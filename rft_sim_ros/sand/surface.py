@@ -247,16 +247,16 @@ class HeightGrid(Surface):
         return cls(pos[2] + sz * heights, size, (pos[0], pos[1]))
 
     def height(self, x, y):
-        x, y = np.asarray(x, float), np.asarray(y, float)
-        ny, nx = self.grid.shape
-        u = np.clip((x - self.origin[0]) / self.spacing[0], 0.0, nx - 1)
-        v = np.clip((y - self.origin[1]) / self.spacing[1], 0.0, ny - 1)
-        i = np.minimum(u.astype(int), nx - 2)
-        j = np.minimum(v.astype(int), ny - 2)
-        fu, fv = u - i, v - j
-        g = self.grid
-        return ((1 - fv) * ((1 - fu) * g[j, i] + fu * g[j, i + 1])
-                + fv * ((1 - fu) * g[j + 1, i] + fu * g[j + 1, i + 1]))
+        """The bilinear height the gather kernels read (`surface_kernels.grid_heights`),
+        compiled: a Python caller (metrics, scenarios) sampling thousands of points at the
+        publish rate pays microseconds, not a numpy pass per operation."""
+        from .surface_kernels import grid_heights  # (it imports this module)
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        out = np.empty(x.shape)
+        grid_heights(self.grid, self.origin[0], self.origin[1], 1.0 / self.spacing[0],
+                     1.0 / self.spacing[1], np.ascontiguousarray(x).ravel(),
+                     np.ascontiguousarray(y).ravel(), out.reshape(-1))
+        return out
 
     def highest(self, x0, x1, y0, y1):
         """The highest node of the cells the rectangle touches (the edge nodes outside)."""

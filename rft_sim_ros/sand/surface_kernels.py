@@ -1,6 +1,7 @@
 """Compiled look-ups of the sand surface (`surface.SurfaceData`), of deformable sand's base
 beyond its bed, and of the zeta map, inlined into the gather kernels
-(`coupling.gather_kernel`). World frame, m.
+(`coupling.gather_kernel`); and `grid_heights`, the same look-up for points handed in from
+Python (`surface.HeightGrid.height`). World frame, m.
 
 The grid is read in node coordinates u = (x - x0) / dx, v = (y - y0) / dy, clamped to the
 grid, so the edge values continue outside it.
@@ -8,6 +9,7 @@ grid, so the edge values continue outside it.
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import forget_stale
 from .surface import BLOCK, FLAT, GRID, SLOPE
 
 
@@ -28,6 +30,14 @@ def node_height(grid, u, v):
     i = min(max(int(u), 0), nx - 2)  # (clamped as integers: any u gives a node inside)
     j = min(max(int(v), 0), ny - 2)
     return cell_height(grid, i, j, min(max(u - i, 0.0), 1.0), min(max(v - j, 0.0), 1.0))
+
+
+@njit(cache=True)
+def grid_heights(grid, x0, y0, inv_dx, inv_dy, x, y, out):
+    """`node_height` at each world point (x[k], y[k]) (m) into out[k] (m): the height the
+    gather kernels read there, for any number of points in one call."""
+    for k in range(x.shape[0]):
+        out[k] = node_height(grid, (x[k] - x0) * inv_dx, (y[k] - y0) * inv_dy)
 
 
 @njit(inline='always')
@@ -128,3 +138,6 @@ def map_factor(factors, x0, y0, inv_dx, inv_dy, x, y):
     if u < 0.0 or v < 0.0 or u >= factors.shape[1] or v >= factors.shape[0]:
         return 1.0
     return factors[int(v), int(u)]
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -303,4 +303,9 @@ def _report(r, slopes, rails):
               '|---|---|---|']
     for label, value in cost.items():
         lines.append(f'| {label} | {value * 1e6:.1f} | {value / plane:.3f} |')
+    lines += ['', 'A quick figure from one process: whole simulation steps (the gait and the '
+              'recorded state included) from 1 s to 4 s, the first steps of the walk with them. '
+              'The targets are judged by `python -m rft_sim_ros.bench.terrain_cost` (the engine '
+              'step alone over whole gait cycles of the steady walk, each case in its own '
+              'process, seven rounds; bench/results/terrain_cost.md).']
     return '\n'.join(lines) + '\n'
