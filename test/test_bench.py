@@ -83,8 +83,8 @@ def test_engine_step_worker_times_one_gait_cycle_of_the_walk(tmp_path):
 def test_terrain_cost_writes_every_surface_against_the_plane(tmp_path):
     import json
     from rft_sim_ros.bench.terrain_cost import main
-    main(['--out', str(tmp_path), '--rounds', '1'])
+    main(['--out', str(tmp_path), '--rounds', '1', '--processes', '2'])
     results = json.loads((tmp_path / 'terrain_cost.json').read_text())
-    assert results['cases']['plane']['ratio_to_plane'] == 1.0
+    assert results['cases']['plane']['ratio_to_plane'] == 1.0 and results['processes'] == 2
     assert len(results['cases']) == 9 and results['machine']['cores'] >= 1
     assert '| deformable 8 m x 8 m, 1 cm |' in (tmp_path / 'terrain_cost.md').read_text()

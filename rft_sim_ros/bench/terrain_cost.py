@@ -125,9 +125,12 @@ class Worker:
         self.process.wait()
 
 
-def surface_costs(rounds=5, baseline=None, log=print):
+def surface_costs(rounds=5, baseline=None, processes=1, log=print):
     """Median engine-step CPU time per case and its ratio to the plane (median of per-round
-    ratios); with `baseline` (a code folder), the plane of that code as one more case."""
+    ratios); with `baseline` (a code folder), the plane of that code as one more case. With
+    `processes` > 1 each case runs in that many worker processes and a round's sample of a
+    case is their mean: the same code reads up to about 2 % apart in two processes, for the
+    life of each (where its compiled code and arrays landed), and the mean evens that out."""
     with tempfile.TemporaryDirectory() as folder:
         plan = [(label, CODE, overrides) for label, overrides in cases(folder)]
         if baseline is not None:
@@ -136,24 +139,26 @@ def surface_costs(rounds=5, baseline=None, log=print):
         try:
             for label, code, overrides in plan:
                 log(f'starting: {label}')
-                workers[label] = Worker(code, overrides, folder)
+                workers[label] = [Worker(code, overrides, folder) for _ in range(processes)]
             samples = {label: [] for label in workers}
             turns = list(workers.items())
             for r in range(rounds):
                 log(f'round {r + 1}/{rounds}')
                 shift = r % len(turns)  # each round starts with the next case: no case
-                for label, worker in turns[shift:] + turns[:shift]:  # always goes first
-                    samples[label].append(worker.chunk())
+                for label, group in turns[shift:] + turns[:shift]:  # always goes first
+                    samples[label].append(float(np.mean([w.chunk() for w in group])))
         finally:
-            for worker in workers.values():
-                worker.close()
+            for group in workers.values():
+                for worker in group:
+                    worker.close()
     plane = np.array(samples['plane'])
     result = {}
     for label, values in samples.items():
         values = np.array(values)
         result[label] = {'step_s': float(np.median(values)),
                          'ratio_to_plane': float(np.median(values / plane)),
-                         'samples_s': values.tolist(), 'package': workers[label].info['package']}
+                         'samples_s': values.tolist(),
+                         'package': workers[label][0].info['package']}
     return result
 
 
@@ -163,7 +168,8 @@ def markdown(results):
              f'Machine: {machine["cpu"]}, {machine["cores"]} cores (shared); Python '
              f'{machine["python"]}, MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. '
              'Hexapod walking (500 plates per leg segment, 0.8 ms): CPU time per engine step '
-             '(sand + MuJoCo), one worker process per case, the cases taking turns one gait '
+             f'(sand + MuJoCo), {results.get("processes", 1)} worker process(es) per case (a '
+             'round\'s sample: their mean), the cases taking turns one gait '
              f'cycle each over {results["rounds"]} rounds; medians, and ratios to the plane as '
              'the median of per-round ratios. Produced by `python -m '
              'rft_sim_ros.bench.terrain_cost`.', '',
@@ -180,6 +186,8 @@ def main(argv=None):
                                      description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', default='bench/results', help='output folder')
     parser.add_argument('--rounds', type=int, default=5, help='gait cycles per case')
+    parser.add_argument('--processes', type=int, default=1,
+                        help='worker processes per case (their mean per round)')
     parser.add_argument('--baseline', help='a folder holding an older rft_sim_ros to compare '
                                            'the plane with (e.g. a git worktree)')
     parser.add_argument('--baseline-label', default='', help='what the baseline is (report)')
@@ -187,7 +195,8 @@ def main(argv=None):
     log = lambda line: print(f'terrain_cost: {line}', file=sys.stderr)  # noqa: E731
     results = {'machine': machine_info(), 'rounds': args.rounds,
                'load_before': os.getloadavg()[0],
-               'cases': surface_costs(args.rounds, args.baseline, log),
+               'processes': args.processes,
+               'cases': surface_costs(args.rounds, args.baseline, args.processes, log),
                'load_after': os.getloadavg()[0],
                'baseline': args.baseline_label or args.baseline}
     out = Path(args.out)
