@@ -313,19 +313,19 @@ def _gather_plates(arrays, kind, deform):
                         >= surface_height + cluster_radius[c] * g_norm):
                     continue
             else:
+                bottom = oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c]
                 if flat or body_low == body_top:  # level under the body: under the cluster
                     level = body_top
-                elif planar:  # the body's tile plane, at its highest over the cluster
-                    top = (p_a + p_gx * (ox + r00 * ccx + r01 * ccy + r02 * ccz)
-                           + p_gy * (oy + r10 * ccx + r11 * ccy + r12 * ccz)
-                           + cluster_radius[c] * (abs(p_gx) + abs(p_gy)))
-                    level, lookup = top, True
                 else:
-                    if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= body_top:
-                        continue  # (above the body's bound: its blocks need not be read)
+                    if bottom >= body_top:  # (above the body's bound: nothing to read)
+                        continue
                     wx_c = ox + r00 * ccx + r01 * ccy + r02 * ccz  # the cluster's centre
                     wy_c = oy + r10 * ccx + r11 * ccy + r12 * ccz
-                    if off_bed:  # (deformable sand, a body reaching beyond the bed)
+                    if planar:  # the body's tile plane, at its highest over the cluster
+                        top = (p_a + p_gx * wx_c + p_gy * wy_c
+                               + cluster_radius[c] * (abs(p_gx) + abs(p_gy)))
+                        low = -np.inf  # (not level: the grid is read)
+                    elif off_bed:  # (deformable sand, a body reaching beyond the bed)
                         low, top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx,
                                              g_idy, wx_c, wy_c, cluster_radius[c],
                                              _deformable_base(arrays))
@@ -333,7 +333,7 @@ def _gather_plates(arrays, kind, deform):
                         low, top = grid_range(grid, block_max, block_min, gx0, gy0, g_idx,
                                               g_idy, wx_c, wy_c, cluster_radius[c])
                     level, lookup = top, low != top
-                if oz + r20 * ccx + r21 * ccy + r22 * ccz - cluster_radius[c] >= top:
+                if bottom >= top:
                     continue
             j0 = cluster_plate_start[c]
             j1 = cluster_plate_start[c + 1]

@@ -249,7 +249,7 @@ class SandEngine:
             surface_block_min=self._surface_block_min, surface_tiles=self._surface_tiles,
             zeta_factors=self._zeta_factors,
             **self._base_arrays,
-            **self._footprint_arrays(),
+            **(self.surface.kernel_arrays() if self.deformable else no_bed_arrays()),
             xpos=d.xpos, xmat=d.xmat, xipos=d.xipos, cvel=d.cvel, subtree_com=d.subtree_com,
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
@@ -274,11 +274,6 @@ class SandEngine:
             body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied,
             wrench_sum=self._wrench_sum,
             **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
-
-    def _footprint_arrays(self):
-        """The gather's deformable-sand arrays (`DeformableSand.kernel_arrays`; stand-ins on
-        rigid sand)."""
-        return self.surface.kernel_arrays() if self.deformable else no_bed_arrays()
 
     @property
     def zeta(self):
