@@ -135,12 +135,14 @@ GATHER = GatherArrays(*range(len(GatherArrays._fields)))
 #: count, its translational inverse effective mass, accumulators (w_moving, k_rank: S 6x6
 #: blocks stacked, k_iso) and a flag to sum them again; per dof the momentum Mh qvel +
 #: dt tau_free, the system and its right-hand side, a factored copy and the solution, the
-#: tree factor of Mh and its solve for the 3S translational Jacobian rows; and the 6x6 block
-#: and `_add_slot`'s rows of one slot.
+#: tree factor of Mh and its solve for the 3S translational Jacobian rows; per slot its
+#: twist response (`_resting_block`, S 6x6 blocks stacked) and its terms of the system
+#: (`_slot_terms`: S nv x nv blocks stacked, of which its chain's corner is used; S rows of
+#: nv); and `_slot_terms`' rows.
 SolveSpace = namedtuple('SolveSpace', [
     'chain', 'chain_count', 'inverse_mass', 'w_moving', 'k_rank', 'k_iso', 'dirty',
-    'momentum', 'system', 'rhs', 'factored', 'solution', 'factor', 'translational', 'block',
-    'chain_work'])
+    'momentum', 'system', 'rhs', 'factored', 'solution', 'factor', 'translational', 'blocks',
+    'products', 'force_terms', 'chain_work'])
 
 
 def solve_space(nv, bodies):
@@ -152,7 +154,8 @@ def solve_space(nv, bodies):
         dirty=np.zeros(bodies, dtype=np.int8), momentum=np.zeros(nv),
         system=np.zeros((nv, nv)), rhs=np.zeros(nv), factored=np.zeros((nv, nv)),
         solution=np.zeros(nv), factor=np.zeros((nv, nv)), translational=np.zeros((nv, 3 * bodies)),
-        block=np.zeros((6, 6)), chain_work=np.zeros((13, nv)))
+        blocks=np.zeros((6 * bodies, 6)), products=np.zeros((nv * bodies, nv)),
+        force_terms=np.zeros((bodies, nv)), chain_work=np.zeros((12, nv)))
 
 
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
@@ -807,12 +810,12 @@ def _set_coefficients(j, state, speed, across, inv_reg, v_reg, coef_along, coef_
 
 
 @njit(cache=True, inline='always', fastmath=True)
-def _add_slot(block, w_moving, slot_jac, dofs, timestep, work, system, rhs):
-    """A slot's terms of the implicit system: system -= dt J^T block J, rhs += dt J^T w_moving
-    (block (6, 6), w_moving (6,), slot_jac J (6, nv)), over the dofs of its chain (`dofs`),
-    where J is nonzero: on a compact copy of J's chain columns, with the dofs innermost and
-    the six-term sums unrolled (in pairs), so that the loops vectorise. work: (13, >= len
-    dofs) space: J's chain columns, block J on them, a row of the product."""
+def _slot_terms(block, w_moving, slot_jac, dofs, work, product, force_terms):
+    """A slot's terms of the implicit system, J^T block J into product[:n, :n] and
+    J^T w_moving into force_terms[:n] (block (6, 6), w_moving (6,), slot_jac J (6, nv)), over
+    the n dofs of its chain (`dofs`), where J is nonzero: on a compact copy of J's chain
+    columns, with the dofs innermost and the six-term sums unrolled (in pairs), so that the
+    loops vectorise. work: (12, >= n) space: J's chain columns, block J on them."""
     count = dofs.shape[0]
     j0, j1, j2 = work[0, :count], work[1, :count], work[2, :count]
     j3, j4, j5 = work[3, :count], work[4, :count], work[5, :count]
@@ -829,19 +832,27 @@ def _add_slot(block, w_moving, slot_jac, dofs, timestep, work, system, rhs):
                       + (b4 * j4[q] + b5 * j5[q]))
     c0, c1, c2 = work[6, :count], work[7, :count], work[8, :count]
     c3, c4, c5 = work[9, :count], work[10, :count], work[11, :count]
-    product = work[12, :count]
     w0, w1, w2 = w_moving[0], w_moving[1], w_moving[2]
     w3, w4, w5 = w_moving[3], w_moving[4], w_moving[5]
-    for q in range(count):  # row q of J^T block J on the chain, scattered to the dofs
+    for q in range(count):  # row q of J^T block J on the chain
         a0, a1, a2, a3, a4, a5 = j0[q], j1[q], j2[q], j3[q], j4[q], j5[q]
-        rhs[dofs[q]] += timestep * ((a0 * w0 + a1 * w1) + (a2 * w2 + a3 * w3)
-                                    + (a4 * w4 + a5 * w5))
+        force_terms[q] = (a0 * w0 + a1 * w1) + (a2 * w2 + a3 * w3) + (a4 * w4 + a5 * w5)
+        row = product[q, :count]
         for p in range(count):
-            product[p] = ((a0 * c0[p] + a1 * c1[p]) + (a2 * c2[p] + a3 * c3[p])
-                          + (a4 * c4[p] + a5 * c5[p]))
-        row = system[dofs[q]]
+            row[p] = ((a0 * c0[p] + a1 * c1[p]) + (a2 * c2[p] + a3 * c3[p])
+                      + (a4 * c4[p] + a5 * c5[p]))
+
+
+@njit(cache=True, inline='always', fastmath=True)
+def _add_slot(product, force_terms, dofs, timestep, system, rhs):
+    """A slot's terms (`_slot_terms`) into the implicit system, scattered to its chain's
+    dofs: system -= dt J^T block J, rhs += dt J^T w_moving."""
+    count = dofs.shape[0]
+    for q in range(count):
+        rhs[dofs[q]] += timestep * force_terms[q]
+        row, terms = system[dofs[q]], product[q]
         for p in range(count):
-            row[dofs[p]] -= timestep * product[p]
+            row[dofs[p]] -= timestep * terms[p]
 
 
 @njit(cache=True, inline='always', fastmath=True)
@@ -1027,7 +1038,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     wrench h = [G; r x G]; resting -> along response h u^T / v_reg (u = [d; r x d]); all but
     off -> across damper -c (I - d d^T), i.e. c u u^T minus c P^T P (kept as the 10 moments
     c, c r, c r r^T). After a solve, only the slots with plates that changed set are summed
-    again.
+    again, and only their terms of the system (J^T block J, J^T w_moving) recomputed; every
+    slot's are then added to Mh in the same order as in the first solve.
     """
     n6 = 6 * slots
     nv = qvel.shape[0]
@@ -1082,25 +1094,29 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     w_moving, k_rank, k_iso = space.w_moving, space.k_rank, space.k_iso
     dirty = space.dirty  # slots whose accumulators must be summed again
     dirty[:slots] = True
-    block, chain_work = space.block, space.chain_work
+    blocks, products, force_terms = space.blocks, space.products, space.force_terms
+    chain_work = space.chain_work
     system, rhs, factored, solution = space.system, space.rhs, space.factored, space.solution
     iterations = 0
     frozen = 0  # plates frozen this step
     converged = False
     while iterations < MAX_ITERATIONS and not converged:
         iterations += 1
-        for s in range(slots):
+        for s in range(slots):  # (a slot's terms change with its plates' sets only)
             if dirty[s]:
                 _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
                                  coef_moving, w_moving[s], k_rank[6 * s:6 * s + 6], k_iso[s])
+                _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], blocks[6 * s:6 * s + 6])
+                _slot_terms(blocks[6 * s:6 * s + 6], w_moving[s], jac[6 * s:6 * s + 6],
+                            chain[s, :chain_count[s]], chain_work, products[nv * s:nv * s + nv],
+                            force_terms[s])
                 dirty[s] = False
         # (Mh - dt J^T K J) qvel+ = Mh qvel + dt (tau_free + J^T W_moving), slot by slot
         # over the dofs its Jacobian reaches (its kinematic chain) only.
         _copy(mass_h, momentum, system, rhs)
         for s in range(slots):
-            _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], block)
-            _add_slot(block, w_moving[s], jac[6 * s:6 * s + 6], chain[s, :chain_count[s]],
-                      timestep, chain_work, system, rhs)
+            _add_slot(products[nv * s:nv * s + nv], force_terms[s], chain[s, :chain_count[s]],
+                      timestep, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
@@ -1153,7 +1169,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                                   coef_along, coef_across, coef_moving)
             _accumulate_slot(first[s], first[s + 1], h, u, arm, coef_along, coef_across,
                              coef_moving, w_moving[s], k_rank[6 * s:6 * s + 6], k_iso[s])
-        _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], block)
+            _resting_block(k_rank[6 * s:6 * s + 6], k_iso[s], blocks[6 * s:6 * s + 6])
+        block = blocks[6 * s:6 * s + 6]
         for a in range(6):
             acc = w_moving[s, a]
             for b in range(6):
@@ -1216,7 +1233,8 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.system), float_vector(arrays, a.rhs),
         float_matrix(arrays, a.factored), float_vector(arrays, a.solution),
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
-        float_matrix(arrays, a.block), float_matrix(arrays, a.chain_work))
+        float_matrix(arrays, a.blocks), float_matrix(arrays, a.products),
+        float_matrix(arrays, a.force_terms), float_matrix(arrays, a.chain_work))
     if slots > 0:  # (none: no plate in the sand, zero wrenches)
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
