@@ -68,15 +68,34 @@ def test_hexapod_step_cost_runs_both_loops():
 
 def test_engine_step_worker_times_one_gait_cycle_of_the_walk(tmp_path):
     """The terrain-cost worker: the code it imported, the cycle's steps, a CPU time per step."""
-    from rft_sim_ros.bench.terrain_cost import BED, CODE, Worker
-    worker = Worker(CODE, {'rft.plates_per_body': 50, **BED}, tmp_path)
+    from rft_sim_ros.bench.terrain_cost import CODE, Worker, cases
+    bed = dict((label, overrides) for label, overrides, _ in cases(tmp_path))[
+        'deformable 2 m x 2 m, 1 cm']
+    worker = Worker(CODE, {'rft.plates_per_body': 50, **bed}, tmp_path)
     try:
         assert worker.info['package'] == str(CODE / 'rft_sim_ros' / '__init__.py')
         assert worker.info['cycle_steps'] == 1250  # 1 Hz gait at 0.8 ms
         assert 0.0 < worker.chunk() < 0.01
+        low, high = worker.x_extent  # (the walk starts about the origin, heading +x)
+        assert -0.3 < low < 0.0 < high < 0.5
     finally:
         worker.close()
     assert worker.process.returncode == 0
+
+
+def test_terrain_cost_lays_its_surfaces_along_the_whole_walk():
+    """Grids and beds cover the stretch walked in the rounds at the speed bound, 2 m long or
+    longer; a case whose bodies leave them stops the benchmark."""
+    from rft_sim_ros.bench.terrain_cost import (START_EXTENT, WALK_SPEED_BOUND,
+                                                check_on_surface, laid_along_walk)
+    for rounds, side in ((1, 2.0), (7, 2.0), (20, None)):
+        centre, length = laid_along_walk(rounds)
+        low, high = centre - 0.5 * length, centre + 0.5 * length
+        assert low < START_EXTENT[0] and high > START_EXTENT[1] + 2.0 * rounds * WALK_SPEED_BOUND
+        assert length == (side or pytest.approx(high - low)) and length >= 2.0
+        check_on_surface('case', [low + 0.001, high - 0.001], centre, length)
+        with pytest.raises(RuntimeError, match='case: the hexapod walked beyond'):
+            check_on_surface('case', [low + 0.001, high + 0.001], centre, length)
 
 
 @pytest.mark.slow

@@ -7,7 +7,8 @@ checkout of this package (the code before the terrain work names its scene loade
 `rft_sim_ros.sim.scene.load_scene`). It builds the `hexapod` scene with the overrides (its
 walk made long enough for any run), steps it to `WALKING_S` into the walk, prints one JSON
 line (the package it imported, plate count, steps per gait cycle), then answers each input
-line `chunk` with one JSON line: the CPU time per engine step (s) of one gait cycle.
+line `chunk` with one JSON line: the CPU time per engine step (s) of one gait cycle, and the
+x extent (m) the sand bodies' bounding spheres reached in the two cycles.
 
 A chunk first runs the cycle as the scene does (`Simulation.step`, untimed), recording the
 servo targets each engine step met, then replays those targets through the engine alone
@@ -43,11 +44,19 @@ def main(overrides):
     targets = np.zeros((cycle, ctrl.size))
     step = engine.step
     recorded = [0]
+    radii = getattr(engine, 'radii', 0.0)  # (the code before the terrain work: origins)
+    extent = [np.inf, -np.inf]
+
+    def note_extent():
+        x = sim.data.xpos[engine.body_ids, 0]
+        extent[:] = min(extent[0], float(np.min(x - radii))), max(extent[1],
+                                                                  float(np.max(x + radii)))
 
     def recording_step():
         targets[recorded[0]] = ctrl
         recorded[0] += 1
         step()
+        note_extent()
 
     print(json.dumps({'package': rft_sim_ros.__file__, 'plates': int(engine.plates_total),
                       'cycle_steps': cycle}), file=answers, flush=True)
@@ -62,8 +71,9 @@ def main(overrides):
         for row in targets:
             ctrl[:] = row
             step()
-        print(json.dumps({'step_s': (time.process_time() - started) / cycle}), file=answers,
-              flush=True)
+        step_s = (time.process_time() - started) / cycle
+        note_extent()  # (the timed cycle's end; its course is the next chunk's first cycle's)
+        print(json.dumps({'step_s': step_s, 'x_extent': extent}), file=answers, flush=True)
 
 
 if __name__ == '__main__':

@@ -7,8 +7,11 @@ terrain work).
 
 Every case runs in its own worker process (`engine_step_worker.py`: one hexapod walking on
 one surface); the cases take turns, one gait cycle each, for `rounds` rounds, each round
-starting with the next case, so machine noise and the order of turns hit all alike. Reported: the median CPU time per engine step of each case, and its ratio to
-the plane as the median of the per-round ratios (a ratio taken within one round). The workers
+starting with the next case, so machine noise and the order of turns hit all alike. The
+grids and beds are laid along the stretch the hexapod walks in those rounds, and a case whose
+bodies leave it stops the benchmark: beyond a grid the ground is another (`laid_along_walk`).
+Reported: the median CPU time per engine step of each case, and its ratio to the plane as
+the median of the per-round ratios (a ratio taken within one round). The workers
 of the code under test import this package; the baseline worker imports CODE_DIR's (a
 `git worktree add` checkout) with the same interpreter. Writes terrain_cost.json and
 terrain_cost.md into DIR (default bench/results).
@@ -31,69 +34,113 @@ WORKER = Path(__file__).with_name('engine_step_worker.py')
 #: The package root of the code under test.
 CODE = Path(__file__).resolve().parents[2]
 BASELINE = 'plane, baseline code'
-#: Deformable bed of the targets: 1 cm cells over 2 m x 2 m.
-BED = {'sand.deformable.enabled': True, 'sand.deformable.cell': 0.01,
-       'sand.deformable.size': [2.0, 2.0]}
+#: Upper bound of the hexapod's walking speed (m/s; it walks 7-7.5 cm/s along +x on every
+#: surface measured), and of the x extent of its sand bodies' spheres when measuring starts
+#: (m, `engine_step_worker.WALKING_S`: body origins -0.14 .. 0.16, radii up to 0.08).
+WALK_SPEED_BOUND = 0.1
+START_EXTENT = (-0.23, 0.25)
+#: Side of the surfaces measured (m): grids 2 m x 2 m at 1 cm; the target's deformable bed
+#: of 1 cm cells over 2 m x 2 m (longer along x where a run walks further).
+SIDE = 2.0
+CELL = 0.01
 
 
-def rippled_heights():
-    """A 2 m x 2 m height grid at 1 cm (m, [iy, ix]): ripples of +-1 cm, 0.25 m wavelength."""
-    x = np.linspace(-1.0, 1.0, 201)
-    return 0.01 * np.sin(2 * np.pi * x / 0.25)[None, :] * np.cos(2 * np.pi * x / 0.25)[:, None]
+def laid_along_walk(rounds):
+    """(centre x, length along x) of the surfaces measured (m), laid along the stretch the
+    hexapod walks in `rounds` rounds (two gait cycles of 1 s each per round: one run, one
+    timed), with a cell to spare at each end: `SIDE` long, or longer for a longer walk. The
+    workers report where the bodies went (`check_on_surface`)."""
+    low = START_EXTENT[0] - CELL
+    high = START_EXTENT[1] + WALK_SPEED_BOUND * 2.0 * rounds + CELL
+    length = max(SIDE, CELL * np.ceil((high - low) / CELL))
+    return 0.5 * (low + high), length
 
 
-def grid_files(folder):
-    """Three 2 m x 2 m height grids at 1 cm (.npy, m) in `folder`: flat at 0 (the plane's
-    physics on the grid path), rippled (`rippled_heights`), and the 10 deg slope of the
-    slope case sampled at the nodes (the slope's physics on the grid path: bilinear
-    interpolation of a plane is that plane)."""
+def check_on_surface(label, extent, centre_x, length):
+    """Raise where a case's sand bodies (their spheres' x extent, m, over all its timed
+    cycles) left the surface laid along the walk (`laid_along_walk`): the step cost measured
+    would be partly that of the ground beyond it."""
+    if extent[0] < centre_x - 0.5 * length or extent[1] > centre_x + 0.5 * length:
+        raise RuntimeError(f'{label}: the hexapod walked beyond the surface measured '
+                           f'(bodies at x {extent[0]:.2f} .. {extent[1]:.2f} m, surface '
+                           f'{centre_x - 0.5 * length:.2f} .. {centre_x + 0.5 * length:.2f} m): '
+                           'raise WALK_SPEED_BOUND')
+
+
+def _nodes(centre_x, length):
+    """World x and y (m) of the grids' nodes: `length` x `SIDE` at `CELL`, centred on
+    (centre_x, 0)."""
+    x = centre_x + np.linspace(-0.5 * length, 0.5 * length, int(round(length / CELL)) + 1)
+    y = np.linspace(-0.5 * SIDE, 0.5 * SIDE, int(round(SIDE / CELL)) + 1)
+    return x, y
+
+
+def rippled_heights(x, y):
+    """Heights (m, [iy, ix]) at world nodes x, y (m): ripples of +-1 cm, 0.25 m wavelength."""
+    return 0.01 * np.sin(2 * np.pi * x / 0.25)[None, :] * np.cos(2 * np.pi * y / 0.25)[:, None]
+
+
+def grid_files(folder, centre_x=0.0, length=SIDE):
+    """Three height grids (.npy, m) of `length` x `SIDE` at 1 cm centred on (centre_x, 0) in
+    `folder`: flat at 0 (the plane's physics on the grid path), rippled (`rippled_heights`),
+    and the 10 deg slope of the slope case sampled at the nodes (the slope's physics on the
+    grid path: bilinear interpolation of a plane is that plane)."""
+    x, y = _nodes(centre_x, length)
     flat, rippled = Path(folder) / 'flat_grid.npy', Path(folder) / 'rippled_grid.npy'
     sloped = Path(folder) / 'sloped_grid.npy'
-    np.save(flat, np.zeros((201, 201)))
-    np.save(rippled, rippled_heights())
-    x = np.linspace(-1.0, 1.0, 201)
-    np.save(sloped, Slope(0.0, angle_deg=10.0).height(*np.meshgrid(x, x)))
+    np.save(flat, np.zeros((y.size, x.size)))
+    np.save(rippled, rippled_heights(x, y))
+    np.save(sloped, Slope(0.0, angle_deg=10.0).height(*np.meshgrid(x, y)))
     return flat, rippled, sloped
 
 
-def hfield_model(folder):
+def hfield_model(folder, centre_x=0.0, length=SIDE):
     """The hexapod's MJCF with an <hfield> geom 'terrain' in its world body holding the
-    rippled grid (2 m x 2 m centred on the origin, heights -1 .. +1 cm), written to
-    `folder`; returns its path. (The hexapod model itself has no hfield.)"""
+    rippled grid of `grid_files` (heights -1 .. +1 cm), written to `folder`; returns its
+    path. (The hexapod model itself has no hfield.)"""
     models = resources.models_dir()
-    heights = rippled_heights()
+    heights = rippled_heights(*_nodes(centre_x, length))
     low, high = heights.min(), heights.max()
     elevation = ' '.join(f'{value:.6f}' for value in ((heights - low) / (high - low)).ravel())
     xml = (models / 'hexapod.xml').read_text()
     xml = xml.replace('meshdir="assets"', f'meshdir="{models / "assets"}"', 1)
     xml = xml.replace('<asset>', f'<asset><hfield name="ripples" nrow="{heights.shape[0]}" '
-                                 f'ncol="{heights.shape[1]}" size="1 1 {high - low} 0.01" '
+                                 f'ncol="{heights.shape[1]}" size="{0.5 * length} '
+                                 f'{0.5 * SIDE} {high - low} 0.01" '
                                  f'elevation="{elevation}"/>', 1)
     xml = xml.replace('<worldbody>', '<worldbody><geom name="terrain" type="hfield" '
-                                     f'hfield="ripples" pos="0 0 {low}"/>', 1)
+                                     f'hfield="ripples" pos="{centre_x} 0 {low}"/>', 1)
     path = Path(folder) / 'hexapod_hfield.xml'
     path.write_text(xml)
     return path
 
 
-def cases(folder):
-    """(label, scene overrides) of the surfaces measured; 'plane' is the reference."""
-    flat, rippled, sloped = grid_files(folder)
-    grid = {'sand.surface.type': 'grid', 'sand.surface.size': [2.0, 2.0]}
+def cases(folder, rounds=5):
+    """(label, scene overrides, laid along the walk) of the surfaces measured, their grids
+    and beds laid along the walk of `rounds` rounds (`laid_along_walk`); 'plane' is the
+    reference."""
+    centre_x, length = laid_along_walk(rounds)
+    flat, rippled, sloped = grid_files(folder, centre_x, length)
+    size = f'{length:g} m x {SIDE:g} m'
+    grid = {'sand.surface.type': 'grid', 'sand.surface.size': [length, SIDE],
+            'sand.surface.center': [centre_x, 0.0]}
+    bed = {'sand.deformable.enabled': True, 'sand.deformable.cell': CELL,
+           'sand.deformable.size': [length, SIDE], 'sand.deformable.center': [centre_x, 0.0]}
     return (
-        ('plane', {}),
-        ('slope 0 deg (slope path, the plane\'s physics)', {'sand.surface.type': 'slope'}),
-        ('slope 10 deg', {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0}),
-        ('height grid 2 m at 1 cm, flat (grid path, the plane\'s physics)',
-         {**grid, 'sand.surface.file': str(flat)}),
-        ('height grid 2 m at 1 cm, the 10 deg slope (the slope\'s physics)',
-         {**grid, 'sand.surface.file': str(sloped)}),
-        ('height grid 2 m at 1 cm, rippled +-1 cm', {**grid, 'sand.surface.file': str(rippled)}),
+        ('plane', {}, False),
+        ('slope 0 deg (slope path, the plane\'s physics)', {'sand.surface.type': 'slope'}, False),
+        ('slope 10 deg', {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0}, False),
+        (f'height grid {size} at 1 cm, flat (grid path, the plane\'s physics)',
+         {**grid, 'sand.surface.file': str(flat)}, True),
+        (f'height grid {size} at 1 cm, the 10 deg slope (the slope\'s physics)',
+         {**grid, 'sand.surface.file': str(sloped)}, True),
+        (f'height grid {size} at 1 cm, rippled +-1 cm',
+         {**grid, 'sand.surface.file': str(rippled)}, True),
         ('the model\'s own hfield, the same ripples', {
-            'model': str(hfield_model(folder)), 'sand.surface.type': 'hfield',
-            'sand.surface.geom': 'terrain'}),
-        ('deformable 2 m x 2 m, 1 cm', BED),
-        ('deformable 8 m x 8 m, 1 cm', {**BED, 'sand.deformable.size': [8.0, 8.0]}),
+            'model': str(hfield_model(folder, centre_x, length)), 'sand.surface.type': 'hfield',
+            'sand.surface.geom': 'terrain'}, True),
+        (f'deformable {size}, 1 cm', bed, True),
+        ('deformable 8 m x 8 m, 1 cm', {**bed, 'sand.deformable.size': [8.0, 8.0]}, True),
     )
 
 
@@ -115,10 +162,13 @@ class Worker:
         return json.loads(line)
 
     def chunk(self):
-        """CPU time per engine step (s) over one gait cycle."""
+        """CPU time per engine step (s) over one gait cycle; `x_extent` becomes the x extent
+        (m) of the sand bodies' spheres in all the worker's cycles so far."""
         self.process.stdin.write('chunk\n')
         self.process.stdin.flush()
-        return self._answer()['step_s']
+        answer = self._answer()
+        self.x_extent = answer['x_extent']
+        return answer['step_s']
 
     def close(self):
         self.process.stdin.close()
@@ -131,8 +181,11 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
     `processes` > 1 each case runs in that many worker processes and a round's sample of a
     case is their mean: the same code reads up to about 2 % apart in two processes, for the
     life of each (where its compiled code and arrays landed), and the mean evens that out."""
+    centre_x, length = laid_along_walk(rounds)
     with tempfile.TemporaryDirectory() as folder:
-        plan = [(label, CODE, overrides) for label, overrides in cases(folder)]
+        measured = cases(folder, rounds)
+        plan = [(label, CODE, overrides) for label, overrides, _ in measured]
+        laid = {label for label, _, on_surface in measured if on_surface}
         if baseline is not None:
             plan.insert(0, (BASELINE, Path(baseline).resolve(), {}))
         workers = {}
@@ -147,6 +200,9 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
                 shift = r % len(turns)  # each round starts with the next case: no case
                 for label, group in turns[shift:] + turns[:shift]:  # always goes first
                     samples[label].append(float(np.mean([w.chunk() for w in group])))
+                    if label in laid:
+                        for worker in group:
+                            check_on_surface(label, worker.x_extent, centre_x, length)
         finally:
             for group in workers.values():
                 for worker in group:
@@ -158,12 +214,15 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
         result[label] = {'step_s': float(np.median(values)),
                          'ratio_to_plane': float(np.median(values / plane)),
                          'samples_s': values.tolist(),
+                         'bodies_x_m': [min(w.x_extent[0] for w in workers[label]),
+                                        max(w.x_extent[1] for w in workers[label])],
                          'package': workers[label][0].info['package']}
     return result
 
 
 def markdown(results):
     machine = results['machine']
+    centre_x, length = laid_along_walk(results['rounds'])
     lines = ['# Step cost of the sand surfaces', '',
              f'Machine: {machine["cpu"]}, {machine["cores"]} cores (shared); Python '
              f'{machine["python"]}, MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. '
@@ -172,10 +231,14 @@ def markdown(results):
              'round\'s sample: their mean), the cases taking turns one gait '
              f'cycle each over {results["rounds"]} rounds; medians, and ratios to the plane as '
              'the median of per-round ratios. Produced by `python -m '
-             'rft_sim_ros.bench.terrain_cost`.', '',
-             '| surface | us/step | vs plane |', '|---|---|---|']
+             'rft_sim_ros.bench.terrain_cost`. Grids and beds are laid along the walk, '
+             f'x {centre_x - 0.5 * length:.2f} .. {centre_x + 0.5 * length:.2f} m; the last '
+             "column gives the x range the sand bodies' spheres covered.", '',
+             '| surface | us/step | vs plane | bodies at x (m) |', '|---|---|---|---|']
     for label, row in results['cases'].items():
-        lines.append(f'| {label} | {row["step_s"] * 1e6:.1f} | {row["ratio_to_plane"]:.3f} |')
+        low, high = row['bodies_x_m']
+        lines.append(f'| {label} | {row["step_s"] * 1e6:.1f} | {row["ratio_to_plane"]:.3f} '
+                     f'| {low:.2f} .. {high:.2f} |')
     if results.get('baseline'):
         lines += ['', f'Baseline code: {results["baseline"]}.']
     return '\n'.join(lines) + '\n'
