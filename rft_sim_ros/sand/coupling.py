@@ -194,8 +194,9 @@ def _gather_plates(arrays, kind, deform):
     bilinear height there is that level exactly; where they are level under the body's whole
     sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
     blocks' maximum read the grid (a body a cell inside the grid all round without
-    clamping: `inside_grid`), or on a rigid grid, where a plane bounds it over the body's
-    square (`tile_plane`), below that plane's highest point over the cluster. On deformable sand (`deform`) the plates below the surface
+    clamping: `inside_grid`, in a plate loop of its own: `_grid_cluster`), or on a rigid
+    grid, where a plane bounds it over the body's square (`tile_plane`), below that plane's
+    highest point over the cluster. On deformable sand (`deform`) the plates below the surface
     mark their footprint cells (`deformable.mark_cell`), and the footprints the bodies left
     are settled after the plates are gathered (`gather_deformable`); beyond the
     bed its base (plane, slope or grid: `_deformable_base`) gives the depth, and bounds the
@@ -255,6 +256,7 @@ def _gather_plates(arrays, kind, deform):
     slot_body, slot_start = int_vector(arrays, a.slot_body), int_vector(arrays, a.slot_start)
     table = float_matrix(arrays, a.table)
     force = float_matrix(arrays, a.force)
+    law = (zeta_si, areas, zeta_map, factors, mx0, my0, m_idx, m_idy, out_plate)
     k = np.int64(0)  # (typed, not Literal[int](0): that compiled the calls below twice)
     px = py = 0.0  # a plate's world x, y (m), as the depth on a grid needs them
     leading_count = 0
@@ -293,6 +295,8 @@ def _gather_plates(arrays, kind, deform):
         cx, cy, cz = subtree_com[root, 0], subtree_com[root, 1], subtree_com[root, 2]
         vcx, vcy, vcz = cvel[b, 3], cvel[b, 4], cvel[b, 5]
         comx, comy, comz = xipos[b, 0], xipos[b, 1], xipos[b, 2]
+        rotation = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
+        motion = (cx, cy, cz, vcx, vcy, vcz, wx, wy, wz, comx, comy, comz)
         vx0 = vcx + wy * (oz - cz) - wz * (oy - cy)  # velocity of the body origin
         vy0 = vcy + wz * (ox - cx) - wx * (oz - cz)
         vz0 = vcz + wx * (oy - cy) - wy * (ox - cx)
@@ -341,6 +345,13 @@ def _gather_plates(arrays, kind, deform):
             j0 = cluster_plate_start[c]
             j1 = cluster_plate_start[c + 1]
             cluster, cluster_normals = positions[j0:j1], normals[j0:j1]  # (no wraparound)
+            if kind == GRID and lookup and inside:  # (the grids' common case)
+                k, leading_count = _grid_cluster(
+                    deform, j0, cluster, cluster_normals, (ox, oy, oz), rotation, top,
+                    (body_v, body_w, tangential, include_trailing), (grid, gx0, gy0, g_idx,
+                    g_idy), (footprints, step), motion, law, table, out_slot, slots, k,
+                    leading_count)
+                continue
             plain = not (slope or lookup or deform)  # a plane, or a rigid grid level here
             # a rigid grid read here: the motion test (cheaper than a look-up) comes first
             motion_first = kind == GRID and lookup and not deform
@@ -364,12 +375,10 @@ def _gather_plates(arrays, kind, deform):
                     px = ox + r00 * lx + r01 * ly + r02 * lz
                     py = oy + r10 * lx + r11 * ly + r12 * lz
                     u, v = (px - gx0) * g_idx, (py - gy0) * g_idy
-                    if inside:  # (1 <= u <= nx - 2, likewise v)
-                        i_u, i_v = int(u), int(v)
-                        depth = (cell_height(grid, i_u, i_v, u - i_u, v - i_v) if lookup
-                                 else level) - pz
+                    if inside:  # (level here: a grid read is `_grid_cluster`'s)
+                        depth = level - pz
                         if deform and depth > 0.0:
-                            mark_cell(footprints, step, i_u, i_v, pz)
+                            mark_cell(footprints, step, int(u), int(v), pz)
                     elif off_bed and (u < 0.0 or v < 0.0 or u > bed_u or v > bed_v):
                         # beyond the bed: its base, where a plate leaves no footprint
                         depth = (base_height(_deformable_base(arrays), px, py) if lookup
@@ -386,28 +395,11 @@ def _gather_plates(arrays, kind, deform):
                 leading = n_v > tangential
                 if not (leading or include_trailing):
                     continue
-                mx, my, mz = (cluster_normals[i_c, 0], cluster_normals[i_c, 1],
-                              cluster_normals[i_c, 2])
                 if plain or slope:  # (a grid's: above)
                     px = ox + r00 * lx + r01 * ly + r02 * lz
                     py = oy + r10 * lx + r11 * ly + r12 * lz
-                rx, ry, rz = px - cx, py - cy, pz - cz
-                table[DIRECTION, k] = vcx + wy * rz - wz * ry  # v, made d by _directions
-                table[DIRECTION + 1, k] = vcy + wz * rx - wx * rz
-                table[DIRECTION + 2, k] = vcz + wx * ry - wy * rx
-                table[LEVER, k], table[LEVER + 1, k] = px - comx, py - comy
-                table[LEVER + 2, k] = pz - comz
-                table[NORMAL, k] = r00 * mx + r01 * my + r02 * mz
-                table[NORMAL + 1, k] = r10 * mx + r11 * my + r12 * mz
-                table[NORMAL + 2, k] = r20 * mx + r21 * my + r22 * mz
-                table[NORMAL_SPEED, k] = n_v
-                j = j0 + i_c
-                scale = zeta_si * depth * areas[j]
-                if zeta_map:
-                    scale *= map_factor(factors, mx0, my0, m_idx, m_idy, px, py)
-                table[SCALE, k] = scale if leading else 0.0
-                table[AREA, k] = areas[j] if leading else 0.0
-                out_plate[k] = j
+                _write_plate(table, k, cluster_normals, i_c, rotation, motion, law, px, py, pz,
+                             n_v, depth, j0 + i_c, leading)
                 out_slot[k] = slots
                 leading_count += leading
                 k += 1
@@ -421,6 +413,79 @@ def _gather_plates(arrays, kind, deform):
                    force[1], force[2])
     counters[STEPS] += 1
     counters[GATHERED], counters[LEADING], counters[SLOTS] = k, leading_count, slots
+
+
+@njit(inline='always')
+def _grid_cluster(deform, j0, cluster, cluster_normals, origin, rotation, top, test, surface,
+                  marks, motion, law, table, out_slot, slots, k, leading_count):
+    """The plates of one cluster (plate j0 its first) of a body a cell inside a grid that is
+    read under the cluster (`_gather_plates`' common case on grids, with the loop's other
+    cases left out): plates below `top` (m), on a rigid grid leading ones first (the motion
+    test before the look-up), on deformable sand (`deform`) marking their footprint cells.
+    origin, rotation: the body's pose; test: (body_v, body_w, tangential, include_trailing);
+    surface: (grid, x0, y0, 1/dx, 1/dy); marks: (footprints, step). Returns k and
+    leading_count, advanced."""
+    ox, oy, oz = origin
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation
+    body_v, body_w, tangential, include_trailing = test
+    grid, gx0, gy0, g_idx, g_idy = surface
+    footprints, step = marks
+    for i_c in range(cluster.shape[0]):
+        lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
+        pz = oz + r20 * lx + r21 * ly + r22 * lz
+        if pz >= top:  # above the highest node under the cluster
+            continue
+        n_v = 0.0
+        if not deform:  # the motion test first: it is cheaper than a look-up
+            n_v = _normal_speed(cluster_normals, i_c, body_v, body_w, lx, ly, lz)
+            if not (n_v > tangential or include_trailing):
+                continue
+        px = ox + r00 * lx + r01 * ly + r02 * lz
+        py = oy + r10 * lx + r11 * ly + r12 * lz
+        u, v = (px - gx0) * g_idx, (py - gy0) * g_idy
+        i_u, i_v = int(u), int(v)  # (1 <= u <= nx - 2, likewise v)
+        depth = cell_height(grid, i_u, i_v, u - i_u, v - i_v) - pz
+        if depth <= 0.0:
+            continue
+        if deform:  # a trailing plate in the sand leaves a footprint too
+            mark_cell(footprints, step, i_u, i_v, pz)
+            n_v = _normal_speed(cluster_normals, i_c, body_v, body_w, lx, ly, lz)
+        leading = n_v > tangential
+        if not (leading or include_trailing):
+            continue
+        _write_plate(table, k, cluster_normals, i_c, rotation, motion, law, px, py, pz,
+                     n_v, depth, j0 + i_c, leading)
+        out_slot[k] = slots
+        leading_count += leading
+        k += 1
+    return k, leading_count
+
+
+@njit(inline='always')
+def _write_plate(table, k, normals, i, rotation, motion, law, px, py, pz, n_v, depth, j,
+                 leading):
+    """Column k of the gathered table for plate j (i of `normals`, body frame) in the sand at
+    world (px, py, pz), depth `depth` (m), normal speed n_v (`_gather_plates`)."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation
+    cx, cy, cz, vcx, vcy, vcz, wx, wy, wz, comx, comy, comz = motion
+    zeta_si, areas, zeta_map, factors, mx0, my0, m_idx, m_idy, out_plate = law
+    mx, my, mz = normals[i, 0], normals[i, 1], normals[i, 2]
+    rx, ry, rz = px - cx, py - cy, pz - cz
+    table[DIRECTION, k] = vcx + wy * rz - wz * ry  # v, made d by _directions
+    table[DIRECTION + 1, k] = vcy + wz * rx - wx * rz
+    table[DIRECTION + 2, k] = vcz + wx * ry - wy * rx
+    table[LEVER, k], table[LEVER + 1, k] = px - comx, py - comy
+    table[LEVER + 2, k] = pz - comz
+    table[NORMAL, k] = r00 * mx + r01 * my + r02 * mz
+    table[NORMAL + 1, k] = r10 * mx + r11 * my + r12 * mz
+    table[NORMAL + 2, k] = r20 * mx + r21 * my + r22 * mz
+    table[NORMAL_SPEED, k] = n_v
+    scale = zeta_si * depth * areas[j]
+    if zeta_map:
+        scale *= map_factor(factors, mx0, my0, m_idx, m_idy, px, py)
+    table[SCALE, k] = scale if leading else 0.0
+    table[AREA, k] = areas[j] if leading else 0.0
+    out_plate[k] = j
 
 
 @njit(inline='always')
