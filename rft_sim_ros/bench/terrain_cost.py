@@ -222,7 +222,7 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
 
 def markdown(results):
     machine = results['machine']
-    centre_x, length = laid_along_walk(results['rounds'])
+    low, high = results['surfaces_x_m']
     lines = ['# Step cost of the sand surfaces', '',
              f'Machine: {machine["cpu"]}, {machine["cores"]} cores (shared); Python '
              f'{machine["python"]}, MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. '
@@ -232,13 +232,13 @@ def markdown(results):
              f'cycle each over {results["rounds"]} rounds; medians, and ratios to the plane as '
              'the median of per-round ratios. Produced by `python -m '
              'rft_sim_ros.bench.terrain_cost`. Grids and beds are laid along the walk, '
-             f'x {centre_x - 0.5 * length:.2f} .. {centre_x + 0.5 * length:.2f} m; the last '
+             f'x {low:.2f} .. {high:.2f} m; the last '
              "column gives the x range the sand bodies' spheres covered.", '',
              '| surface | us/step | vs plane | bodies at x (m) |', '|---|---|---|---|']
     for label, row in results['cases'].items():
-        low, high = row['bodies_x_m']
+        left, right = row['bodies_x_m']
         lines.append(f'| {label} | {row["step_s"] * 1e6:.1f} | {row["ratio_to_plane"]:.3f} '
-                     f'| {low:.2f} .. {high:.2f} |')
+                     f'| {left:.2f} .. {right:.2f} |')
     if results.get('baseline'):
         lines += ['', f'Baseline code: {results["baseline"]}.']
     return '\n'.join(lines) + '\n'
@@ -256,9 +256,11 @@ def main(argv=None):
     parser.add_argument('--baseline-label', default='', help='what the baseline is (report)')
     args = parser.parse_args(argv)
     log = lambda line: print(f'terrain_cost: {line}', file=sys.stderr)  # noqa: E731
+    centre_x, length = laid_along_walk(args.rounds)
     results = {'machine': machine_info(), 'rounds': args.rounds,
                'load_before': os.getloadavg()[0],
                'processes': args.processes,
+               'surfaces_x_m': [centre_x - 0.5 * length, centre_x + 0.5 * length],
                'cases': surface_costs(args.rounds, args.baseline, args.processes, log),
                'load_after': os.getloadavg()[0],
                'baseline': args.baseline_label or args.baseline}
