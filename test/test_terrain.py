@@ -16,14 +16,18 @@ from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 
-#: A slope, a rippled height grid and a tilted, gently curved one (bounded by the tiles'
-#: planes: `surface.tile_planes`), for the tests of depth below a shaped surface.
+#: A slope, a rippled height grid, a tilted, gently curved one (bounded by the tiles'
+#: planes: `surface.tile_planes`) and a level shelf meeting a ramp under the plates (tiles
+#: holding both: bodies over the level part bounded by a tile's plane), for the tests of
+#: depth below a shaped surface.
 SHAPED = [
     Slope(0.02, angle_deg=12.0, downhill_deg=35.0),
     HeightGrid(0.03 * np.sin(np.linspace(0, 6, 50))[:, None] * np.cos(np.linspace(0, 5, 60)),
                size=(1.5, 1.2), center=(0.05, 0.0)),
     HeightGrid(0.02 - 0.2 * np.linspace(-0.6, 0.6, 121)[None, :]
-               + 0.005 * np.cos(np.linspace(0, 4, 101))[:, None], size=(1.2, 1.0))]
+               + 0.005 * np.cos(np.linspace(0, 4, 101))[:, None], size=(1.2, 1.0)),
+    HeightGrid(np.tile(0.02 + 0.3 * np.maximum(np.linspace(-0.5, 0.5, 101) - 0.12, 0.0),
+                       (81, 1)), size=(1.0, 0.8))]
 
 
 def _engine(surface=None, zeta_map=None, **options):
@@ -198,15 +202,15 @@ def test_block_maximum_and_minimum_bound_every_node():
                     assert low[bj, bi] <= grid[j, i] <= high[bj, bi]
 
 
-@pytest.mark.parametrize('shape', ['tilted', 'random'])
+@pytest.mark.parametrize('shape', ['tilted', 'random', 'level'])
 def test_tile_planes_bound_the_surface_over_each_tile(shape):
     """Over each tile (nodes [t*step, t*step + 2*step], clipped), the bilinear surface never
     exceeds the tile's plane and touches it at a node; a tilted, gently curved grid gets
-    usable planes, a random one none."""
+    usable planes, a random one none, and a level one none (its blocks read it as level)."""
     rng = np.random.default_rng(2)
     x, y = np.meshgrid(np.linspace(0, 1, 43), np.linspace(0, 1, 31))
-    heights = (0.2 * x - 0.1 * y + 0.01 * np.sin(3 * x) * np.cos(2 * y) if shape == 'tilted'
-               else rng.normal(size=x.shape))
+    heights = {'tilted': 0.2 * x - 0.1 * y + 0.01 * np.sin(3 * x) * np.cos(2 * y),
+               'random': rng.normal(size=x.shape), 'level': np.full(x.shape, 0.37)}[shape]
     grid = HeightGrid(heights, size=(0.84, 0.6), center=(0.3, -0.2))
     step = 5
     tiles = tile_planes(grid.grid, grid.origin, grid.spacing, step)

@@ -194,13 +194,15 @@ def _gather_plates(arrays, kind, deform):
     bilinear height there is that level exactly; where they are level under the body's whole
     sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
     blocks' maximum read the grid (a body a cell inside the grid all round without
-    clamping: `inside_grid`, in a plate loop of its own: `_grid_cluster`), or on a rigid
-    grid, where a plane bounds it over the body's square (`tile_plane`), below that plane's
-    highest point over the cluster. On deformable sand (`deform`) the plates below the surface
-    mark their footprint cells (`deformable.mark_cell`), and the footprints the bodies left
-    are settled after the plates are gathered (`gather_deformable`); beyond the
-    bed its base (plane, slope or grid: `_deformable_base`) gives the depth, and bounds the
-    bodies and clusters that reach out there, and a plate there marks nothing.
+    clamping: `inside_grid`, in a plate loop of its own: `_grid_cluster`), or, on a rigid
+    grid near a plane around the body (its tile's raised plane, `tile_plane`; a level tile
+    has none), below that plane's highest point over the cluster, the body itself bounded by
+    that plane's highest point over its square instead of the blocks. On deformable sand
+    (`deform`) the plates below the surface mark their footprint cells
+    (`deformable.mark_cell`), and the footprints the bodies left are settled after the
+    plates are gathered (`gather_deformable`); beyond the bed its base (plane, slope or
+    grid: `_deformable_base`) gives the depth, and bounds the bodies and clusters that reach
+    out there, and a plate there marks nothing.
     positions, normals: (N, 3) body-frame plate positions l and normals n_l (separate, so
     that the depth test reads positions only). A plate below the surface first has
     n . v = n_l . (V + W x l) with the body-frame velocity V of the body origin and angular
@@ -268,7 +270,16 @@ def _gather_plates(arrays, kind, deform):
         inside = kind == GRID and inside_grid(grid, gx0, gy0, g_idx, g_idy, xpos[b, 0],
                                               xpos[b, 1], radii[i])
         off_bed = deform and not inside
-        if deform:
+        # a rigid grid near a plane (not level) around the body: that plane bounds it over the
+        # body's square (its tile's: `tile_plane`), without reading the blocks there
+        planar, p_a, p_gx, p_gy = False, 0.0, 0.0, 0.0
+        if kind == GRID and not deform and inside and tile_step > 0:
+            planar, p_a, p_gx, p_gy = tile_plane(tiles, tile_step, grid.shape[1], gx0, gy0,
+                                                 g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
+        if planar:
+            body_low, body_top = -np.inf, (p_a + p_gx * xpos[b, 0] + p_gy * xpos[b, 1]
+                                           + radii[i] * (abs(p_gx) + abs(p_gy)))
+        elif deform:
             body_low, body_top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
                                            xpos[b, 0], xpos[b, 1], radii[i],
                                            _deformable_base(arrays))
@@ -279,11 +290,6 @@ def _gather_plates(arrays, kind, deform):
         if xpos[b, 2] - radii[i] >= body_top:
             continue
         top = body_top
-        # a rigid grid, not level under the body: a plane bounding it over the body's square
-        planar, p_a, p_gx, p_gy = False, 0.0, 0.0, 0.0
-        if kind == GRID and not deform and inside and body_low != body_top and tile_step > 0:
-            planar, p_a, p_gx, p_gy = tile_plane(tiles, tile_step, grid.shape[1], gx0, gy0,
-                                                 g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         first = k
         root = body_rootid[b]
         ox, oy, oz = xpos[b, 0], xpos[b, 1], xpos[b, 2]

@@ -63,7 +63,8 @@ def tile_planes(grid, origin, spacing, step):
     it, so that the bilinear surface over the tile never exceeds it (a bilinear function
     less a plane peaks at a node), as (a, gx, gy, usable). usable is 0 where that rise is
     more than a quarter of the tile's height range (a surface far from a plane there:
-    ripples, steps), where the grid's blocks bound it better."""
+    ripples, steps), where the grid's blocks bound it better, and where the tile is level
+    (its blocks give the level itself, read as a plane's)."""
     grid = np.asarray(grid, float)
     ny, nx = grid.shape
     nty, ntx = (ny - 2) // step + 1, (nx - 2) // step + 1
@@ -81,7 +82,8 @@ def tile_planes(grid, origin, spacing, step):
             plane = h.mean() + gx * dx[None, :] + gy * dy[:, None]
             rise = (h - plane).max()
             a = h.mean() - gx * x.mean() - gy * y.mean() + rise
-            out[tj * ntx + ti] = a, gx, gy, float(rise <= 0.25 * (h.max() - h.min()))
+            span = h.max() - h.min()
+            out[tj * ntx + ti] = a, gx, gy, float(0.0 < span and rise <= 0.25 * span)
     return out
 
 
