@@ -5,10 +5,10 @@ The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`,
 `sand.surface_kernels`) and the gaits' (`scenes.gaits`, `scenes.leg_kinematics`) are numba
 functions compiled with cache=True: the first run after an install (or after their source
 changed) compiles them, about 12 s on two cores (`BackgroundCompile` puts a share in a
-second process); every later run loads them from the cache in a fraction of a second. `sand.engine.kernels_cached` (and
-`sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
-kernels one engine needs (one gather kernel per kind of surface); `warm_up()` compiles every
-kernel ahead (`rft-sim warmup`).
+second process); every later run loads them from the cache in a fraction of a second.
+`sand.engine.kernels_cached` (and `sim.simulation.compile_notice`, which the CLI and the
+node show) asks `is_cached` about the kernels one engine needs (one gather kernel per kind
+of surface); `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
 
 numba checks a cached kernel against its own source file only, but a kernel compiles in
 helpers and constants from other files too (`sand/surface_kernels.py`, `sand/deformable.py`

@@ -41,7 +41,8 @@ from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, 
 from .deformable import OUTSIDE, mark_cell, settle, touch_cell
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
-                              map_factor, node_height, surface_range, tile_plane)
+                              map_factor, node_height, plane_top, surface_range,
+                              tile_plane)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -277,8 +278,8 @@ def _gather_plates(arrays, kind, deform):
             planar, p_a, p_gx, p_gy = tile_plane(tiles, tile_step, grid.shape[1], gx0, gy0,
                                                  g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         if planar:
-            body_low, body_top = -np.inf, (p_a + p_gx * xpos[b, 0] + p_gy * xpos[b, 1]
-                                           + radii[i] * (abs(p_gx) + abs(p_gy)))
+            body_low = -np.inf  # (not level: the grid is read)
+            body_top = plane_top(p_a, p_gx, p_gy, xpos[b, 0], xpos[b, 1], radii[i])
         elif deform:
             body_low, body_top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
                                            xpos[b, 0], xpos[b, 1], radii[i],
@@ -335,8 +336,7 @@ def _gather_plates(arrays, kind, deform):
                     wx_c = ox + r00 * ccx + r01 * ccy + r02 * ccz  # the cluster's centre
                     wy_c = oy + r10 * ccx + r11 * ccy + r12 * ccz
                     if planar:  # the body's tile plane, at its highest over the cluster
-                        top = (p_a + p_gx * wx_c + p_gy * wy_c
-                               + cluster_radius[c] * (abs(p_gx) + abs(p_gy)))
+                        top = plane_top(p_a, p_gx, p_gy, wx_c, wy_c, cluster_radius[c])
                         low = -np.inf  # (not level: the grid is read)
                     elif off_bed:  # (deformable sand, a body reaching beyond the bed)
                         low, top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx,

@@ -74,6 +74,13 @@ def tile_plane(tiles, step, nx, x0, y0, inv_dx, inv_dy, x, y, r):
 
 
 @njit(inline='always')
+def plane_top(a, gx, gy, x, y, r):
+    """Highest point (m) of the plane z = a + gx x + gy y (world) over the square
+    |x' - x|, |y' - y| <= r (m): at the corner it rises towards."""
+    return a + gx * x + gy * y + r * (abs(gx) + abs(gy))
+
+
+@njit(inline='always')
 def surface_range(kind, level, gx, gy, g_norm, grid, block_max, block_min, x0, y0, inv_dx,
                   inv_dy, x, y, r):
     """Bounds (low, high) of the surface's height within horizontal distance r of (x, y), m
