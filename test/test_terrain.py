@@ -10,7 +10,9 @@ from rft_sim_ros.sand.deformable import COUNT, DeformableSand
 from rft_sim_ros.sand.engine import LowVelocity
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,
-                                      surface_from_settings, tile_planes)
+                                      surface_from_settings, tile_planes, window_extremes,
+                                      window_span)
+from rft_sim_ros.sand.surface_kernels import window_range
 from rft_sim_ros.sand.zeta_map import ZetaMap, zeta_map_from_settings
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
@@ -200,6 +202,45 @@ def test_block_maximum_and_minimum_bound_every_node():
             for bj in {j // 8, max(j - 1, 0) // 8}:  # a node at a block's end is in both
                 for bi in {i // 8, max(i - 1, 0) // 8}:
                     assert low[bj, bi] <= grid[j, i] <= high[bj, bi]
+
+
+@pytest.mark.parametrize('span', [(0, 0), (1, 3), (4, 4), (6, 2), (40, 50)])
+def test_window_extremes_are_each_windows_highest_and_lowest_node(span):
+    grid = np.random.default_rng(3).normal(size=(23, 31))
+    high, low = window_extremes(grid, span)
+    assert high.shape == low.shape == grid.shape
+    for j in range(23):
+        for i in range(31):
+            window = grid[j:j + span[1] + 1, i:i + span[0] + 1]
+            assert (high[j, i], low[j, i]) == (window.max(), window.min())
+
+
+@pytest.mark.parametrize('spacing', [(0.01, 0.01), (0.013, 0.007)])
+def test_a_window_bounds_the_surface_over_any_square_up_to_its_radius(spacing):
+    """The window at a square's first node (`window_range`, spans from `window_span`) holds
+    every node of the cells the square touches (those a bilinear look-up in it reads), also
+    where the square reaches beyond the grid's edge (whose heights continue)."""
+    rng = np.random.default_rng(4)
+    size = (spacing[0] * 36, spacing[1] * 40)
+    grid = HeightGrid(rng.normal(size=(41, 37)), size=size, center=(0.1, -0.2))
+    radius = 0.023
+    high, low = window_extremes(grid.grid, window_span(radius, spacing))
+    (x0, y0), (dx, dy) = grid.origin, grid.spacing
+    for _ in range(2000):
+        x = rng.uniform(x0 - 0.05, x0 + size[0] + 0.05)
+        y = rng.uniform(y0 - 0.05, y0 + size[1] + 0.05)
+        r = radius * min(1.0, rng.uniform(0.5, 1.5))  # (often the largest)
+        bottom, top = window_range(high, low, x0, y0, 1 / dx, 1 / dy, x, y, r)
+        # the nodes from the first to one past the last (clamped to the grid), as the
+        # blocks' bound reads them (`grid_range`)
+        (u0, u1), (v0, v1) = [np.clip((np.array([c - r, c + r]) - o) / d, 0, n - 1).astype(int)
+                              for c, o, d, n in ((x, x0, dx, 37), (y, y0, dy, 41))]
+        nodes = grid.grid[v0:v1 + 2, u0:u1 + 2]
+        assert bottom <= nodes.min() and nodes.max() <= top
+        px = rng.uniform(x - r, x + r, 50)
+        py = rng.uniform(y - r, y + r, 50)
+        surface = grid.height(px, py)  # (bilinear: within its nodes up to rounding)
+        assert bottom - 1e-12 <= surface.min() and surface.max() <= top + 1e-12
 
 
 @pytest.mark.parametrize('shape', ['tilted', 'random', 'level'])

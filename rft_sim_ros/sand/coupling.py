@@ -42,7 +42,7 @@ from .deformable import OUTSIDE, mark_cell, settle, touch_cell
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
                               map_factor, node_height, plane_top, surface_range,
-                              tile_plane)
+                              tile_plane, window_range)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -117,9 +117,11 @@ GatherArrays = namedtuple('GatherArrays', [
     'settings', 'counters', 'body_ids', 'radii', 'body_cluster_start', 'cluster_plate_start',
     'cluster_center', 'cluster_radius', 'positions', 'normals', 'areas',
     # the surface's grid, block maximum and minimum (`surface.SurfaceData`), a rigid grid's
-    # tile planes (`surface.tile_planes`); zeta map factors; deformable sand's base grid,
-    # block maximum and minimum (beyond the bed; a grid base)
-    'surface_grid', 'surface_block_max', 'surface_block_min', 'surface_tiles', 'zeta_factors',
+    # tile planes (`surface.tile_planes`) and window maximum and minimum
+    # (`surface.window_extremes`); zeta map factors; deformable sand's base grid, block
+    # maximum and minimum (beyond the bed; a grid base)
+    'surface_grid', 'surface_block_max', 'surface_block_min', 'surface_tiles',
+    'surface_window_max', 'surface_window_min', 'zeta_factors',
     'base_grid', 'base_block_max', 'base_block_min',
     # deformable sand's footprint marks and settling (`DeformableSand.kernel_arrays`)
     'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cell_stamp',
@@ -191,14 +193,17 @@ def _gather_plates(arrays, kind, deform):
     sphere's radius, horizontally) are skipped without touching their plates. A plate's
     depth is the surface height at its (x, y) minus its z (vertical, world axes): a
     horizontal plane (FLAT) keeps the original arithmetic, bit for bit, and so
-    does a grid whose blocks under the cluster are level (block minimum == maximum: every
-    bilinear height there is that level exactly; where they are level under the body's whole
-    sphere, its clusters' blocks are not read); elsewhere on a grid only plates below the
-    blocks' maximum read the grid (a body a cell inside the grid all round without
-    clamping: `inside_grid`, in a plate loop of its own: `_grid_cluster`), or, on a rigid
-    grid near a plane around the body (its tile's raised plane, `tile_plane`; a level tile
-    has none), below that plane's highest point over the cluster, the body itself bounded by
-    that plane's highest point over its square instead of the blocks. On deformable sand
+    does a grid level under the cluster (its lowest node there == its highest: every
+    bilinear height there is that level exactly; where the blocks are level under the body's
+    whole sphere, its clusters are not bounded one by one); elsewhere on a grid only plates
+    below the highest node under the cluster read the grid (a body a cell inside the grid
+    all round without clamping: `inside_grid`, in a plate loop of its own: `_grid_cluster`).
+    The nodes under a cluster are bounded on a rigid grid by the window from the first node
+    of the cluster's square (`window_range`), on deformable sand by its blocks; or, on a
+    rigid grid near a plane around the body (its tile's raised plane, `tile_plane`; a level
+    tile has none), the plates below that plane's highest point over the cluster read the
+    grid, the body itself bounded by that plane's highest point over its square instead of
+    the blocks. On deformable sand
     (`deform`) the plates below the surface mark their footprint cells
     (`deformable.mark_cell`), and the footprints the bodies left are settled after the
     plates are gathered (`gather_deformable`); beyond the bed its base (plane, slope or
@@ -233,6 +238,8 @@ def _gather_plates(arrays, kind, deform):
     block_max = float_matrix(arrays, a.surface_block_max)
     block_min = float_matrix(arrays, a.surface_block_min)
     tiles, tile_step = float_matrix(arrays, a.surface_tiles), np.int64(settings[TILE_STEP])
+    window_max = float_matrix(arrays, a.surface_window_max)
+    window_min = float_matrix(arrays, a.surface_window_min)
     zeta_map = settings[ZETA_MAP] != 0.0
     factors = float_matrix(arrays, a.zeta_factors)
     mx0, my0 = settings[MAP_X0], settings[MAP_Y0]
@@ -338,6 +345,9 @@ def _gather_plates(arrays, kind, deform):
                     if planar:  # the body's tile plane, at its highest over the cluster
                         top = plane_top(p_a, p_gx, p_gy, wx_c, wy_c, cluster_radius[c])
                         low = -np.inf  # (not level: the grid is read)
+                    elif not deform:  # a rigid grid: the window over the cluster
+                        low, top = window_range(window_max, window_min, gx0, gy0, g_idx,
+                                                g_idy, wx_c, wy_c, cluster_radius[c])
                     elif off_bed:  # (deformable sand, a body reaching beyond the bed)
                         low, top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx,
                                              g_idy, wx_c, wy_c, cluster_radius[c],

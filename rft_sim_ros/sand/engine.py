@@ -23,7 +23,7 @@ from ..units import validated_zeta, zeta_to_si
 from . import coupling
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand, no_bed_arrays
-from .surface import FLAT, GRID, Plane, tile_planes
+from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
 from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
@@ -163,7 +163,8 @@ class SandEngine:
         arrays; deformable sand's is its bed's, and its base's (read beyond the bed) goes
         in too: a plane or slope as SURFACE, SLOPE_X, SLOPE_Y, a grid as the BASE_ settings
         and arrays. A rigid grid gets its bounding planes over tiles of TILE_STEP nodes,
-        enough for the largest sand body's square (`surface.tile_planes`)."""
+        enough for the largest sand body's square (`surface.tile_planes`), and its extremes
+        over windows enough for the largest cluster's square (`surface.window_extremes`)."""
         settings = self._settings
         data = surface.data
         base = surface.base.data if self.deformable else data
@@ -186,6 +187,10 @@ class SandEngine:
         settings[coupling.TILE_STEP] = step if rigid_grid else 0
         self._surface_tiles = (tile_planes(data.grid, data.origin, data.spacing, step)
                                if rigid_grid else np.zeros((1, 4)))
+        # and its extremes over windows that reach every node a cluster's square touches
+        span = window_span(self._cluster_radius.max(initial=0.0), data.spacing)
+        self._surface_windows = (window_extremes(data.grid, span) if rigid_grid
+                                 else (np.zeros((1, 1)), np.zeros((1, 1))))
         self._base_arrays = dict(base_grid=base.grid, base_block_max=base.block_max,
                                  base_block_min=base.block_min)
 
@@ -247,6 +252,8 @@ class SandEngine:
             normals=self.local_normal, areas=self.areas, surface_grid=self._surface_grid,
             surface_block_max=self._surface_block_max,
             surface_block_min=self._surface_block_min, surface_tiles=self._surface_tiles,
+            surface_window_max=self._surface_windows[0],
+            surface_window_min=self._surface_windows[1],
             zeta_factors=self._zeta_factors,
             **self._base_arrays,
             **(self.surface.kernel_arrays() if self.deformable else no_bed_arrays()),

@@ -21,7 +21,9 @@ of each BLOCK x BLOCK tile) so that a kernel can tell in a few reads whether a b
 lies wholly above the sand, and whether the surface under it is level (block minimum ==
 maximum: the bilinear height there is that level exactly, no look-up needed). On a rigid
 grid the engine adds planes that bound the surface over tiles the size of its bodies
-(`tile_planes`): a body on a smooth slope is bounded as on the analytic slope.
+(`tile_planes`): a body on a smooth slope is bounded as on the analytic slope; and each
+node's highest and lowest node over a window the size of its plate clusters
+(`window_extremes`): a cluster's square is bounded by the nodes it reaches, in two reads.
 """
 from collections import namedtuple
 from pathlib import Path
@@ -51,6 +53,35 @@ def block_maximum(grid, block=BLOCK):
 def block_minimum(grid, block=BLOCK):
     """As `block_maximum`, with each block's lowest node (the surface never goes below)."""
     return _blocks(grid, block, np.min)
+
+
+def window_extremes(grid, span):
+    """The highest and lowest node of every window of the grid: (high, low), each (ny, nx)
+    (m), whose [j, i] holds the extremes of the nodes [j .. j + span_y] x [i .. i + span_x]
+    (clipped to the grid), span = (span_x, span_y) nodes; so a square whose cells' nodes lie
+    within span nodes of its first node, along each axis, is bounded by that node's entries
+    (`surface_kernels.window_range`). By doubling: about log2(span) numpy passes per axis."""
+    windows = []
+    for reduce in (np.maximum, np.minimum):
+        out = np.array(grid, float)
+        for axis, length in ((1, span[0] + 1), (0, span[1] + 1)):
+            out = np.moveaxis(out, axis, 0)  # (a view: the passes below work on axis 0)
+            width = 1  # out[i] holds the extreme of nodes i .. i + width - 1 (clipped)
+            while width < length:
+                shift = min(width, length - width)  # up to doubling, at most to `length`
+                reduce(out[:-shift], out[shift:], out=out[:-shift])
+                width += shift
+            out = np.moveaxis(out, 0, axis)
+        windows.append(np.ascontiguousarray(out))
+    return tuple(windows)
+
+
+def window_span(radius, spacing):
+    """(span_x, span_y) of the windows (`window_extremes`) that bound every square of
+    half-side up to `radius` (m) on a grid of node spacing (dx, dy) (m): the nodes of the
+    cells such a square touches lie at most ceil(2 radius / spacing) + 1 nodes on from its
+    first, and one more allows for rounding."""
+    return tuple(int(np.ceil(2 * radius / d)) + 2 for d in spacing)
 
 
 def tile_planes(grid, origin, spacing, step):

@@ -58,6 +58,18 @@ def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
 
 
 @njit(inline='always')
+def window_range(window_max, window_min, x0, y0, inv_dx, inv_dy, x, y, r):
+    """Bounds (low, high) of a rigid grid's height over the square |x' - x|, |y' - y| <= r
+    (m): the extremes of the window of nodes from its first node (`surface.window_extremes`,
+    whose span must reach every node of the cells the square touches, as `grid_range`
+    reads them), in two reads (low == high: the surface there is level at it)."""
+    ny, nx = window_max.shape
+    u0 = int(min(max((x - r - x0) * inv_dx, 0.0), nx - 1.0))
+    v0 = int(min(max((y - r - y0) * inv_dy, 0.0), ny - 1.0))
+    return window_min[v0, u0], window_max[v0, u0]
+
+
+@njit(inline='always')
 def tile_plane(tiles, step, nx, x0, y0, inv_dx, inv_dy, x, y, r):
     """The plane bounding a grid of nx node columns from above over the square
     |x' - x|, |y' - y| <= r (m), from its `surface.tile_planes(.., step)` (`tiles`):
