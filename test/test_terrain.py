@@ -231,8 +231,8 @@ def test_a_window_bounds_the_surface_over_any_square_up_to_its_radius(spacing):
         y = rng.uniform(y0 - 0.05, y0 + size[1] + 0.05)
         r = radius * min(1.0, rng.uniform(0.5, 1.5))  # (often the largest)
         bottom, top = window_range(high, low, x0, y0, 1 / dx, 1 / dy, x, y, r)
-        # the nodes from the first to one past the last (clamped to the grid), as the
-        # blocks' bound reads them (`grid_range`)
+        # the nodes of the cells the square touches, from the first to one past the last
+        # (clamped to the grid; `square_nodes`), computed here independently
         (u0, u1), (v0, v1) = [np.clip((np.array([c - r, c + r]) - o) / d, 0, n - 1).astype(int)
                               for c, o, d, n in ((x, x0, dx, 37), (y, y0, dy, 41))]
         nodes = grid.grid[v0:v1 + 2, u0:u1 + 2]

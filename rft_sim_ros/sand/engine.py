@@ -188,9 +188,9 @@ class SandEngine:
         self._surface_tiles = (tile_planes(data.grid, data.origin, data.spacing, step)
                                if rigid_grid else np.zeros((1, 4)))
         # and its extremes over windows that reach every node a cluster's square touches
-        span = window_span(self._cluster_radius.max(initial=0.0), data.spacing)
-        self._surface_windows = (window_extremes(data.grid, span) if rigid_grid
-                                 else (np.zeros((1, 1)), np.zeros((1, 1))))
+        self._surface_windows = (
+            window_extremes(data.grid, window_span(self._cluster_radius.max(), data.spacing))
+            if rigid_grid else (np.zeros((1, 1)), np.zeros((1, 1))))
         self._base_arrays = dict(base_grid=base.grid, base_block_max=base.block_max,
                                  base_block_min=base.block_min)
 

@@ -41,15 +41,25 @@ def grid_heights(grid, x0, y0, inv_dx, inv_dy, x, y, out):
 
 
 @njit(inline='always')
-def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
-    """Bounds (low, high) of the grid's height over the square |x' - x|, |y' - y| <= r (m):
-    the extreme block minimum and maximum of the blocks it touches (they hold every node a
-    bilinear look-up in the square reads; low == high: the surface there is level at it)."""
-    ny, nx = grid.shape
+def square_nodes(ny, nx, x0, y0, inv_dx, inv_dy, x, y, r):
+    """Node columns u0 .. u1 and rows v0 .. v1 of the cells the square |x' - x|, |y' - y|
+    <= r (m) touches on a grid of ny x nx nodes (clamped to the grid; u1, v1 may be one
+    past its last node): every node a bilinear look-up in the square reads."""
     u0 = int(min(max((x - r - x0) * inv_dx, 0.0), nx - 1.0))
     u1 = int(min(max((x + r - x0) * inv_dx, 0.0), nx - 1.0)) + 1
     v0 = int(min(max((y - r - y0) * inv_dy, 0.0), ny - 1.0))
     v1 = int(min(max((y + r - y0) * inv_dy, 0.0), ny - 1.0)) + 1
+    return u0, u1, v0, v1
+
+
+@njit(inline='always')
+def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
+    """Bounds (low, high) of the grid's height over the square |x' - x|, |y' - y| <= r (m):
+    the extreme block minimum and maximum of the blocks it touches (they hold every node a
+    bilinear look-up in the square reads, `square_nodes`; low == high: the surface there is
+    level at it)."""
+    ny, nx = grid.shape
+    u0, u1, v0, v1 = square_nodes(ny, nx, x0, y0, inv_dx, inv_dy, x, y, r)
     low, high = 1e300, -1e300
     for bj in range(v0 // BLOCK, min(v1 // BLOCK, block_max.shape[0] - 1) + 1):
         for bi in range(u0 // BLOCK, min(u1 // BLOCK, block_max.shape[1] - 1) + 1):
@@ -61,11 +71,10 @@ def grid_range(grid, block_max, block_min, x0, y0, inv_dx, inv_dy, x, y, r):
 def window_range(window_max, window_min, x0, y0, inv_dx, inv_dy, x, y, r):
     """Bounds (low, high) of a rigid grid's height over the square |x' - x|, |y' - y| <= r
     (m): the extremes of the window of nodes from its first node (`surface.window_extremes`,
-    whose span must reach every node of the cells the square touches, as `grid_range`
-    reads them), in two reads (low == high: the surface there is level at it)."""
+    whose span must reach the square's last node, `square_nodes`), in two reads (low ==
+    high: the surface there is level at it)."""
     ny, nx = window_max.shape
-    u0 = int(min(max((x - r - x0) * inv_dx, 0.0), nx - 1.0))
-    v0 = int(min(max((y - r - y0) * inv_dy, 0.0), ny - 1.0))
+    u0, _, v0, _ = square_nodes(ny, nx, x0, y0, inv_dx, inv_dy, x, y, r)
     return window_min[v0, u0], window_max[v0, u0]
 
 
