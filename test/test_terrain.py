@@ -417,12 +417,9 @@ def test_hfield_in_a_body_fixed_to_the_world_turned_by_quarter_turns(body_deg, g
 def test_hfield_geoms_that_cannot_be_read_are_refused_with_the_reason():
     def model(xml):
         return mujoco.MjModel.from_xml_string(xml)
-    turned = HFIELD_IN_A_BODY.format(body_deg=30, geom_deg=0)
-    with pytest.raises(ValueError, match='turned 30 deg about z and tilted 0 deg'):
-        HeightGrid.from_mjcf_hfield(model(turned))
     tilted = HFIELD_IN_A_BODY.format(body_deg=0, geom_deg=0).replace(
         'euler="0 0 0"/>', 'euler="5 0 0"/>')
-    with pytest.raises(ValueError, match='tilted 5 deg'):
+    with pytest.raises(ValueError, match="hfield geom 'terrain' is tilted 5 deg"):
         HeightGrid.from_mjcf_hfield(model(tilted), 'terrain')
     moving = HFIELD_IN_A_BODY.format(body_deg=0, geom_deg=0).replace(
         '<body name="ground" pos="0.3 0.1 0.0" euler="0 0 0">',
@@ -442,6 +439,98 @@ def test_hfield_geoms_that_cannot_be_read_are_refused_with_the_reason():
     with pytest.raises(ValueError, match="reads the model's own <hfield> geom; the model "
                                          'has none'):
         HeightGrid.from_mjcf_hfield(model('<mujoco/>'))
+
+
+UNNAMED_HFIELDS = """
+<mujoco>
+  <asset><hfield name="dunes" nrow="3" ncol="4" size="0.6 0.4 0.05 0.01"
+                 elevation="0 1 2 3  1 2 3 4  0 0 4 4"/>
+         <hfield name="ramp" nrow="2" ncol="2" size="0.5 0.5 0.1 0.01" elevation="0 1 0 1"/>
+  </asset>
+  <worldbody>
+    <geom type="hfield" hfield="dunes" pos="5 0 0"/><geom type="hfield" hfield="dunes"/>
+    <geom type="hfield" hfield="ramp" pos="0 3 0"/><geom name="ball" size="0.1"/>
+  </worldbody>
+</mujoco>"""
+
+
+def test_unnamed_hfield_geoms_are_named_by_their_hfield_or_their_id():
+    """Terrain generators name the <hfield> asset but not its geom: such a geom is taken by
+    its asset's name, or, when several geoms share the asset, by its id; errors list the
+    hfield geoms in the form that is taken back."""
+    model = mujoco.MjModel.from_xml_string(UNNAMED_HFIELDS)
+    with pytest.raises(ValueError, match=r'the model has 3 \(0, 1, ramp\)'):
+        HeightGrid.from_mjcf_hfield(model)
+    assert HeightGrid.from_mjcf_hfield(model, 'ramp').center == (0.0, 3.0)
+    assert HeightGrid.from_mjcf_hfield(model, '0').center == (5.0, 0.0)
+    assert HeightGrid.from_mjcf_hfield(model, 1).center == (0.0, 0.0)
+    with pytest.raises(ValueError, match="2 geoms use <hfield> 'dunes'; its hfield geoms: "
+                                         '0, 1, ramp'):
+        HeightGrid.from_mjcf_hfield(model, 'dunes')
+    with pytest.raises(ValueError, match="no geom or <hfield> 'dune' in the model"):
+        HeightGrid.from_mjcf_hfield(model, 'dune')
+    with pytest.raises(ValueError, match="geom 'ball' is not an hfield geom; the model's: "
+                                         '0, 1, ramp'):
+        HeightGrid.from_mjcf_hfield(model, 'ball')
+    # the scene key takes an id as YAML gives it (an integer)
+    scene = load_scene('plate_drop', {'sand.surface.type': 'hfield', 'sand.surface.geom': 0,
+                                      'duration': 0.01})
+    assert scene.surface['geom'] == '0'
+
+
+TURNED_RAMP = """
+<mujoco>
+  <asset><hfield name="{name}" nrow="{rows}" ncol="{cols}" size="0.6 0.4 0.08 0.01"
+                 elevation="{elevation}"/></asset>
+  <worldbody><geom type="hfield" hfield="{name}" pos="0.2 -0.1 0.03" euler="0 0 {deg}"/>
+  </worldbody>
+</mujoco>"""
+
+
+@pytest.mark.parametrize('deg', [30.0, -89.954, 135.0])
+def test_hfield_turned_by_any_angle_is_resampled_onto_the_world_grid(deg):
+    """An hfield turned about z by an angle that is not a quarter turn (a generator's
+    euler -1.57 is -89.954 deg) is resampled at its node spacing onto a world-aligned grid:
+    a ramp (heights linear in the geom's x, y) is read as it is inside it, where bilinear
+    interpolation of a linear field is that field, and a bumpy field agrees with MuJoCo's
+    own ray casts within a cell's node range; the grid says so in a notice."""
+    rows, cols = 9, 13
+    u, v = np.meshgrid(np.linspace(-1, 1, cols), np.linspace(-1, 1, rows))
+    ramp = 0.5 + 0.3 * u - 0.2 * v  # (0..1, as MuJoCo normalises the data)
+    model = mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
+        name='ramp', rows=rows, cols=cols, deg=deg,
+        elevation=' '.join(f'{h:.17g}' for h in ramp.ravel())))
+    grid = HeightGrid.from_mjcf_hfield(model)
+    assert len(grid.notices) == 1 and f'turned {deg:.6g} deg about z' in grid.notices[0]
+    unturned = HeightGrid.from_mjcf_hfield(mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
+        name='ramp', rows=rows, cols=cols, deg=0.0,
+        elevation=' '.join(f'{h:.17g}' for h in ramp.ravel()))))
+    turn = np.radians(deg)
+    rng = np.random.default_rng(4)
+    # (a diagonal of the world grid's 0.1 m cells inside the edges: their nodes on the field)
+    local = rng.uniform([-0.45, -0.25], [0.45, 0.25], size=(200, 2))
+    world = np.array([0.2, -0.1]) + local @ np.array([[np.cos(turn), -np.sin(turn)],
+                                                      [np.sin(turn), np.cos(turn)]]).T
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    expected = unturned.height(0.2 + local[:, 0], -0.1 + local[:, 1])
+    assert np.ptp(expected) > 0.04  # (a ramp, not a level)
+    # (linear to MuJoCo's float32 storage of the data: 1e-9 m here)
+    assert np.allclose(grid.height(world[:, 0], world[:, 1]), expected, rtol=0, atol=1e-8)
+    # a bumpy field: within its node range of MuJoCo's triangles
+    bumps = np.random.default_rng(5).uniform(0.0, 1.0, (rows, cols))
+    model = mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
+        name='bumps', rows=rows, cols=cols, deg=deg,
+        elevation=' '.join(f'{h:.17g}' for h in bumps.ravel())))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    grid = HeightGrid.from_mjcf_hfield(model, 'bumps')
+    geomid = np.zeros(1, dtype=np.int32)
+    for x, y in world[:40]:
+        distance = mujoco.mj_ray(model, data, np.array([x, y, 1.0]), np.array([0, 0, -1.0]),
+                                 None, 1, -1, geomid)
+        assert geomid[0] == 0
+        assert abs((1.0 - distance) - grid.height(x, y)) < 0.08
 
 
 def test_grid_files_png_and_npy(tmp_path):

@@ -26,6 +26,12 @@ summed |G| x its inverse effective mass), where the explicit direction is the be
 The law is continuous at a = 1, so the implicit solve settles in one or two passes; a plate
 that would return to a set it already had in the step is frozen (see `implicit_wrenches`).
 A loaded body at rest creeps at most ~v_reg * load / capacity.
+
+Joint friction (MJCF frictionloss F, N m or N) is solved in the same iteration, as the
+regularised Coulomb law with the same v_reg: a joint whose end speed is below v_reg sticks
+(a damper F / v_reg: at most F), otherwise it slips (F against its motion). The engine takes
+it over from MuJoCo, whose friction constraint, acting after the sand's solve, would undo
+the end velocities the solve chose and keep a standing robot jittering between sets.
 """
 from collections import namedtuple
 
@@ -45,6 +51,8 @@ from .surface_kernels import (base_height, bed_range, cell_height, grid_range, i
                               tile_plane, window_range)
 
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
+#: A frictional joint's sets: |end speed| < v_reg, end speed >= v_reg, <= -v_reg (and FROZEN).
+STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
 MEMORY_SHIFT = 2
 
@@ -169,6 +177,8 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
     'qfrc_bias',
+    # joint friction the engine solves (`implicit_wrenches`' joints)
+    'joint_dofs', 'joint_limit', 'joint_memory', 'joint_flags', 'joint_torque',
     # implicit_damping's model and data arrays
     'dof_damping', 'trntype', 'trnid', 'gear', 'jnt_type', 'jnt_dofadr', 'dyntype',
     'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
@@ -1084,7 +1094,8 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
-                      dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench):
+                      dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
+                      joints):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -1106,6 +1117,11 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     (WORK_ROWS, >= k) and flags (FLAG_ROWS, >= k) are work space, of which rows STATE (final
     sets) and ACROSS (across dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step
     twists) and wrench[:S] ([force; torque about COM], N, N m).
+    joints: (dofs, limit, memory, flags, torque) of the J joints with friction: their dof
+    indices, friction F (N m or N), memory (as the plates'), flags ((3, J) int8 work space:
+    rows STATE, VISITED, SOLVED) and the friction torque the step applies (written, N m or
+    N). Each joint is in a set (STICK: -F qvel+ / v_reg in the system; SLIP_UP, SLIP_DOWN: a
+    constant -F or +F) chosen by its end speed like a plate's, starting from its last set.
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -1113,7 +1129,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     at rest, about G for a plate that keeps its speed, less as it slows - linear and
     opposing the plate's motion (RFT's G always opposes d). The wrench is exactly what the
     last solve assumed. Returns the number of solves, negative if some plate was frozen or
-    the sets had not settled within MAX_ITERATIONS.
+    the sets had not settled within MAX_ITERATIONS. A joint that would return to a set is
+    frozen likewise (a damper F / max(|qvel|, v_reg) through its speed at the step's start).
 
     Each plate enters its slot's accumulators with coefficients set by its set: moving ->
     wrench h = [G; r x G]; resting -> along response h u^T / v_reg (u = [d; r x d]); all but
@@ -1172,6 +1189,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         visited[j] = 1 << state
         _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
                           coef_across, coef_moving)
+    frictional = joints[0].shape[0] > 0
+    if frictional:
+        _joint_start(joints, qvel, v_reg, last)
     w_moving, k_rank, k_iso = space.w_moving, space.k_rank, space.k_iso
     dirty = space.dirty  # slots whose accumulators must be summed again
     dirty[:slots] = True
@@ -1198,9 +1218,16 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         for s in range(slots):
             _add_slot(products[nv * s:nv * s + nv], force_terms[s], chain[s, :chain_count[s]],
                       timestep, system, rhs)
+        if frictional:
+            _joint_terms(joints, qvel, v_reg, timestep, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
+        converged = True
+        if frictional:
+            changed, cycles = _joint_sets(joints, solution, v_reg)
+            frozen += cycles
+            converged = changed == 0
         for s in range(slots):  # xi+ = J qvel+, over each chain's dofs
             top = chain[s, 0] + 1 if chain_count[s] > 0 else 0  # its leaf has the highest
             for r in range(6 * s, 6 * s + 6):
@@ -1208,7 +1235,6 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                 for i in range(top):  # (zero beyond the chain: a prefix vectorises)
                     acc += jac[r, i] * solution[i]
                 xi_new[r] = acc
-        converged = True
         for s in range(slots):  # the set each plate's end speed along d asks for
             x0, x1, x2 = xi_new[6 * s], xi_new[6 * s + 1], xi_new[6 * s + 2]
             x3, x4, x5 = xi_new[6 * s + 3], xi_new[6 * s + 4], xi_new[6 * s + 5]
@@ -1259,7 +1285,85 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             wrench[s, a] = acc
     for j in range(k):
         memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
+    if frictional:
+        _joint_finish(joints, qvel, v_reg, solution, step)
     return iterations if converged and frozen == 0 else -iterations
+
+
+@njit(cache=True)
+def _joint_start(joints, qvel, v_reg, last):
+    """`implicit_wrenches`' frictional joints in their first sets: the last step's (their
+    memory, `last`: that step << MEMORY_SHIFT) unless frozen then, else their speed's."""
+    dofs, memory, flags = joints[0], joints[2], joints[3]
+    for f in range(dofs.shape[0]):
+        previous = memory[f] - last
+        warm = (previous >= 0) & (previous < FROZEN)
+        state = previous if warm else _joint_set(qvel[dofs[f]], v_reg)
+        flags[STATE, f] = state
+        flags[VISITED, f] = 1 << state
+
+
+@njit(cache=True)
+def _joint_terms(joints, qvel, v_reg, timestep, system, rhs):
+    """The frictional joints' terms of the implicit system: a sticking or frozen joint's
+    damper on the diagonal, a slipping joint's constant force in the right-hand side."""
+    dofs, limits, flags = joints[0], joints[1], joints[3]
+    for f in range(dofs.shape[0]):
+        i, limit, state = dofs[f], limits[f], flags[STATE, f]
+        if state == SLIP_UP or state == SLIP_DOWN:
+            rhs[i] += timestep * limit * (-1.0 if state == SLIP_UP else 1.0)
+        else:
+            system[i, i] += timestep * _joint_damper(state, limit, qvel[i], v_reg)
+
+
+@njit(cache=True)
+def _joint_sets(joints, solution, v_reg):
+    """After a solve: each frictional joint's set as solved (row SOLVED), then the set its
+    end speed asks for (a return to a set it had this step: FROZEN). Returns the joints that
+    changed set and of those the ones frozen."""
+    dofs, flags = joints[0], joints[3]
+    changed = frozen = 0
+    for f in range(dofs.shape[0]):
+        old = flags[STATE, f]
+        flags[SOLVED, f] = old
+        new = _joint_set(solution[dofs[f]], v_reg)
+        if old == FROZEN or new == old:
+            continue
+        if flags[VISITED, f] & (1 << new):  # back to a set it had: a cycle
+            frozen += 1
+            new = FROZEN
+        flags[STATE, f] = new
+        flags[VISITED, f] |= 1 << new
+        changed += 1
+    return changed, frozen
+
+
+@njit(cache=True)
+def _joint_finish(joints, qvel, v_reg, solution, step):
+    """The friction torque the last solve assumed (joints' torque, N m or N) and each
+    joint's memory of its set in this step."""
+    dofs, limits, memory, flags, torque = joints
+    for f in range(dofs.shape[0]):
+        i, limit, state = dofs[f], limits[f], flags[SOLVED, f]
+        if state == SLIP_UP or state == SLIP_DOWN:
+            torque[f] = limit * (-1.0 if state == SLIP_UP else 1.0)
+        else:
+            torque[f] = -_joint_damper(state, limit, qvel[i], v_reg) * solution[i]
+        memory[f] = (step << MEMORY_SHIFT) | state
+
+
+@njit(cache=True, inline='always')
+def _joint_set(speed, v_reg):
+    """The set a frictional joint's (end) speed asks for: STICK below v_reg, else SLIP_UP or
+    SLIP_DOWN with its sign."""
+    return SLIP_UP if speed >= v_reg else (SLIP_DOWN if speed <= -v_reg else STICK)
+
+
+@njit(cache=True, inline='always')
+def _joint_damper(state, limit, speed, v_reg):
+    """Damper (N m s/rad or N s/m) of a sticking (F / v_reg) or frozen (F / max(|speed|,
+    v_reg), the secant through its speed at the step's start) joint of friction F."""
+    return limit / (v_reg if state == STICK else max(abs(speed), v_reg))
 
 
 @njit(cache=True, error_model='numpy')
@@ -1267,9 +1371,10 @@ def implicit_step(timestep, arrays):
     """One step's implicit sand wrenches over the plates the step's gather kernel left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
-    over the gathered plates (when there are any), then `scatter_wrenches` into
-    xfrc_applied (zero wrenches when no plate is in the sand). Arguments as in those
-    functions (timestep: s); arrays: the table of an `ArrayTable` of `ImplicitArrays`,
+    over the gathered plates and the frictional joints (when there are any), then
+    `scatter_wrenches` into xfrc_applied (zero wrenches when no plate is in the sand); the
+    joints' friction is added to qfrc_passive, which mj_step2 applies. Arguments as in
+    those functions (timestep: s); arrays: the table of an `ArrayTable` of `ImplicitArrays`,
     settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves to the SOLVES counter and counts
     the step in UNSETTLED where it did not settle."""
     a = IMPLICIT
@@ -1289,6 +1394,9 @@ def implicit_step(timestep, arrays):
     qfrc_passive = float_vector(arrays, a.qfrc_passive)
     qfrc_actuator = float_vector(arrays, a.qfrc_actuator)
     qfrc_applied = float_vector(arrays, a.qfrc_applied)
+    joints = (int_vector(arrays, a.joint_dofs), float_vector(arrays, a.joint_limit),
+              int_vector(arrays, a.joint_memory), int8_matrix(arrays, a.joint_flags),
+              float_vector(arrays, a.joint_torque))
     qfrc_bias = float_vector(arrays, a.qfrc_bias)
     dof_damping, trntype = float_vector(arrays, a.dof_damping), int32_vector(arrays, a.trntype)
     trnid, gear = int32_matrix(arrays, a.trnid), float_matrix(arrays, a.gear)
@@ -1316,7 +1424,8 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
         float_matrix(arrays, a.blocks), float_matrix(arrays, a.products),
         float_matrix(arrays, a.force_terms), float_matrix(arrays, a.chain_work))
-    if slots > 0:  # (none: no plate in the sand, zero wrenches)
+    joint_dofs, joint_torque = joints[0], joints[4]
+    if slots > 0 or joint_dofs.shape[0] > 0:  # (neither: no plate in the sand, zero wrenches)
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -1329,9 +1438,11 @@ def implicit_step(timestep, arrays):
         implicit_mass(mass, damping, timestep)
         iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
                                        rows, space, mass, dof_parentid, qvel, timestep, step,
-                                       memory, work, flags, xi_new, wrench)
+                                       memory, work, flags, xi_new, wrench, joints)
         counters[SOLVES] += abs(iterations)
         counters[UNSETTLED] += iterations < 0
+        for f in range(joint_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
+            qfrc_passive[joint_dofs[f]] += joint_torque[f]
     # one call site for any slot count (a literal 0 at a second one compiled it twice)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
                      wrench_sum)

@@ -90,6 +90,10 @@ class SandEngine:
     surface_height: z of the horizontal sand surface, m; or `surface`: any `surface.Surface`
     (slope, height grid), fixed for the engine's life (a grid may change in place).
     normalisation: 'treers' or 'rft_sim'. dynamic: DynamicTerm or None.
+    With the implicit law the engine takes over the model's joint friction (MJCF
+    frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
+    (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
+    MuJoCo's friction constraint does not act a second time after the solve.
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -143,6 +147,16 @@ class SandEngine:
         self._flags = np.zeros((coupling.FLAG_ROWS, n), dtype=np.int8)
         # each plate's last step in the sand and its set then (coupling.implicit_wrenches)
         self._plate_memory = np.full(n, -1, dtype=np.int64)
+        # the joints with friction, solved with the sand (the implicit law only)
+        frictional = np.flatnonzero(model.dof_frictionloss > 0) if self._implicit_method \
+            else np.zeros(0, dtype=np.int64)
+        self.joint_friction = {int(i): float(model.dof_frictionloss[i]) for i in frictional}
+        self._joint_dofs = frictional.astype(np.int64)
+        self._joint_limit = model.dof_frictionloss[frictional].copy()
+        self._joint_memory = np.full(len(frictional), -1, dtype=np.int64)
+        self._joint_flags = np.zeros((3, len(frictional)), dtype=np.int8)
+        self._joint_torque = np.zeros(len(frictional))
+        model.dof_frictionloss[frictional] = 0.0
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -269,6 +283,9 @@ class SandEngine:
             body_parentid=m.body_parentid, dof_parentid=m.dof_parentid, xipos=d.xipos,
             subtree_com=d.subtree_com, cdof=d.cdof, qvel=d.qvel, qfrc_passive=d.qfrc_passive,
             qfrc_actuator=d.qfrc_actuator, qfrc_applied=d.qfrc_applied, qfrc_bias=d.qfrc_bias,
+            joint_dofs=self._joint_dofs, joint_limit=self._joint_limit,
+            joint_memory=self._joint_memory, joint_flags=self._joint_flags,
+            joint_torque=self._joint_torque,
             dof_damping=m.dof_damping, trntype=m.actuator_trntype, trnid=m.actuator_trnid,
             gear=m.actuator_gear, jnt_type=m.jnt_type, jnt_dofadr=m.jnt_dofadr,
             dyntype=m.actuator_dyntype, gaintype=m.actuator_gaintype,

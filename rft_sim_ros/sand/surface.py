@@ -130,7 +130,10 @@ def _blocks(grid, block, reduce):
 
 
 class Surface:
-    """A sand surface. Subclasses define `height` and `data`."""
+    """A sand surface. Subclasses define `height` and `data`; `notices`: what reading it
+    decided for the user (one line each)."""
+
+    notices = ()
 
     def height(self, x, y):
         """World z of the free surface at world (x, y) (m; arrays broadcast)."""
@@ -249,35 +252,39 @@ class HeightGrid(Surface):
 
     @classmethod
     def from_mjcf_hfield(cls, model, geom=None):
-        """The height field of the MuJoCo model's hfield geom `geom` (name; None: the model's
-        only one, `hfield_geom`), world frame, as MuJoCo places it: heights pos_z + data x
-        size_z over the geom's local x in +-size_x and y in +-size_y. The geom must be fixed
-        to the world (in the world body, or a body welded to it) and level: turned about
-        world z by a multiple of 90 deg at most, which is read exactly (the data's rows and
-        columns turned with it)."""
+        """The height field of the MuJoCo model's hfield geom `geom` (`hfield_geom`: its name,
+        its <hfield>'s, or its id; None: the model's only one), world frame, as MuJoCo places
+        it: heights pos_z + data x size_z over the geom's local x in +-size_x and y in
+        +-size_y. The geom must be fixed to the world (in the world body, or a body welded to
+        it) and level; it may be turned about world z by any angle. A multiple of 90 deg is
+        read exactly (the data's rows and columns turned with it); any other turn is
+        resampled (`_resampled`, said in `notices`). A tilt is refused with its angle."""
         import mujoco
         g = hfield_geom(model, geom)
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)  # the pose of a geom fixed to the world
         rotation, pos = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g].copy()
-        quarter = np.arctan2(rotation[1, 0], rotation[0, 0]) / (np.pi / 2)
-        turns = int(np.rint(quarter))
-        if abs(rotation[2, 2] - 1.0) > 1e-9 or abs(quarter - turns) > 1e-9:
+        yaw = np.arctan2(rotation[1, 0], rotation[0, 0])
+        if abs(rotation[2, 2] - 1.0) > 1e-9:
             tilt = np.degrees(np.arccos(np.clip(rotation[2, 2], -1.0, 1.0)))
-            raise ValueError(f'sand.surface.geom: hfield geom {model.geom(g).name!r} is turned '
-                             f'{np.degrees(quarter * np.pi / 2):.6g} deg about z and tilted '
-                             f'{tilt:.6g} deg: only level hfields turned by a multiple of '
-                             '90 deg about z are read')
+            raise ValueError(f'sand.surface.geom: hfield geom {_hfield_label(model, g)!r} is '
+                             f'tilted {tilt:.6g} deg: only level hfields (turned about z '
+                             'alone) are read')
         h = int(model.geom_dataid[g])
         rows, cols = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
         start = int(model.hfield_adr[h])
-        heights = model.hfield_data[start:start + rows * cols].reshape(rows, cols)
-        sx, sy, sz, _ = model.hfield_size[h]
+        heights = pos[2] + model.hfield_size[h][2] * \
+            model.hfield_data[start:start + rows * cols].reshape(rows, cols)
+        size = 2.0 * model.hfield_size[h][:2]
+        turns = int(np.rint(yaw / (np.pi / 2)))
+        if abs(yaw / (np.pi / 2) - turns) > 1e-9:
+            return _resampled(cls(heights, size), yaw, (pos[0], pos[1]),
+                              f'hfield geom {_hfield_label(model, g)!r}')
         # rows are y (row 0 lowest), so a turn counterclockwise seen from above is rot90's
         # clockwise one
         heights = np.rot90(heights, -turns)
-        size = (2 * sx, 2 * sy) if turns % 2 == 0 else (2 * sy, 2 * sx)
-        return cls(pos[2] + sz * heights, size, (pos[0], pos[1]))
+        size = size if turns % 2 == 0 else size[::-1]
+        return cls(heights, size, (pos[0], pos[1]))
 
     def height(self, x, y):
         """The bilinear height the gather kernels read (`surface_kernels.grid_heights`),
@@ -307,34 +314,99 @@ class HeightGrid(Surface):
                            self.block_max, self.block_min)
 
 
+def _resampled(field, yaw, center, what):
+    """`field` (a HeightGrid in its own frame, centred on its origin) turned by `yaw` (rad)
+    about z and moved to `center` (world x, y), resampled onto a world-aligned grid over the
+    turned field's bounding box at the field's finer node spacing: each node takes the
+    field's bilinear height at its place (so the sand equals the field there, and inside a
+    cell lies within the cell's node range), a node beyond the turned field its nearest
+    edge point's. `what` names the field in the notice the grid carries."""
+    spacing = min(field.spacing)
+    c, s = np.cos(yaw), np.sin(yaw)
+    sx, sy = field.size
+    nodes = [int(np.ceil((abs(c) * sx + abs(s) * sy) / spacing - 1e-9)) + 1,
+             int(np.ceil((abs(s) * sx + abs(c) * sy) / spacing - 1e-9)) + 1]
+    size = ((nodes[0] - 1) * spacing, (nodes[1] - 1) * spacing)
+    dx, dy = np.meshgrid(spacing * np.arange(nodes[0]) - size[0] / 2,  # from the centre;
+                         spacing * np.arange(nodes[1]) - size[1] / 2)  # row 0: lowest y
+    grid = HeightGrid(field.height(c * dx + s * dy, c * dy - s * dx), size, center)
+    grid.notices = (f'{what} is turned {np.degrees(yaw):.6g} deg about z: resampled onto a '
+                    f'world-aligned grid of {nodes[0]} x {nodes[1]} nodes '
+                    f'{spacing * 1e3:.3g} mm apart (bilinear; a quarter turn is read exactly)',)
+    return grid
+
+
 def hfield_geom(model, name=None):
-    """Id of the MuJoCo model's hfield geom `name`, or with name None of its only hfield
-    geom; the geom must be fixed to the world (no joint or mocap body between it and the
+    """Id of the MuJoCo model's hfield geom `name`: the geom's name, the name of the
+    <hfield> asset that only this geom uses, or the geom's id (a geom without a name whose
+    asset other geoms use too; as errors list it); with name None the model's only hfield
+    geom. The geom must be fixed to the world (no joint or mocap body between it and the
     world). Raises ValueError with the reason."""
     import mujoco
     hfields = [g for g in range(model.ngeom)
                if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_HFIELD]
+    listed = ', '.join(_hfield_label(model, g) for g in hfields)
     if name is None:
         if not hfields:
             raise ValueError("sand.surface.type 'hfield' reads the model's own <hfield> geom; "
                              'the model has none')
         if len(hfields) > 1:
-            names = ', '.join(model.geom(g).name or f'#{g}' for g in hfields)
             raise ValueError('sand.surface.geom: name the hfield geom to read; the model has '
-                             f'{len(hfields)} ({names})')
+                             f'{len(hfields)} ({listed})')
         g = hfields[0]
     else:
-        try:
-            g = model.geom(name).id
-        except KeyError:
-            raise ValueError(f'sand.surface.geom: no geom {name!r} in the model') from None
-        if g not in hfields:
-            raise ValueError(f'sand.surface.geom: geom {name!r} is not an hfield geom')
+        g = _named_hfield_geom(model, str(name), hfields, listed)
     if model.body_weldid[model.geom_bodyid[g]] != 0:  # (a joint or a mocap body between)
-        raise ValueError(f'sand.surface.geom: hfield geom {model.geom(g).name!r} must be '
+        raise ValueError(f'sand.surface.geom: hfield geom {_hfield_label(model, g)!r} must be '
                          'fixed to the world (its body or a parent has a joint or is a '
                          'mocap body)')
     return g
+
+
+def _named_hfield_geom(model, name, hfields, listed):
+    """`hfield_geom`'s look-up of a given name among the hfield geoms `hfields`."""
+    import mujoco
+    try:
+        g = model.geom(name).id
+    except KeyError:
+        g = int(name) if name.isdigit() else -1
+        if not 0 <= g < model.ngeom:
+            users = [g for g in hfields
+                     if mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_HFIELD,
+                                          model.geom_dataid[g]) == name]
+            if len(users) != 1:
+                why = f'{len(users)} geoms use <hfield> {name!r}' if users else \
+                    f'no geom or <hfield> {name!r} in the model'
+                raise ValueError(f'sand.surface.geom: {why}; its hfield geoms: '
+                                 f'{listed or "none"}') from None
+            g = users[0]
+    if g not in hfields:
+        raise ValueError(f'sand.surface.geom: geom {name!r} is not an hfield geom; the '
+                         f"model's: {listed or 'none'}")
+    return g
+
+
+def _hfield_label(model, g):
+    """How errors and notices name hfield geom g, in a form `hfield_geom` takes back: its
+    name, else its <hfield>'s if no other geom uses that, else its id g."""
+    import mujoco
+    if model.geom(g).name:
+        return model.geom(g).name
+    asset = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_HFIELD, model.geom_dataid[g])
+    shared = sum(1 for other in range(model.ngeom)
+                 if model.geom_type[other] == mujoco.mjtGeom.mjGEOM_HFIELD
+                 and model.geom_dataid[other] == model.geom_dataid[g])
+    if asset and shared == 1 and not _is_geom_name(model, asset):
+        return asset
+    return str(g)
+
+
+def _is_geom_name(model, name):
+    try:
+        model.geom(name)
+    except KeyError:
+        return False
+    return True
 
 
 def grey_levels(path):

@@ -64,6 +64,13 @@ def _optional_text(value):
     return None if value is None else _text(value)
 
 
+def _geom_reference(value):
+    """A geom's name, or its id (an integer, for a geom without a name), as text."""
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
+        return str(value)
+    return _optional_text(value)
+
+
 def _names(value):
     """A list of names/patterns, or one text of comma-separated names/patterns."""
     if isinstance(value, str) and value.strip():
@@ -236,9 +243,9 @@ KEYS = (
         'centre.', _pair),
     Key('sand.surface.height_range', '[low, high]', 'm', None, 'Grid: heights that grey 0..1 '
         'maps to (required for a PNG; rescales a .npy).', _low_high),
-    Key('sand.surface.geom', 'text', '', None, "Hfield: name of the model's hfield geom, "
-        'fixed to the world (default: its only one; its rigid collisions are switched off).',
-        _optional_text),
+    Key('sand.surface.geom', 'text or id', '', None, "Hfield: the model's hfield geom, fixed "
+        "to the world, by its name, its <hfield>'s, or its id (default: the only one; its "
+        'rigid collisions are switched off).', _geom_reference),
     Key('sand.zeta_map', 'mapping or null', '', None, 'Factors multiplying zeta by position '
         '(docs/terrain.md); null: zeta everywhere.', _optional_section),
     Key('sand.zeta_map.regions', 'list of {x, y, factor}', 'm', None, 'Rectangles {x: [low, '

@@ -130,6 +130,7 @@ class Simulation:
         self.model.opt.timestep = scene.timestep
         try:
             surface = surface_from_settings(scene.surface, scene.surface_height, self.model)
+            self.notices.extend(surface.notices)
             zeta_map = zeta_map_from_settings(scene.zeta_map)
             bed = scene.deformable
             if bed.get('enabled'):
