@@ -557,6 +557,32 @@ def test_grid_files_png_and_npy(tmp_path):
         surface_from_settings({'type': 'dune'})
 
 
+def test_a_field_within_the_plane_beyond_it(tmp_path):
+    """`beyond: plane`: the field's own heights over it (to rounding); the plane at
+    sand.surface_height from one cell outside it on (its edge continued by default); and an
+    hfield of the model likewise, around its turned bounding box."""
+    heights = np.random.default_rng(6).uniform(0.0, 0.05, (5, 7))
+    np.save(tmp_path / 'h.npy', heights)
+    settings = {'type': 'grid', 'file': str(tmp_path / 'h.npy'), 'size': [0.6, 0.4],
+                'center': [1.0, -0.5]}
+    edge = surface_from_settings(settings, base_height=0.2)
+    patch = surface_from_settings({**settings, 'beyond': 'plane'}, base_height=0.2)
+    rng = np.random.default_rng(7)
+    x, y = rng.uniform(0.7, 1.3, 50), rng.uniform(-0.7, -0.3, 50)
+    assert np.allclose(patch.height(x, y), edge.height(x, y), rtol=0, atol=1e-14)
+    far = np.array([[-3.0, 0.0], [1.0, 2.0], [1.41, -0.5], [1.0, -0.81]])  # (a cell: 0.1 m)
+    assert np.all(patch.height(far[:, 0], far[:, 1]) == 0.2)
+    assert not np.any(edge.height(far[:, 0], far[:, 1]) == 0.2)
+    assert 0.2 <= patch.height(1.35, -0.5) <= 0.2 + heights[:, -1].max()  # the one-cell rim
+    with pytest.raises(ValueError, match="beyond must be 'edge' or 'plane'"):
+        surface_from_settings({**settings, 'beyond': 'wall'})
+    model = mujoco.MjModel.from_xml_string(HFIELD)
+    hfield = surface_from_settings({'type': 'hfield', 'beyond': 'plane'}, -0.3, model)
+    assert hfield.height(5.0, 5.0) == -0.3
+    assert hfield.height(0.1, -0.2) == pytest.approx(surface_from_settings(
+        {'type': 'hfield'}, -0.3, model).height(0.1, -0.2), abs=1e-14)
+
+
 def test_zeta_map_multiplies_zeta_where_the_plates_are():
     patch = ZetaMap.from_regions([{'x': [-2, 2], 'y': [-2, 2], 'factor': 0.25}])
     elsewhere = ZetaMap.from_regions([{'x': [5, 6], 'y': [5, 6], 'factor': 0.25}])

@@ -9,7 +9,8 @@ kind code plus a plane (height at the world origin and gradient) and a height gr
   by tan(angle) per metre along the heading `downhill_deg` (degrees from +x towards +y).
 - `HeightGrid(heights, size, center)`: a height field sampled on a regular grid of nodes
   (heights[iy, ix], m, world z; row 0 at the lowest y), spanning `size` = [x, y] m centred on
-  `center`; bilinear between nodes, and outside the grid the edge values continue.
+  `center`; bilinear between nodes, and outside the grid the edge values continue (or, as
+  `within_plane` makes it, a plane around it).
   `from_file` reads a PNG (grey levels mapped onto a height range) or a .npy (heights in m);
   `from_mjcf_hfield` reads a MuJoCo model's own <hfield> geom.
 
@@ -286,6 +287,15 @@ class HeightGrid(Surface):
         size = size if turns % 2 == 0 else size[::-1]
         return cls(heights, size, (pos[0], pos[1]))
 
+    def within_plane(self, level):
+        """This grid in a plane at `level` (m): one ring of nodes at that level around it, so
+        that beyond the field the edge continued is the plane, met over one cell."""
+        grid = HeightGrid(np.pad(self.grid, 1, constant_values=float(level)),
+                          (self.size[0] + 2 * self.spacing[0],
+                           self.size[1] + 2 * self.spacing[1]), self.center)
+        grid.notices = self.notices
+        return grid
+
     def height(self, x, y):
         """The bilinear height the gather kernels read (`surface_kernels.grid_heights`),
         compiled: a Python caller (metrics, scenarios) sampling thousands of points at the
@@ -447,7 +457,8 @@ def surface_from_settings(settings, base_height=0.0, model=None):
 
     settings: {'type': 'plane' | 'slope' | 'grid' | 'hfield', ...}; base_height: the scene's
     sand.surface_height (m): the plane's height, the slope's height at the origin, the
-    offset of a grid's heights. model: the compiled MuJoCo model (hfield). Raises ValueError
+    offset of a grid's heights, and with 'beyond': 'plane' the plane around a grid or hfield
+    (`HeightGrid.within_plane`). model: the compiled MuJoCo model (hfield). Raises ValueError
     with the reason."""
     settings = dict(settings or {})
     kind = settings.get('type', 'plane')
@@ -459,9 +470,14 @@ def surface_from_settings(settings, base_height=0.0, model=None):
         return Slope(base_height, float(settings.get('angle_deg', 0.0)),
                      float(settings.get('downhill_deg', 0.0)))
     if kind == 'hfield':
-        return HeightGrid.from_mjcf_hfield(model, settings.get('geom'))
-    if 'file' not in settings or 'size' not in settings:
+        grid = HeightGrid.from_mjcf_hfield(model, settings.get('geom'))
+    elif 'file' not in settings or 'size' not in settings:
         raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
-    return HeightGrid.from_file(settings['file'], settings['size'],
-                                settings.get('center', (0.0, 0.0)),
-                                settings.get('height_range'), base_height)
+    else:
+        grid = HeightGrid.from_file(settings['file'], settings['size'],
+                                    settings.get('center', (0.0, 0.0)),
+                                    settings.get('height_range'), base_height)
+    beyond = settings.get('beyond', 'edge')
+    if beyond not in ('edge', 'plane'):
+        raise ValueError(f"sand.surface.beyond must be 'edge' or 'plane', got {beyond!r}")
+    return grid.within_plane(base_height) if beyond == 'plane' else grid

@@ -246,6 +246,10 @@ KEYS = (
     Key('sand.surface.geom', 'text or id', '', None, "Hfield: the model's hfield geom, fixed "
         "to the world, by its name, its <hfield>'s, or its id (default: the only one; its "
         'rigid collisions are switched off).', _geom_reference),
+    Key('sand.surface.beyond', "'edge' or 'plane'", '', 'edge', 'Grid, hfield: the sand '
+        "beyond the field: its edge heights continued, or the plane at sand.surface_height "
+        '(met over one cell outside the field: a patch of terrain in a flat bed).',
+        _choice('edge', 'plane')),
     Key('sand.zeta_map', 'mapping or null', '', None, 'Factors multiplying zeta by position '
         '(docs/terrain.md); null: zeta everywhere.', _optional_section),
     Key('sand.zeta_map.regions', 'list of {x, y, factor}', 'm', None, 'Rectangles {x: [low, '
