@@ -59,9 +59,10 @@ def test_slot_jacobians_and_free_force_match_mujoco(seed):
     coupling.prepare_solve(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
                            data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
                            model.body_parentid, model.dof_parentid, data.qfrc_passive,
-                           data.qfrc_actuator, data.qfrc_applied, data.qfrc_bias, jac, chain,
-                           chain_count)
-    free_force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
+                           data.qfrc_actuator, data.qfrc_applied, data.qfrc_constraint,
+                           data.qfrc_bias, jac, chain, chain_count)
+    free_force = (data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied
+                  + data.qfrc_constraint - data.qfrc_bias)
     assert np.allclose(jac[-1], free_force)
     for slot, body in enumerate(engine.body_ids):
         jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))

@@ -1,6 +1,7 @@
 """Joint friction (MJCF frictionloss) solved with the sand by the implicit law: the
 regularised Coulomb law, analytic in the air, and a legged body with joint friction standing
-in sand settles instead of jittering between the sets."""
+in sand settles instead of jittering between the sets; and MuJoCo's other constraint forces
+(a joint held at its limit) in the solve."""
 import mujoco
 import numpy as np
 import pytest
@@ -80,21 +81,28 @@ LEG = """<body name="thigh{i}" pos="{x} {y} 0"><joint name="hip{i}" axis="0 1 0"
       </body></body>"""
 
 
-@pytest.mark.parametrize('friction', [0.0, 0.2])
-def test_a_legged_body_with_joint_friction_comes_to_rest_in_sand(friction):
-    """Four servoed legs, each joint with 0.2 N m of friction (as vendor MJCFs have), standing
-    in sand: one solve a step and the body at rest, as without friction. (With MuJoCo's own
-    friction constraint acting after the sand's solve, such a robot needed about eight
-    solves a step, every step unsettled, and jittered at about 1 mm/s.)"""
+def _four_legs(friction=0.0, knee_range=None):
     corners = [(0.12, 0.1), (0.12, -0.1), (-0.12, 0.1), (-0.12, -0.1)]
     legs = ''.join(LEG.format(i=i, x=x, y=y) for i, (x, y) in enumerate(corners))
+    if knee_range is not None:
+        legs = legs.replace('<joint name="knee', f'<joint range="{knee_range}" '
+                            'limited="true" name="knee')
     servos = ''.join(f'<position joint="{j}{i}"/>' for i in range(4) for j in ('hip', 'knee'))
     model = mujoco.MjModel.from_xml_string(STANDING.format(friction=friction, legs=legs,
                                                            servos=servos))
     data = mujoco.MjData(model)
     plates = {f'shin{i}': body_plates(model, model.body(f'shin{i}').id, count=150)
               for i in range(4)}
-    engine = SandEngine(model, data, plates, zeta=3.75)
+    return model, data, SandEngine(model, data, plates, zeta=3.75)
+
+
+@pytest.mark.parametrize('friction', [0.0, 0.2])
+def test_a_legged_body_with_joint_friction_comes_to_rest_in_sand(friction):
+    """Four servoed legs, each joint with 0.2 N m of friction (as vendor MJCFs have), standing
+    in sand: one solve a step and the body at rest, as without friction. (With MuJoCo's own
+    friction constraint acting after the sand's solve, such a robot needed about eight
+    solves a step, every step unsettled, and jittered at about 1 mm/s.)"""
+    model, data, engine = _four_legs(friction)
     assert len(engine.joint_friction) == (8 if friction else 0)
     for _ in range(1500):  # land and settle
         engine.step()
@@ -106,3 +114,24 @@ def test_a_legged_body_with_joint_friction_comes_to_rest_in_sand(friction):
     assert engine.solves - solves == 1000 and engine.unsettled_steps == unsettled
     assert top < 1e-4  # m/s
     assert data.qpos[2] < 0.24  # standing in the sand, not on anything else
+
+
+def test_a_body_standing_on_joints_held_at_their_limits_rests_in_sand():
+    """The knees' servos push them 0.2 rad past their stops, which hold them: the body stands
+    as high as with free knees, and comes to rest. (With the limits' constraint forces left
+    out of the sand's solve, the stance jittered at 6 cm/s and sank 4.5 cm deeper.)"""
+    heights = []
+    for knee_range in (None, '0 1'):
+        model, data, engine = _four_legs(knee_range=knee_range)
+        if knee_range is not None:
+            data.ctrl[1::2] = -0.2
+        for _ in range(1500):
+            engine.step()
+        top = 0.0
+        for _ in range(1000):
+            engine.step()
+            top = max(top, np.linalg.norm(data.qvel[:3]))
+        heights.append(data.qpos[2])
+        assert top < (1e-4 if knee_range is None else 2e-3)  # m/s
+    assert data.nefc == 4  # (the four knees at their stops)
+    assert heights[1] == pytest.approx(heights[0], abs=2e-3)

@@ -176,7 +176,7 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     # the sand bodies, mjModel, mjData
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
-    'qfrc_bias',
+    'qfrc_constraint', 'qfrc_bias',
     # joint friction the engine solves (`implicit_wrenches`' joints)
     'joint_dofs', 'joint_limit', 'joint_memory', 'joint_flags', 'joint_torque',
     # implicit_damping's model and data arrays
@@ -602,12 +602,18 @@ def _directions(k, table):
 @njit(cache=True, error_model='numpy')
 def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                   body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                  qfrc_actuator, qfrc_applied, qfrc_bias, rows, chain, chain_count):
+                  qfrc_actuator, qfrc_applied, qfrc_constraint, qfrc_bias, rows, chain,
+                  chain_count):
     """Right-hand sides of the implicit solve: rows 6s..6s+5 of `rows` ((6S+1) x nv) become
     d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
-    tau_free = passive + actuator + applied - bias (N or N m per dof). chain[s, :chain_count[s]]
-    (S x nv, S) become the dofs slot s's rows reach: its kinematic chain, leaf to root."""
+    tau_free = passive + actuator + applied + constraint - bias (N or N m per dof), the
+    constraint force (joint limits, rigid contacts, equalities) being MuJoCo's of the step
+    before (mj_step2 computes this step's after the solve: in a lasting contact, such as a
+    joint held at its limit, the last one is the estimate; left out, the solve's end
+    velocities ignored it and a robot with a knee at its stop jittered at 6 cm/s in sand).
+    chain[s, :chain_count[s]] (S x nv, S) become the dofs slot s's rows reach: its kinematic
+    chain, leaf to root."""
     rows[:6 * slots + 1, :] = 0.0
     chain_count[:slots] = 0
     for s in range(slots):
@@ -634,7 +640,8 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
             chain_count[s] += 1
             i = dof_parentid[i]
     for i in range(qfrc_bias.shape[0]):
-        rows[6 * slots, i] = qfrc_passive[i] + qfrc_actuator[i] + qfrc_applied[i] - qfrc_bias[i]
+        rows[6 * slots, i] = (qfrc_passive[i] + qfrc_actuator[i] + qfrc_applied[i]
+                              + qfrc_constraint[i] - qfrc_bias[i])
 
 
 _TRN_JOINT = 0     # mjtTrn.mjTRN_JOINT
@@ -1099,7 +1106,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
-    except the sand's (passive + actuator + applied - bias); space: a SolveSpace, whose chain,
+    except the sand's (`prepare_solve`); space: a SolveSpace, whose chain,
     chain_count hold the dofs each slot's rows reach (`prepare_solve`), the rest work space.
     mass_h: Mh = M + dt D, the matrix MuJoCo's
     step solves with (`implicit_mass`); dof_parentid: mjModel's. With each plate moving
@@ -1394,6 +1401,7 @@ def implicit_step(timestep, arrays):
     qfrc_passive = float_vector(arrays, a.qfrc_passive)
     qfrc_actuator = float_vector(arrays, a.qfrc_actuator)
     qfrc_applied = float_vector(arrays, a.qfrc_applied)
+    qfrc_constraint = float_vector(arrays, a.qfrc_constraint)
     joints = (int_vector(arrays, a.joint_dofs), float_vector(arrays, a.joint_limit),
               int_vector(arrays, a.joint_memory), int8_matrix(arrays, a.joint_flags),
               float_vector(arrays, a.joint_torque))
@@ -1429,7 +1437,7 @@ def implicit_step(timestep, arrays):
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                      qfrc_actuator, qfrc_applied, qfrc_bias, rows, space.chain,
+                      qfrc_actuator, qfrc_applied, qfrc_constraint, qfrc_bias, rows, space.chain,
                       space.chain_count)
         implicit_damping(settings[DAMPER] != 0.0, settings[ACTUATORS] != 0.0, dof_damping,
                          trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm,
