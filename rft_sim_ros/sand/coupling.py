@@ -31,7 +31,11 @@ Joint friction (MJCF frictionloss F, N m or N) is solved in the same iteration, 
 regularised Coulomb law with the same v_reg: a joint whose end speed is below v_reg sticks
 (a damper F / v_reg: at most F), otherwise it slips (F against its motion). The engine takes
 it over from MuJoCo, whose friction constraint, acting after the sand's solve, would undo
-the end velocities the solve chose and keep a standing robot jittering between sets.
+the end velocities the solve chose and keep a standing robot jittering between sets. Hinge
+and slide joint limits are taken over likewise (`limit_rows`): each limit a joint reaches is
+a row of MuJoCo's soft constraint (its impedance, stiffness and damping from the joint's
+solref, solimp and margin, as MuJoCo makes them), active while it pushes, solved with the
+sand.
 """
 from collections import namedtuple
 
@@ -53,6 +57,18 @@ from .surface_kernels import (base_height, bed_range, cell_height, grid_range, i
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A frictional joint's sets: |end speed| < v_reg, end speed >= v_reg, <= -v_reg (and FROZEN).
 STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2
+#: A joint limit row's sets: pushing (solved as MuJoCo's soft constraint) or not.
+INACTIVE, ACTIVE = 0, 1
+#: Columns of a limited joint's parameters (`limit_rows`): its range (low, high), margin,
+#: solref (2), solimp (5) and the inverse weight of its dof (mjModel.dof_invweight0).
+LOW, HIGH, MARGIN, SOLREF, SOLIMP, INVWEIGHT = 0, 1, 2, 3, 5, 10
+LIMIT_PARAMS = 11
+#: Columns of a limit row: dof, sign (+1 lower, -1 upper), D, aref (MuJoCo's efc_D,
+#: efc_aref), and the force the step applies (N or N m, along the sign).
+ROW_DOF, ROW_SIGN, ROW_D, ROW_AREF, ROW_FORCE = range(5)
+LIMIT_COLUMNS = 5
+#: MuJoCo's bounds on the impedance and its smallest value (mjMINIMP, mjMAXIMP, mjMINVAL).
+MIN_IMPEDANCE, MAX_IMPEDANCE, MIN_VALUE = 0.0001, 0.9999, 1e-15
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
 MEMORY_SHIFT = 2
 
@@ -105,12 +121,15 @@ PLATE_ROWS = LAW_ROWS + 7
 #: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
 #: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use),
 #: the height difference of axis neighbours at the angle of repose (m; `settle`), and a
-#: rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0: none).
+#: rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0: none),
+#: and whether MuJoCo's reference safety (a soft constraint's time constant at least two
+#: timesteps) is on (1/0; joint limits, `limit_rows`).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
  ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY,
- BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE, TILE_STEP) = range(27)
-SETTING_COUNT = 27
+ BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE, TILE_STEP,
+ REFSAFE) = range(28)
+SETTING_COUNT = 28
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
 #: far in which a plate was frozen or the sets had not settled.
@@ -179,6 +198,9 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'qfrc_constraint', 'qfrc_bias',
     # joint friction the engine solves (`implicit_wrenches`' joints)
     'joint_dofs', 'joint_limit', 'joint_memory', 'joint_flags', 'joint_torque',
+    # joint limits the engine solves (`limit_rows`): joints (dof, qpos address), their
+    # parameters, this step's rows and their flags; mjData's qpos
+    'limit_joints', 'limit_params', 'limit_rows', 'limit_flags', 'qpos',
     # implicit_damping's model and data arrays
     'dof_damping', 'trntype', 'trnid', 'gear', 'jnt_type', 'jnt_dofadr', 'dyntype',
     'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
@@ -1102,7 +1124,7 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
                       dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
-                      joints):
+                      joints, limits):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -1129,6 +1151,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     rows STATE, VISITED, SOLVED) and the friction torque the step applies (written, N m or
     N). Each joint is in a set (STICK: -F qvel+ / v_reg in the system; SLIP_UP, SLIP_DOWN: a
     constant -F or +F) chosen by its end speed like a plate's, starting from its last set.
+    limits: (rows, flags, n): the n joint limit rows of this step (`limit_rows`) and their
+    flags ((3, >= n) int8 work space). A row starts active (pushing: MuJoCo's soft
+    constraint, f = D (aref - sign dv / dt) >= 0, in the system) and leaves the set when its
+    force would pull; its force is written to rows[:, ROW_FORCE].
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -1199,6 +1225,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     frictional = joints[0].shape[0] > 0
     if frictional:
         _joint_start(joints, qvel, v_reg, last)
+    limited = limits[2] > 0
+    if limited:
+        limits[1][STATE, :limits[2]] = ACTIVE
+        limits[1][VISITED, :limits[2]] = 1 << ACTIVE
     w_moving, k_rank, k_iso = space.w_moving, space.k_rank, space.k_iso
     dirty = space.dirty  # slots whose accumulators must be summed again
     dirty[:slots] = True
@@ -1227,6 +1257,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                       timestep, system, rhs)
         if frictional:
             _joint_terms(joints, qvel, v_reg, timestep, system, rhs)
+        if limited:
+            _limit_terms(limits, qvel, timestep, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
@@ -1235,6 +1267,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             changed, cycles = _joint_sets(joints, solution, v_reg)
             frozen += cycles
             converged = changed == 0
+        if limited:
+            changed, cycles = _limit_sets(limits, qvel, solution, timestep)
+            frozen += cycles
+            converged &= changed == 0
         for s in range(slots):  # xi+ = J qvel+, over each chain's dofs
             top = chain[s, 0] + 1 if chain_count[s] > 0 else 0  # its leaf has the highest
             for r in range(6 * s, 6 * s + 6):
@@ -1294,7 +1330,124 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
     if frictional:
         _joint_finish(joints, qvel, v_reg, solution, step)
+    if limited:
+        rows, limit_flags, n = limits
+        for r in range(n):  # the force the last solve assumed (a frozen row stays in)
+            rows[r, ROW_FORCE] = (_limit_force(rows, r, qvel, solution, timestep)
+                                  if limit_flags[SOLVED, r] != INACTIVE else 0.0)
     return iterations if converged and frozen == 0 else -iterations
+
+
+@njit(cache=True)
+def limit_rows(joints, params, qpos, qvel, timestep, refsafe, rows):
+    """This step's joint limit rows, as MuJoCo's mj_makeConstraint and mj_makeImpedance make
+    them, into rows (`ROW_DOF` ...; (>= 2L, LIMIT_COLUMNS)): a row for each limit whose
+    distance pos (q - low, or high - q; rad or m) is below the joint's margin, with
+    D = 1 / R, R = (1 - imp) dof_invweight0 / imp, and the reference acceleration
+    aref = -B sign qdot - K imp (pos - margin) (imp: the impedance of solimp at pos; K, B
+    from solref, its time constant at least two timesteps with `refsafe`). joints: (L, 2)
+    dof and qpos address of each limited joint; params: (L, LIMIT_PARAMS). Returns the
+    number of rows."""
+    n = 0
+    for j in range(joints.shape[0]):
+        dof, q = joints[j, 0], qpos[joints[j, 1]]
+        margin = params[j, MARGIN]
+        dmax = min(max(params[j, SOLIMP + 1], MIN_IMPEDANCE), MAX_IMPEDANCE)
+        ref0, ref1 = params[j, SOLREF], params[j, SOLREF + 1]
+        if ref0 > 0.0:
+            timeconst = max(ref0, 2.0 * timestep) if refsafe else ref0
+            stiffness = 1.0 / max(MIN_VALUE, dmax * dmax * timeconst * timeconst * ref1 * ref1)
+            damping = 2.0 / max(MIN_VALUE, dmax * timeconst)
+        else:
+            stiffness = -ref0 / max(MIN_VALUE, dmax * dmax)
+            damping = -ref1 / max(MIN_VALUE, dmax)
+        for sign in (1.0, -1.0):
+            pos = q - params[j, LOW] if sign > 0.0 else params[j, HIGH] - q
+            if pos >= margin:
+                continue
+            imp = min(max(_impedance(params[j], pos, margin), MIN_IMPEDANCE), MAX_IMPEDANCE)
+            rows[n, ROW_DOF], rows[n, ROW_SIGN] = dof, sign
+            rows[n, ROW_D] = 1.0 / max(MIN_VALUE, (1.0 - imp) * params[j, INVWEIGHT] / imp)
+            rows[n, ROW_AREF] = -damping * sign * qvel[dof] - stiffness * imp * (pos - margin)
+            rows[n, ROW_FORCE] = 0.0
+            n += 1
+    return n
+
+
+@njit(cache=True, inline='always')
+def _impedance(params, pos, margin):
+    """MuJoCo's impedance of solimp (d0, dwidth, width, midpoint, power; params[SOLIMP:]) at
+    distance pos from a limit with margin `margin`: d0 at the margin, dwidth a width beyond,
+    in between a power-law sigmoid of |pos - margin| / width."""
+    d0, dwidth, width = params[SOLIMP], params[SOLIMP + 1], params[SOLIMP + 2]
+    midpoint, power = params[SOLIMP + 3], params[SOLIMP + 4]
+    if d0 == dwidth or width <= MIN_VALUE:
+        return 0.5 * (d0 + dwidth)
+    x = abs(pos - margin) / width
+    if x >= 1.0 or x <= 0.0:
+        return dwidth if x >= 1.0 else d0
+    if power == 1.0:
+        y = x
+    elif x <= midpoint:
+        y = x ** power / midpoint ** (power - 1.0)
+    else:
+        y = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
+    return d0 + y * (dwidth - d0)
+
+
+@njit(cache=True, inline='always')
+def _limit_force(rows, r, qvel, solution, timestep):
+    """Row r's force at the end velocities `solution` (N or N m along its sign): MuJoCo's
+    soft constraint D (aref - sign (qvel+ - qvel) / dt)."""
+    dof = np.int64(rows[r, ROW_DOF])
+    return rows[r, ROW_D] * (rows[r, ROW_AREF]
+                             - rows[r, ROW_SIGN] * (solution[dof] - qvel[dof]) / timestep)
+
+
+@njit(cache=True)
+def _limit_terms(limits, qvel, timestep, system, rhs):
+    """The active (or frozen) limit rows' terms of the implicit system: with
+    f = D (aref - sign (qvel+ - qvel) / dt), dt sign f adds D to the diagonal and
+    D qvel + dt sign D aref to the right-hand side."""
+    rows, flags, n = limits
+    for r in range(n):
+        if flags[STATE, r] == INACTIVE:
+            continue
+        i, d = np.int64(rows[r, ROW_DOF]), rows[r, ROW_D]
+        system[i, i] += d
+        rhs[i] += d * qvel[i] + timestep * rows[r, ROW_SIGN] * d * rows[r, ROW_AREF]
+
+
+@njit(cache=True)
+def _limit_sets(limits, qvel, solution, timestep):
+    """After a solve: each limit row's set as solved (row SOLVED), then the set its force asks
+    for (active while it pushes; a return to a set it had this step: FROZEN, kept in).
+    Returns the rows that changed set and of those the ones frozen."""
+    rows, flags, n = limits
+    changed = frozen = 0
+    for r in range(n):
+        pushing = _limit_force(rows, r, qvel, solution, timestep) > 0.0
+        moved, cycle = _next_set(flags, r, ACTIVE if pushing else INACTIVE)
+        changed += moved
+        frozen += cycle
+    return changed, frozen
+
+
+@njit(cache=True, inline='always')
+def _next_set(flags, e, new):
+    """Element e (a frictional joint or a limit row; flags rows STATE, VISITED, SOLVED) after
+    a solve: its set as solved kept in SOLVED, then the set `new` its solution asks for,
+    unless frozen; a return to a set it had this step (a cycle) freezes it. Returns (moved,
+    cycle), each 0 or 1."""
+    old = flags[STATE, e]
+    flags[SOLVED, e] = old
+    if old == FROZEN or new == old:
+        return 0, 0
+    cycle = (flags[VISITED, e] >> new) & 1
+    new = FROZEN if cycle else new
+    flags[STATE, e] = new
+    flags[VISITED, e] |= 1 << new
+    return 1, cycle
 
 
 @njit(cache=True)
@@ -1331,17 +1484,9 @@ def _joint_sets(joints, solution, v_reg):
     dofs, flags = joints[0], joints[3]
     changed = frozen = 0
     for f in range(dofs.shape[0]):
-        old = flags[STATE, f]
-        flags[SOLVED, f] = old
-        new = _joint_set(solution[dofs[f]], v_reg)
-        if old == FROZEN or new == old:
-            continue
-        if flags[VISITED, f] & (1 << new):  # back to a set it had: a cycle
-            frozen += 1
-            new = FROZEN
-        flags[STATE, f] = new
-        flags[VISITED, f] |= 1 << new
-        changed += 1
+        moved, cycle = _next_set(flags, f, _joint_set(solution[dofs[f]], v_reg))
+        changed += moved
+        frozen += cycle
     return changed, frozen
 
 
@@ -1432,8 +1577,13 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
         float_matrix(arrays, a.blocks), float_matrix(arrays, a.products),
         float_matrix(arrays, a.force_terms), float_matrix(arrays, a.chain_work))
+    limit_table = float_matrix(arrays, a.limit_rows)
+    limits = (limit_table, int8_matrix(arrays, a.limit_flags),
+              limit_rows(int_matrix(arrays, a.limit_joints), float_matrix(arrays, a.limit_params),
+                         float_vector(arrays, a.qpos), qvel, timestep, settings[REFSAFE] != 0.0,
+                         limit_table))
     joint_dofs, joint_torque = joints[0], joints[4]
-    if slots > 0 or joint_dofs.shape[0] > 0:  # (neither: no plate in the sand, zero wrenches)
+    if slots > 0 or joint_dofs.shape[0] > 0 or limits[2] > 0:  # (none: zero wrenches)
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -1446,11 +1596,14 @@ def implicit_step(timestep, arrays):
         implicit_mass(mass, damping, timestep)
         iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
                                        rows, space, mass, dof_parentid, qvel, timestep, step,
-                                       memory, work, flags, xi_new, wrench, joints)
+                                       memory, work, flags, xi_new, wrench, joints, limits)
         counters[SOLVES] += abs(iterations)
         counters[UNSETTLED] += iterations < 0
         for f in range(joint_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
             qfrc_passive[joint_dofs[f]] += joint_torque[f]
+        for r in range(limits[2]):
+            qfrc_passive[np.int64(limit_table[r, ROW_DOF])] += (limit_table[r, ROW_SIGN]
+                                                                * limit_table[r, ROW_FORCE])
     # one call site for any slot count (a literal 0 at a second one compiled it twice)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
                      wrench_sum)

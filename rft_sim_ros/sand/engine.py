@@ -93,7 +93,10 @@ class SandEngine:
     With the implicit law the engine takes over the model's joint friction (MJCF
     frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
     (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
-    MuJoCo's friction constraint does not act a second time after the solve.
+    MuJoCo's friction constraint does not act a second time after the solve; and the limits
+    of hinge and slide joints: `joint_limits` names those joints, whose limits are solved
+    with the sand as MuJoCo's soft constraints (`coupling.limit_rows`), model.jnt_limited
+    being cleared for them (not with MuJoCo's solref/solimp override on).
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -157,6 +160,7 @@ class SandEngine:
         self._joint_flags = np.zeros((3, len(frictional)), dtype=np.int8)
         self._joint_torque = np.zeros(len(frictional))
         model.dof_frictionloss[frictional] = 0.0
+        self._take_limits(model)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -240,6 +244,31 @@ class SandEngine:
         self._cluster_center = np.array(centers, dtype=float).reshape(-1, 3)
         self._cluster_radius = np.array(radii, dtype=float)
 
+    def _take_limits(self, model):
+        """The hinge and slide joint limits the implicit law solves (`coupling.limit_rows`):
+        their joints, parameters and row work space; MuJoCo's own limit rows switched off."""
+        slide_or_hinge = (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE))
+        override = model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE
+        taken = [j for j in range(model.njnt) if self._implicit_method and not override
+                 and model.jnt_limited[j] and int(model.jnt_type[j]) in slide_or_hinge]
+        self.joint_limits = tuple(model.joint(j).name or str(j) for j in taken)
+        dofs = model.jnt_dofadr[taken]
+        self._limit_joints = np.stack([dofs, model.jnt_qposadr[taken]], axis=1).astype(
+            np.int64).reshape(-1, 2)
+        params = np.zeros((len(taken), coupling.LIMIT_PARAMS))
+        if taken:
+            params[:, coupling.LOW:coupling.HIGH + 1] = model.jnt_range[taken]
+            params[:, coupling.MARGIN] = model.jnt_margin[taken]
+            params[:, coupling.SOLREF:coupling.SOLREF + 2] = model.jnt_solref[taken]
+            params[:, coupling.SOLIMP:coupling.SOLIMP + 5] = model.jnt_solimp[taken]
+            params[:, coupling.INVWEIGHT] = model.dof_invweight0[dofs]
+        self._limit_params = params
+        self._limit_rows = np.zeros((2 * len(taken), coupling.LIMIT_COLUMNS))
+        self._limit_flags = np.zeros((3, 2 * len(taken)), dtype=np.int8)
+        self._settings[coupling.REFSAFE] = not (model.opt.disableflags
+                                                & mujoco.mjtDisableBit.mjDSBL_REFSAFE)
+        model.jnt_limited[taken] = 0
+
     def _views(self):
         """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
         of mjModel/mjData and the engine's own arrays, which stay the same objects, at the same
@@ -286,7 +315,9 @@ class SandEngine:
             qfrc_constraint=d.qfrc_constraint, qfrc_bias=d.qfrc_bias,
             joint_dofs=self._joint_dofs, joint_limit=self._joint_limit,
             joint_memory=self._joint_memory, joint_flags=self._joint_flags,
-            joint_torque=self._joint_torque,
+            joint_torque=self._joint_torque, limit_joints=self._limit_joints,
+            limit_params=self._limit_params, limit_rows=self._limit_rows,
+            limit_flags=self._limit_flags, qpos=d.qpos,
             dof_damping=m.dof_damping, trntype=m.actuator_trntype, trnid=m.actuator_trnid,
             gear=m.actuator_gear, jnt_type=m.jnt_type, jnt_dofadr=m.jnt_dofadr,
             dyntype=m.actuator_dyntype, gaintype=m.actuator_gaintype,
