@@ -196,8 +196,9 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
     'qfrc_constraint', 'qfrc_bias',
-    # joint friction the engine solves (`implicit_wrenches`' joints)
-    'joint_dofs', 'joint_limit', 'joint_memory', 'joint_flags', 'joint_torque',
+    # joint friction the engine solves (`implicit_wrenches`' friction)
+    'friction_dofs', 'friction_force', 'friction_memory', 'friction_flags',
+    'friction_torque',
     # joint limits the engine solves (`limit_rows`): joints (dof, qpos address), their
     # parameters, this step's rows and their flags; mjData's qpos
     'limit_joints', 'limit_params', 'limit_rows', 'limit_flags', 'qpos',
@@ -1124,7 +1125,7 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
                       dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
-                      joints, limits):
+                      friction, limits):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -1146,7 +1147,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     (WORK_ROWS, >= k) and flags (FLAG_ROWS, >= k) are work space, of which rows STATE (final
     sets) and ACROSS (across dampers, N s/m) are results. Writes xi_new[:6S] (end-of-step
     twists) and wrench[:S] ([force; torque about COM], N, N m).
-    joints: (dofs, limit, memory, flags, torque) of the J joints with friction: their dof
+    friction: (dofs, force, memory, flags, torque) of the J joints with friction: their dof
     indices, friction F (N m or N), memory (as the plates'), flags ((3, J) int8 work space:
     rows STATE, VISITED, SOLVED) and the friction torque the step applies (written, N m or
     N). Each joint is in a set (STICK: -F qvel+ / v_reg in the system; SLIP_UP, SLIP_DOWN: a
@@ -1222,9 +1223,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         visited[j] = 1 << state
         _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
                           coef_across, coef_moving)
-    frictional = joints[0].shape[0] > 0
+    frictional = friction[0].shape[0] > 0
     if frictional:
-        _joint_start(joints, qvel, v_reg, last)
+        _friction_start(friction, qvel, v_reg, last)
     limited = limits[2] > 0
     if limited:
         limits[1][STATE, :limits[2]] = ACTIVE
@@ -1256,7 +1257,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             _add_slot(products[nv * s:nv * s + nv], force_terms[s], chain[s, :chain_count[s]],
                       timestep, system, rhs)
         if frictional:
-            _joint_terms(joints, qvel, v_reg, timestep, system, rhs)
+            _friction_terms(friction, qvel, v_reg, timestep, system, rhs)
         if limited:
             _limit_terms(limits, qvel, timestep, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
@@ -1264,7 +1265,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             solved[j] = states[j]
         converged = True
         if frictional:
-            changed, cycles = _joint_sets(joints, solution, v_reg)
+            changed, cycles = _friction_sets(friction, solution, v_reg)
             frozen += cycles
             converged = changed == 0
         if limited:
@@ -1329,7 +1330,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     for j in range(k):
         memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
     if frictional:
-        _joint_finish(joints, qvel, v_reg, solution, step)
+        _friction_finish(friction, qvel, v_reg, solution, step)
     if limited:
         rows, limit_flags, n = limits
         for r in range(n):  # the force the last solve assumed (a frozen row stays in)
@@ -1451,71 +1452,71 @@ def _next_set(flags, e, new):
 
 
 @njit(cache=True)
-def _joint_start(joints, qvel, v_reg, last):
+def _friction_start(friction, qvel, v_reg, last):
     """`implicit_wrenches`' frictional joints in their first sets: the last step's (their
     memory, `last`: that step << MEMORY_SHIFT) unless frozen then, else their speed's."""
-    dofs, memory, flags = joints[0], joints[2], joints[3]
+    dofs, memory, flags = friction[0], friction[2], friction[3]
     for f in range(dofs.shape[0]):
         previous = memory[f] - last
         warm = (previous >= 0) & (previous < FROZEN)
-        state = previous if warm else _joint_set(qvel[dofs[f]], v_reg)
+        state = previous if warm else _friction_set(qvel[dofs[f]], v_reg)
         flags[STATE, f] = state
         flags[VISITED, f] = 1 << state
 
 
 @njit(cache=True)
-def _joint_terms(joints, qvel, v_reg, timestep, system, rhs):
+def _friction_terms(friction, qvel, v_reg, timestep, system, rhs):
     """The frictional joints' terms of the implicit system: a sticking or frozen joint's
     damper on the diagonal, a slipping joint's constant force in the right-hand side."""
-    dofs, limits, flags = joints[0], joints[1], joints[3]
+    dofs, forces, flags = friction[0], friction[1], friction[3]
     for f in range(dofs.shape[0]):
-        i, limit, state = dofs[f], limits[f], flags[STATE, f]
+        i, force, state = dofs[f], forces[f], flags[STATE, f]
         if state == SLIP_UP or state == SLIP_DOWN:
-            rhs[i] += timestep * limit * (-1.0 if state == SLIP_UP else 1.0)
+            rhs[i] += timestep * force * (-1.0 if state == SLIP_UP else 1.0)
         else:
-            system[i, i] += timestep * _joint_damper(state, limit, qvel[i], v_reg)
+            system[i, i] += timestep * _friction_damper(state, force, qvel[i], v_reg)
 
 
 @njit(cache=True)
-def _joint_sets(joints, solution, v_reg):
+def _friction_sets(friction, solution, v_reg):
     """After a solve: each frictional joint's set as solved (row SOLVED), then the set its
     end speed asks for (a return to a set it had this step: FROZEN). Returns the joints that
     changed set and of those the ones frozen."""
-    dofs, flags = joints[0], joints[3]
+    dofs, flags = friction[0], friction[3]
     changed = frozen = 0
     for f in range(dofs.shape[0]):
-        moved, cycle = _next_set(flags, f, _joint_set(solution[dofs[f]], v_reg))
+        moved, cycle = _next_set(flags, f, _friction_set(solution[dofs[f]], v_reg))
         changed += moved
         frozen += cycle
     return changed, frozen
 
 
 @njit(cache=True)
-def _joint_finish(joints, qvel, v_reg, solution, step):
-    """The friction torque the last solve assumed (joints' torque, N m or N) and each
+def _friction_finish(friction, qvel, v_reg, solution, step):
+    """The friction torque the last solve assumed (friction's torque, N m or N) and each
     joint's memory of its set in this step."""
-    dofs, limits, memory, flags, torque = joints
+    dofs, forces, memory, flags, torque = friction
     for f in range(dofs.shape[0]):
-        i, limit, state = dofs[f], limits[f], flags[SOLVED, f]
+        i, force, state = dofs[f], forces[f], flags[SOLVED, f]
         if state == SLIP_UP or state == SLIP_DOWN:
-            torque[f] = limit * (-1.0 if state == SLIP_UP else 1.0)
+            torque[f] = force * (-1.0 if state == SLIP_UP else 1.0)
         else:
-            torque[f] = -_joint_damper(state, limit, qvel[i], v_reg) * solution[i]
+            torque[f] = -_friction_damper(state, force, qvel[i], v_reg) * solution[i]
         memory[f] = (step << MEMORY_SHIFT) | state
 
 
 @njit(cache=True, inline='always')
-def _joint_set(speed, v_reg):
+def _friction_set(speed, v_reg):
     """The set a frictional joint's (end) speed asks for: STICK below v_reg, else SLIP_UP or
     SLIP_DOWN with its sign."""
     return SLIP_UP if speed >= v_reg else (SLIP_DOWN if speed <= -v_reg else STICK)
 
 
 @njit(cache=True, inline='always')
-def _joint_damper(state, limit, speed, v_reg):
+def _friction_damper(state, force, speed, v_reg):
     """Damper (N m s/rad or N s/m) of a sticking (F / v_reg) or frozen (F / max(|speed|,
     v_reg), the secant through its speed at the step's start) joint of friction F."""
-    return limit / (v_reg if state == STICK else max(abs(speed), v_reg))
+    return force / (v_reg if state == STICK else max(abs(speed), v_reg))
 
 
 @njit(cache=True, error_model='numpy')
@@ -1547,9 +1548,9 @@ def implicit_step(timestep, arrays):
     qfrc_actuator = float_vector(arrays, a.qfrc_actuator)
     qfrc_applied = float_vector(arrays, a.qfrc_applied)
     qfrc_constraint = float_vector(arrays, a.qfrc_constraint)
-    joints = (int_vector(arrays, a.joint_dofs), float_vector(arrays, a.joint_limit),
-              int_vector(arrays, a.joint_memory), int8_matrix(arrays, a.joint_flags),
-              float_vector(arrays, a.joint_torque))
+    friction = (int_vector(arrays, a.friction_dofs), float_vector(arrays, a.friction_force),
+                int_vector(arrays, a.friction_memory), int8_matrix(arrays, a.friction_flags),
+                float_vector(arrays, a.friction_torque))
     qfrc_bias = float_vector(arrays, a.qfrc_bias)
     dof_damping, trntype = float_vector(arrays, a.dof_damping), int32_vector(arrays, a.trntype)
     trnid, gear = int32_matrix(arrays, a.trnid), float_matrix(arrays, a.gear)
@@ -1582,8 +1583,8 @@ def implicit_step(timestep, arrays):
               limit_rows(int_matrix(arrays, a.limit_joints), float_matrix(arrays, a.limit_params),
                          float_vector(arrays, a.qpos), qvel, timestep, settings[REFSAFE] != 0.0,
                          limit_table))
-    joint_dofs, joint_torque = joints[0], joints[4]
-    if slots > 0 or joint_dofs.shape[0] > 0 or limits[2] > 0:  # (none: zero wrenches)
+    friction_dofs, friction_torque = friction[0], friction[4]
+    if slots > 0 or friction_dofs.shape[0] > 0 or limits[2] > 0:  # (none: zero wrenches)
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -1596,11 +1597,11 @@ def implicit_step(timestep, arrays):
         implicit_mass(mass, damping, timestep)
         iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
                                        rows, space, mass, dof_parentid, qvel, timestep, step,
-                                       memory, work, flags, xi_new, wrench, joints, limits)
+                                       memory, work, flags, xi_new, wrench, friction, limits)
         counters[SOLVES] += abs(iterations)
         counters[UNSETTLED] += iterations < 0
-        for f in range(joint_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
-            qfrc_passive[joint_dofs[f]] += joint_torque[f]
+        for f in range(friction_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
+            qfrc_passive[friction_dofs[f]] += friction_torque[f]
         for r in range(limits[2]):
             qfrc_passive[np.int64(limit_table[r, ROW_DOF])] += (limit_table[r, ROW_SIGN]
                                                                 * limit_table[r, ROW_FORCE])

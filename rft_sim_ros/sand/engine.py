@@ -154,11 +154,11 @@ class SandEngine:
         frictional = np.flatnonzero(model.dof_frictionloss > 0) if self._implicit_method \
             else np.zeros(0, dtype=np.int64)
         self.joint_friction = {int(i): float(model.dof_frictionloss[i]) for i in frictional}
-        self._joint_dofs = frictional.astype(np.int64)
-        self._joint_limit = model.dof_frictionloss[frictional].copy()
-        self._joint_memory = np.full(len(frictional), -1, dtype=np.int64)
-        self._joint_flags = np.zeros((3, len(frictional)), dtype=np.int8)
-        self._joint_torque = np.zeros(len(frictional))
+        self._friction_dofs = frictional.astype(np.int64)
+        self._friction_force = model.dof_frictionloss[frictional].copy()
+        self._friction_memory = np.full(len(frictional), -1, dtype=np.int64)
+        self._friction_flags = np.zeros((3, len(frictional)), dtype=np.int8)
+        self._friction_torque = np.zeros(len(frictional))
         model.dof_frictionloss[frictional] = 0.0
         self._take_limits(model)
         self._xi = np.zeros(6 * nb)
@@ -313,9 +313,9 @@ class SandEngine:
             subtree_com=d.subtree_com, cdof=d.cdof, qvel=d.qvel, qfrc_passive=d.qfrc_passive,
             qfrc_actuator=d.qfrc_actuator, qfrc_applied=d.qfrc_applied,
             qfrc_constraint=d.qfrc_constraint, qfrc_bias=d.qfrc_bias,
-            joint_dofs=self._joint_dofs, joint_limit=self._joint_limit,
-            joint_memory=self._joint_memory, joint_flags=self._joint_flags,
-            joint_torque=self._joint_torque, limit_joints=self._limit_joints,
+            friction_dofs=self._friction_dofs, friction_force=self._friction_force,
+            friction_memory=self._friction_memory, friction_flags=self._friction_flags,
+            friction_torque=self._friction_torque, limit_joints=self._limit_joints,
             limit_params=self._limit_params, limit_rows=self._limit_rows,
             limit_flags=self._limit_flags, qpos=d.qpos,
             dof_damping=m.dof_damping, trntype=m.actuator_trntype, trnid=m.actuator_trnid,
