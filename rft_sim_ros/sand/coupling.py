@@ -1524,12 +1524,13 @@ def implicit_step(timestep, arrays):
     """One step's implicit sand wrenches over the plates the step's gather kernel left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
-    over the gathered plates and the frictional joints (when there are any), then
-    `scatter_wrenches` into xfrc_applied (zero wrenches when no plate is in the sand); the
-    joints' friction is added to qfrc_passive, which mj_step2 applies. Arguments as in
+    over the gathered plates, the frictional joints and this step's joint limit rows
+    (`limit_rows`; when there are any), then `scatter_wrenches` into xfrc_applied (zero
+    wrenches when no plate is in the sand); the joints' friction and the limits' forces are
+    added to qfrc_passive, which mj_step2 applies. Arguments as in
     those functions (timestep: s); arrays: the table of an `ArrayTable` of `ImplicitArrays`,
-    settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves to the SOLVES counter and counts
-    the step in UNSETTLED where it did not settle."""
+    settings REST_SPEED, DAMPER, ACTUATORS, REFSAFE. Adds the solves to the SOLVES counter and
+    counts the step in UNSETTLED where it did not settle."""
     a = IMPLICIT
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     k, slots, step = counters[GATHERED], counters[SLOTS], counters[STEPS]

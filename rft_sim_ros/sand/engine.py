@@ -150,16 +150,7 @@ class SandEngine:
         self._flags = np.zeros((coupling.FLAG_ROWS, n), dtype=np.int8)
         # each plate's last step in the sand and its set then (coupling.implicit_wrenches)
         self._plate_memory = np.full(n, -1, dtype=np.int64)
-        # the joints with friction, solved with the sand (the implicit law only)
-        frictional = np.flatnonzero(model.dof_frictionloss > 0) if self._implicit_method \
-            else np.zeros(0, dtype=np.int64)
-        self.joint_friction = {int(i): float(model.dof_frictionloss[i]) for i in frictional}
-        self._friction_dofs = frictional.astype(np.int64)
-        self._friction_force = model.dof_frictionloss[frictional].copy()
-        self._friction_memory = np.full(len(frictional), -1, dtype=np.int64)
-        self._friction_flags = np.zeros((3, len(frictional)), dtype=np.int8)
-        self._friction_torque = np.zeros(len(frictional))
-        model.dof_frictionloss[frictional] = 0.0
+        self._take_friction(model)
         self._take_limits(model)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
@@ -244,13 +235,27 @@ class SandEngine:
         self._cluster_center = np.array(centers, dtype=float).reshape(-1, 3)
         self._cluster_radius = np.array(radii, dtype=float)
 
+    def _take_friction(self, model):
+        """The joint friction the implicit law solves (`coupling.implicit_wrenches`): its dofs,
+        forces, memory and work space; MuJoCo's own friction switched off for them."""
+        frictional = (np.flatnonzero(model.dof_frictionloss > 0) if self._implicit_method
+                      else np.zeros(0, dtype=np.int64))
+        self.joint_friction = {int(i): float(model.dof_frictionloss[i]) for i in frictional}
+        self._friction_dofs = frictional.astype(np.int64)
+        self._friction_force = model.dof_frictionloss[frictional].copy()
+        self._friction_memory = np.full(len(frictional), -1, dtype=np.int64)
+        self._friction_flags = np.zeros((3, len(frictional)), dtype=np.int8)
+        self._friction_torque = np.zeros(len(frictional))
+        model.dof_frictionloss[frictional] = 0.0
+
     def _take_limits(self, model):
         """The hinge and slide joint limits the implicit law solves (`coupling.limit_rows`):
         their joints, parameters and row work space; MuJoCo's own limit rows switched off."""
         slide_or_hinge = (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE))
         override = model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE
-        taken = [j for j in range(model.njnt) if self._implicit_method and not override
-                 and model.jnt_limited[j] and int(model.jnt_type[j]) in slide_or_hinge]
+        taken = [] if override or not self._implicit_method else [
+            j for j in range(model.njnt)
+            if model.jnt_limited[j] and int(model.jnt_type[j]) in slide_or_hinge]
         self.joint_limits = tuple(model.joint(j).name or str(j) for j in taken)
         dofs = model.jnt_dofadr[taken]
         self._limit_joints = np.stack([dofs, model.jnt_qposadr[taken]], axis=1).astype(

@@ -376,20 +376,17 @@ def hfield_geom(model, name=None):
 def _named_hfield_geom(model, name, hfields, listed):
     """`hfield_geom`'s look-up of a given name among the hfield geoms `hfields`."""
     import mujoco
-    try:
-        g = model.geom(name).id
-    except KeyError:
-        g = int(name) if name.isdigit() else -1
-        if not 0 <= g < model.ngeom:
-            users = [g for g in hfields
-                     if mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_HFIELD,
-                                          model.geom_dataid[g]) == name]
-            if len(users) != 1:
-                why = f'{len(users)} geoms use <hfield> {name!r}' if users else \
-                    f'no geom or <hfield> {name!r} in the model'
-                raise ValueError(f'sand.surface.geom: {why}; its hfield geoms: '
-                                 f'{listed or "none"}') from None
-            g = users[0]
+    g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+    if g < 0 and name.isdigit() and int(name) < model.ngeom:
+        g = int(name)
+    if g < 0:
+        users = [h for h in hfields if model.geom_dataid[h]
+                 == mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_HFIELD, name)]
+        if len(users) != 1:
+            why = f'{len(users)} geoms use <hfield> {name!r}' if users else \
+                f'no geom or <hfield> {name!r} in the model'
+            raise ValueError(f'sand.surface.geom: {why}; its hfield geoms: {listed or "none"}')
+        g = users[0]
     if g not in hfields:
         raise ValueError(f'sand.surface.geom: geom {name!r} is not an hfield geom; the '
                          f"model's: {listed or 'none'}")
@@ -403,20 +400,11 @@ def _hfield_label(model, g):
     if model.geom(g).name:
         return model.geom(g).name
     asset = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_HFIELD, model.geom_dataid[g])
-    shared = sum(1 for other in range(model.ngeom)
-                 if model.geom_type[other] == mujoco.mjtGeom.mjGEOM_HFIELD
-                 and model.geom_dataid[other] == model.geom_dataid[g])
-    if asset and shared == 1 and not _is_geom_name(model, asset):
+    users = np.count_nonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD)
+                             & (model.geom_dataid == model.geom_dataid[g]))
+    if asset and users == 1 and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, asset) < 0:
         return asset
     return str(g)
-
-
-def _is_geom_name(model, name):
-    try:
-        model.geom(name)
-    except KeyError:
-        return False
-    return True
 
 
 def grey_levels(path):
