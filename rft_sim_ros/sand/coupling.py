@@ -35,7 +35,10 @@ the end velocities the solve chose and keep a standing robot jittering between s
 and slide joint limits are taken over likewise (`limit_rows`): each limit a joint reaches is
 a row of MuJoCo's soft constraint (its impedance, stiffness and damping from the joint's
 solref, solimp and margin, as MuJoCo makes them), active while it pushes, solved with the
-sand.
+sand. Equality constraints (connect, weld, joint, tendon, flex) are solved with it too, as
+the rows MuJoCo makes for them (`implicit_wrenches`' equalities): two-sided, so always in
+the system; left to MuJoCo's solve after the sand's, a stiff tendon coupling of a leg's
+joints made the feet of a standing robot cycle through the sets in every step.
 """
 from collections import namedtuple
 
@@ -67,6 +70,10 @@ LIMIT_PARAMS = 11
 #: efc_aref), and the force the step applies (N or N m, along the sign).
 ROW_DOF, ROW_SIGN, ROW_D, ROW_AREF, ROW_FORCE = range(5)
 LIMIT_COLUMNS = 5
+#: Columns of an equality constraint row (MuJoCo's efc_D, efc_aref) and the force the step
+#: applies along it (N or N m; `implicit_wrenches`' equalities).
+EQUALITY_D, EQUALITY_AREF, EQUALITY_FORCE = range(3)
+EQUALITY_COLUMNS = 3
 #: MuJoCo's bounds on the impedance and its smallest value (mjMINIMP, mjMAXIMP, mjMINVAL).
 MIN_IMPEDANCE, MAX_IMPEDANCE, MIN_VALUE = 0.0001, 0.9999, 1e-15
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
@@ -131,10 +138,11 @@ PLATE_ROWS = LAW_ROWS + 7
  REFSAFE) = range(28)
 SETTING_COUNT = 28
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
-#: gathered at the last step, of those leading, slots, implicit solves so far, and steps so
-#: far in which a plate was frozen or the sets had not settled.
-STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED = range(6)
-COUNTER_COUNT = 6
+#: gathered at the last step, of those leading, slots, implicit solves so far, steps so
+#: far in which a plate was frozen or the sets had not settled, and the equality constraint
+#: rows of this step (`implicit_wrenches`' equalities, which the engine copies in).
+STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED, EQUALITY_ROWS = range(7)
+COUNTER_COUNT = 7
 
 #: The arrays of the gather kernels (`_gather_plates`), in the order of their `ArrayTable`;
 #: GATHER holds each field's row of the table. The engine builds the table from a
@@ -168,11 +176,11 @@ GATHER = GatherArrays(*range(len(GatherArrays._fields)))
 #: tree factor of Mh and its solve for the 3S translational Jacobian rows; per slot its
 #: twist response (`_resting_block`, S 6x6 blocks stacked) and its terms of the system
 #: (`_slot_terms`: S nv x nv blocks stacked, of which its chain's corner is used; S rows of
-#: nv); and `_slot_terms`' rows.
+#: nv); `_slot_terms`' rows; and the equality rows' part of the system (nv x nv).
 SolveSpace = namedtuple('SolveSpace', [
     'chain', 'chain_count', 'inverse_mass', 'w_moving', 'k_rank', 'k_iso', 'dirty',
     'momentum', 'system', 'rhs', 'factored', 'solution', 'factor', 'translational', 'blocks',
-    'products', 'force_terms', 'chain_work'])
+    'products', 'force_terms', 'chain_work', 'equality_matrix'])
 
 
 def solve_space(nv, bodies):
@@ -185,7 +193,8 @@ def solve_space(nv, bodies):
         system=np.zeros((nv, nv)), rhs=np.zeros(nv), factored=np.zeros((nv, nv)),
         solution=np.zeros(nv), factor=np.zeros((nv, nv)), translational=np.zeros((nv, 3 * bodies)),
         blocks=np.zeros((6 * bodies, 6)), products=np.zeros((nv * bodies, nv)),
-        force_terms=np.zeros((bodies, nv)), chain_work=np.zeros((12, nv)))
+        force_terms=np.zeros((bodies, nv)), chain_work=np.zeros((12, nv)),
+        equality_matrix=np.zeros((nv, nv)))
 
 
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
@@ -202,6 +211,9 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     # joint limits the engine solves (`limit_rows`): joints (dof, qpos address), their
     # parameters, this step's rows and their flags; mjData's qpos
     'limit_joints', 'limit_params', 'limit_rows', 'limit_flags', 'qpos',
+    # equality constraint rows the engine solves: this step's Jacobian rows (copied from
+    # MuJoCo's, `SandEngine`), their D, aref and force (EQUALITY_D ...)
+    'equality_jac', 'equality_rows',
     # implicit_damping's model and data arrays
     'dof_damping', 'trntype', 'trnid', 'gear', 'jnt_type', 'jnt_dofadr', 'dyntype',
     'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
@@ -631,10 +643,11 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
     d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
     tau_free = passive + actuator + applied + constraint - bias (N or N m per dof), the
-    constraint force (joint limits, rigid contacts, equalities) being MuJoCo's of the step
-    before (mj_step2 computes this step's after the solve: in a lasting contact, such as a
-    joint held at its limit, the last one is the estimate; left out, the solve's end
-    velocities ignored it and a robot with a knee at its stop jittered at 6 cm/s in sand).
+    constraint force of the constraints the solve leaves to MuJoCo (rigid contacts, ball
+    joint and tendon limits) being MuJoCo's of the step before (mj_step2 computes this
+    step's after the solve: in a lasting contact the last one is the estimate; left out, the
+    solve's end velocities ignored it and a robot held by such a constraint jittered in
+    sand).
     chain[s, :chain_count[s]] (S x nv, S) become the dofs slot s's rows reach: its kinematic
     chain, leaf to root."""
     rows[:6 * slots + 1, :] = 0.0
@@ -1125,7 +1138,7 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
                       dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
-                      friction, limits):
+                      friction, limits, equalities):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -1156,6 +1169,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     flags ((3, >= n) int8 work space). A row starts active (pushing: MuJoCo's soft
     constraint, f = D (aref - sign dv / dt) >= 0, in the system) and leaves the set when its
     force would pull; its force is written to rows[:, ROW_FORCE].
+    equalities: (jac, rows, n): the n equality constraint rows of this step, MuJoCo's own
+    (their Jacobian rows jac[:n], nv wide; rows[:n]: D, aref, `EQUALITY_D` ...): each is
+    MuJoCo's soft constraint f = D (aref - J (qvel+ - qvel) / dt), two-sided, in every solve;
+    its force is written to rows[:, EQUALITY_FORCE].
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -1183,6 +1200,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         for c in range(nv):
             acc += mass_h[r, c] * qvel[c]
         momentum[r] = acc
+    constrained = equalities[2] > 0
+    if constrained:
+        _equality_start(equalities, qvel, timestep, space.equality_matrix, momentum)
     first = slot_start  # slot s holds plates first[s] .. first[s + 1] - 1
     h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
     magnitude = work[MAGNITUDE]
@@ -1260,6 +1280,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             _friction_terms(friction, qvel, v_reg, timestep, system, rhs)
         if limited:
             _limit_terms(limits, qvel, timestep, system, rhs)
+        if constrained:
+            _add_matrix(space.equality_matrix, system)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
@@ -1336,6 +1358,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         for r in range(n):  # the force the last solve assumed (a frozen row stays in)
             rows[r, ROW_FORCE] = (_limit_force(rows, r, qvel, solution, timestep)
                                   if limit_flags[SOLVED, r] != INACTIVE else 0.0)
+    if constrained:
+        _equality_forces(equalities, qvel, solution, timestep)
     return iterations if converged and frozen == 0 else -iterations
 
 
@@ -1434,6 +1458,52 @@ def _limit_sets(limits, qvel, solution, timestep):
     return changed, frozen
 
 
+@njit(cache=True)
+def _equality_start(equalities, qvel, timestep, matrix, momentum):
+    """The equality rows' part of the implicit system, the same in every solve of a step:
+    with f = D (aref - J (qvel+ - qvel) / dt), dt J^T f puts J^T D J into matrix (nv x nv,
+    overwritten; added to the system by each solve) and adds J^T D (J qvel + dt aref) to
+    momentum (the right-hand side's constant part)."""
+    jac, rows, n = equalities
+    nv = qvel.shape[0]
+    for i in range(nv):
+        for c in range(nv):
+            matrix[i, c] = 0.0
+    for r in range(n):
+        row, damper = jac[r], rows[r, EQUALITY_D]
+        speed = 0.0
+        for i in range(nv):
+            speed += row[i] * qvel[i]
+        push = damper * (speed + timestep * rows[r, EQUALITY_AREF])
+        for i in range(nv):
+            if row[i] != 0.0:
+                momentum[i] += row[i] * push
+                scaled, target = damper * row[i], matrix[i]
+                for c in range(nv):
+                    target[c] += scaled * row[c]
+
+
+@njit(cache=True, inline='always')
+def _add_matrix(matrix, system):
+    """system += matrix (same square shapes), element by element."""
+    for i in range(matrix.shape[0]):
+        for c in range(matrix.shape[1]):
+            system[i, c] += matrix[i, c]
+
+
+@njit(cache=True)
+def _equality_forces(equalities, qvel, solution, timestep):
+    """Each equality row's force at the end velocities `solution` into its EQUALITY_FORCE
+    column: D (aref - J (qvel+ - qvel) / dt), N or N m."""
+    jac, rows, n = equalities
+    for r in range(n):
+        change = 0.0
+        for i in range(qvel.shape[0]):
+            change += jac[r, i] * (solution[i] - qvel[i])
+        rows[r, EQUALITY_FORCE] = rows[r, EQUALITY_D] * (rows[r, EQUALITY_AREF]
+                                                         - change / timestep)
+
+
 @njit(cache=True, inline='always')
 def _next_set(flags, e, new):
     """Element e (a frictional joint or a limit row; flags rows STATE, VISITED, SOLVED) after
@@ -1524,10 +1594,11 @@ def implicit_step(timestep, arrays):
     """One step's implicit sand wrenches over the plates the step's gather kernel left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
-    over the gathered plates, the frictional joints and this step's joint limit rows
-    (`limit_rows`; when there are any), then `scatter_wrenches` into xfrc_applied (zero
-    wrenches when no plate is in the sand); the joints' friction and the limits' forces are
-    added to qfrc_passive, which mj_step2 applies. Arguments as in
+    over the gathered plates, the frictional joints, this step's joint limit rows
+    (`limit_rows`) and equality rows (counter EQUALITY_ROWS; when there are any), then
+    `scatter_wrenches` into xfrc_applied (zero wrenches when no plate is in the sand); the
+    joints' friction and the limits' and equalities' forces (J^T f) are added to
+    qfrc_passive, which mj_step2 applies. Arguments as in
     those functions (timestep: s); arrays: the table of an `ArrayTable` of `ImplicitArrays`,
     settings REST_SPEED, DAMPER, ACTUATORS, REFSAFE. Adds the solves to the SOLVES counter and
     counts the step in UNSETTLED where it did not settle."""
@@ -1578,14 +1649,18 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.factored), float_vector(arrays, a.solution),
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
         float_matrix(arrays, a.blocks), float_matrix(arrays, a.products),
-        float_matrix(arrays, a.force_terms), float_matrix(arrays, a.chain_work))
+        float_matrix(arrays, a.force_terms), float_matrix(arrays, a.chain_work),
+        float_matrix(arrays, a.equality_matrix))
     limit_table = float_matrix(arrays, a.limit_rows)
+    equality_jac = float_matrix(arrays, a.equality_jac)
+    equality_rows = float_matrix(arrays, a.equality_rows)
+    equalities = (equality_jac, equality_rows, counters[EQUALITY_ROWS])
     limits = (limit_table, int8_matrix(arrays, a.limit_flags),
               limit_rows(int_matrix(arrays, a.limit_joints), float_matrix(arrays, a.limit_params),
                          float_vector(arrays, a.qpos), qvel, timestep, settings[REFSAFE] != 0.0,
                          limit_table))
     friction_dofs, friction_torque = friction[0], friction[4]
-    if slots > 0 or friction_dofs.shape[0] > 0 or limits[2] > 0:  # (none: zero wrenches)
+    if slots > 0 or friction_dofs.shape[0] > 0 or limits[2] > 0 or equalities[2] > 0:
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -1598,7 +1673,8 @@ def implicit_step(timestep, arrays):
         implicit_mass(mass, damping, timestep)
         iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
                                        rows, space, mass, dof_parentid, qvel, timestep, step,
-                                       memory, work, flags, xi_new, wrench, friction, limits)
+                                       memory, work, flags, xi_new, wrench, friction, limits,
+                                       equalities)
         counters[SOLVES] += abs(iterations)
         counters[UNSETTLED] += iterations < 0
         for f in range(friction_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
@@ -1606,6 +1682,9 @@ def implicit_step(timestep, arrays):
         for r in range(limits[2]):
             qfrc_passive[np.int64(limit_table[r, ROW_DOF])] += (limit_table[r, ROW_SIGN]
                                                                 * limit_table[r, ROW_FORCE])
+        for r in range(equalities[2]):
+            for i in range(qvel.shape[0]):
+                qfrc_passive[i] += equality_jac[r, i] * equality_rows[r, EQUALITY_FORCE]
     # one call site for any slot count (a literal 0 at a second one compiled it twice)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
                      wrench_sum)

@@ -96,7 +96,10 @@ class SandEngine:
     MuJoCo's friction constraint does not act a second time after the solve; and the limits
     of hinge and slide joints: `joint_limits` names those joints, whose limits are solved
     with the sand as MuJoCo's soft constraints (`coupling.limit_rows`), model.jnt_limited
-    being cleared for them (not with MuJoCo's solref/solimp override on).
+    being cleared for them (not with MuJoCo's solref/solimp override on); and the equality
+    constraints: each step the rows MuJoCo made for them in mj_step1 are copied into the
+    solve (`coupling.implicit_wrenches`' equalities) and emptied in mjData (Jacobian, D and
+    aref zero: no force), so that mj_step2's solve leaves them out.
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -152,6 +155,7 @@ class SandEngine:
         self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._take_friction(model)
         self._take_limits(model)
+        self._take_equalities(model, data)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -274,6 +278,48 @@ class SandEngine:
                                                 & mujoco.mjtDisableBit.mjDSBL_REFSAFE)
         model.jnt_limited[taken] = 0
 
+    def _take_equalities(self, model, data):
+        """Room for the equality constraint rows the implicit law solves: as many as MuJoCo
+        makes with every equality active (none with the explicit methods, or with equality
+        constraints disabled), each nv wide."""
+        rows = 0
+        if self._implicit_method and model.neq:
+            scratch = mujoco.MjData(model)
+            scratch.eq_active[:] = 1
+            mujoco.mj_fwdPosition(model, scratch)
+            rows = scratch.ne
+        self._equality_jac = np.zeros((rows, model.nv))
+        self._equality_rows = np.zeros((rows, coupling.EQUALITY_COLUMNS))
+        self._sparse = bool(mujoco.mj_isSparse(model))
+
+    def _read_equalities(self):
+        """This step's equality rows (the first mjData.ne constraint rows, made by mj_step1)
+        into the engine's arrays and the EQUALITY_ROWS counter, then emptied in mjData:
+        Jacobian, D and aref zero, so that mj_step2's constraint solve gives them no force
+        (any solver, dense or sparse Jacobian)."""
+        d = self.data
+        n = d.ne
+        self._counters[coupling.EQUALITY_ROWS] = n
+        if not n:
+            return
+        rows = self._equality_rows
+        rows[:n, coupling.EQUALITY_D] = d.efc_D[:n]
+        rows[:n, coupling.EQUALITY_AREF] = d.efc_aref[:n]
+        values, jac = d.efc_J, self._equality_jac
+        if self._sparse:
+            jac[:n] = 0.0
+            start, count, columns = d.efc_J_rowadr, d.efc_J_rownnz, d.efc_J_colind
+            for r in range(n):
+                entries = slice(start[r], start[r] + count[r])
+                jac[r, columns[entries]] = values[entries]
+                values[entries] = 0.0
+        else:
+            nv = self.model.nv
+            jac[:n] = values[:n * nv].reshape(n, nv)
+            values[:n * nv] = 0.0
+        d.efc_D[:n] = 0.0
+        d.efc_aref[:n] = 0.0
+
     def _views(self):
         """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
         of mjModel/mjData and the engine's own arrays, which stay the same objects, at the same
@@ -322,7 +368,8 @@ class SandEngine:
             friction_memory=self._friction_memory, friction_flags=self._friction_flags,
             friction_torque=self._friction_torque, limit_joints=self._limit_joints,
             limit_params=self._limit_params, limit_rows=self._limit_rows,
-            limit_flags=self._limit_flags, qpos=d.qpos,
+            limit_flags=self._limit_flags, qpos=d.qpos, equality_jac=self._equality_jac,
+            equality_rows=self._equality_rows,
             dof_damping=m.dof_damping, trntype=m.actuator_trntype, trnid=m.actuator_trnid,
             gear=m.actuator_gear, jnt_type=m.jnt_type, jnt_dofadr=m.jnt_dofadr,
             dyntype=m.actuator_dyntype, gaintype=m.actuator_gaintype,
@@ -415,6 +462,8 @@ class SandEngine:
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
         self._gather(self._gather_arrays.table)
+        if len(self._equality_rows):
+            self._read_equalities()
         coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
 
     def _load_kernels(self):
