@@ -274,3 +274,35 @@ def test_a_models_own_floor_plane_gives_way_to_the_sand_unless_kept(tmp_path):
         depths[keep] = max(deepest)  # of the deepest plate below the sand surface (z 0), m
     assert depths[False] > 0.01  # the feet sink into the sand
     assert depths[True] < 0.003  # held by the floor (MuJoCo's soft contact: a mm or so)
+
+
+def test_a_models_own_hfield_is_rigid_ground_unless_it_is_the_sands_surface(tmp_path):
+    """A terrain generator's hfield in the scene (unnamed geom, named asset) stays rigid
+    ground under a plane of sand, and a notice says so with the keys that make it the sand's
+    surface; given those keys it is the surface, its collisions off, and no notice."""
+    hfield = ('<asset><hfield name="park" nrow="2" ncol="2" size="2 2 0.1 0.1"/></asset>'
+              '<worldbody><geom type="hfield" hfield="park" pos="0 0 -0.05"/>')
+    path = tmp_path / 'parkbot.xml'
+    path.write_text(FLOORBOT.replace('<worldbody>', hfield, 1))
+    for surface in ({}, {'sand.surface.type': 'hfield', 'sand.surface.geom': 'park'}):
+        sim = Simulation(load_scene(path, surface))
+        park = int(np.flatnonzero(sim.model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD)[0])
+        said = [n for n in sim.notices if n.startswith('hfield geom park: rigid ground')]
+        if surface:
+            assert not said and sim.model.geom_contype[park] == 0
+        else:
+            assert sim.model.geom_contype[park] == 1
+            assert said and said[0].endswith('--set sand.surface.type=hfield '
+                                             "--set sand.surface.geom=park makes it the "
+                                             "sand's surface")
+
+
+@pytest.mark.parametrize('cone', ['pyramidal', 'elliptic'])
+def test_elliptic_cones_with_rigid_obstacles_are_said(tmp_path, cone):
+    """Rigid contacts with elliptic cones stay MuJoCo's (docs/robots.md): a scene that has
+    them and something rigid to touch (a rock) says so at start-up."""
+    path = tmp_path / 'conebot.xml'
+    path.write_text(FLOORBOT.replace('<worldbody>', f'<option cone="{cone}"/><worldbody>', 1))
+    sim = Simulation(load_scene(path, {}))
+    said = [n for n in sim.notices if n.startswith('rigid contacts with elliptic friction')]
+    assert len(said) == (cone == 'elliptic')

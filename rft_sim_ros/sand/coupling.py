@@ -31,15 +31,16 @@ Joint friction (MJCF frictionloss F, N m or N) is solved in the same iteration, 
 regularised Coulomb law with the same v_reg: a joint whose end speed is below v_reg sticks
 (a damper F / v_reg: at most F), otherwise it slips (F against its motion). The engine takes
 it over from MuJoCo, whose friction constraint, acting after the sand's solve, would undo
-the end velocities the solve chose and keep a standing robot jittering between sets. Hinge
-and slide joint limits are taken over likewise (`limit_rows`): each limit a joint reaches is
-a row of MuJoCo's soft constraint (its impedance, stiffness and damping from the joint's
-solref, solimp and margin, as MuJoCo makes them), active while it pushes, solved with the
-sand. Equality constraints (connect, weld, joint, tendon, flex) are solved with it too, as
-the rows MuJoCo makes for them (`implicit_wrenches`' equalities): two-sided, so always in
-the system; left to MuJoCo's solve after the sand's, a stiff tendon coupling of a leg's
-joints made the feet of a standing robot cycle through the sets in every step.
-"""
+the end velocities the solve chose and keep a standing robot jittering between sets. So
+are MuJoCo's other constraints, as the rows MuJoCo itself makes for them in mj_step1
+(`take_constraint_rows`): equalities (two-sided), joint and tendon limits and contacts
+(one-sided, active while they push; a pyramidal cone's edges are such rows, an elliptic
+cone is not and stays MuJoCo's, as does tendon friction). Each is MuJoCo's soft constraint
+f = D (aref - J (qvel+ - qvel) / dt) in the same active-set iteration; emptied in mjData,
+MuJoCo's own solve in mj_step2 leaves them out. Left to that solve, after the sand's, they
+undid the end velocities the sand's solve chose (a knee at its stop, a stiff tendon
+coupling of a leg's joints, a load resting on the robot): the feet cycled through the sets
+every step."""
 from collections import namedtuple
 
 import numpy as np
@@ -60,22 +61,17 @@ from .surface_kernels import (base_height, bed_range, cell_height, grid_range, i
 MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
 #: A frictional joint's sets: |end speed| < v_reg, end speed >= v_reg, <= -v_reg (and FROZEN).
 STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2
-#: A joint limit row's sets: pushing (solved as MuJoCo's soft constraint) or not.
+#: A one-sided constraint row's sets (a limit, a contact's pyramid edge): pushing (MuJoCo's
+#: soft constraint in the system) or not.
 INACTIVE, ACTIVE = 0, 1
-#: Columns of a limited joint's parameters (`limit_rows`): its range (low, high), margin,
-#: solref (2), solimp (5) and the inverse weight of its dof (mjModel.dof_invweight0).
-LOW, HIGH, MARGIN, SOLREF, SOLIMP, INVWEIGHT = 0, 1, 2, 3, 5, 10
-LIMIT_PARAMS = 11
-#: Columns of a limit row: dof, sign (+1 lower, -1 upper), D, aref (MuJoCo's efc_D,
-#: efc_aref), and the force the step applies (N or N m, along the sign).
-ROW_DOF, ROW_SIGN, ROW_D, ROW_AREF, ROW_FORCE = range(5)
-LIMIT_COLUMNS = 5
-#: Columns of an equality constraint row (MuJoCo's efc_D, efc_aref) and the force the step
-#: applies along it (N or N m; `implicit_wrenches`' equalities).
-EQUALITY_D, EQUALITY_AREF, EQUALITY_FORCE = range(3)
-EQUALITY_COLUMNS = 3
-#: MuJoCo's bounds on the impedance and its smallest value (mjMINIMP, mjMAXIMP, mjMINVAL).
-MIN_IMPEDANCE, MAX_IMPEDANCE, MIN_VALUE = 0.0001, 0.9999, 1e-15
+#: The kinds of MuJoCo's constraint rows (`take_constraint_rows`' kinds, by mjtConstraint):
+#: left to MuJoCo, two-sided (equalities) or one-sided (limits, contacts but elliptic ones).
+KEPT, TWO_SIDED, ONE_SIDED = -1, 0, 1
+#: Columns of a constraint row the engine solves: MuJoCo's efc_D and efc_aref, its kind
+#: (TWO_SIDED or ONE_SIDED), its push D (J qvel + dt aref) (N s or N m s: its term of the
+#: system's right-hand side) and the force the step applies along it (N or N m).
+ROW_D, ROW_AREF, ROW_KIND, ROW_PUSH, ROW_FORCE = range(5)
+ROW_COLUMNS = 5
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
 MEMORY_SHIFT = 2
 
@@ -128,20 +124,19 @@ PLATE_ROWS = LAW_ROWS + 7
 #: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
 #: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use),
 #: the height difference of axis neighbours at the angle of repose (m; `settle`), and a
-#: rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0: none),
-#: and whether MuJoCo's reference safety (a soft constraint's time constant at least two
-#: timesteps) is on (1/0; joint limits, `limit_rows`).
+#: and a rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0:
+#: none).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
  ZETA_MAP, MAP_X0, MAP_Y0, MAP_INV_DX, MAP_INV_DY,
- BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE, TILE_STEP,
- REFSAFE) = range(28)
-SETTING_COUNT = 28
+ BASE_KIND, BASE_X0, BASE_Y0, BASE_INV_DX, BASE_INV_DY, DEFORM_RISE,
+ TILE_STEP) = range(27)
+SETTING_COUNT = 27
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, steps so
-#: far in which a plate was frozen or the sets had not settled, and the equality constraint
-#: rows of this step (`implicit_wrenches`' equalities, which the engine copies in).
-STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED, EQUALITY_ROWS = range(7)
+#: far in which a plate was frozen or the sets had not settled, and MuJoCo's constraint rows
+#: the engine took this step (`take_constraint_rows`).
+STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED, CONSTRAINT_ROWS = range(7)
 COUNTER_COUNT = 7
 
 #: The arrays of the gather kernels (`_gather_plates`), in the order of their `ArrayTable`;
@@ -176,11 +171,11 @@ GATHER = GatherArrays(*range(len(GatherArrays._fields)))
 #: tree factor of Mh and its solve for the 3S translational Jacobian rows; per slot its
 #: twist response (`_resting_block`, S 6x6 blocks stacked) and its terms of the system
 #: (`_slot_terms`: S nv x nv blocks stacked, of which its chain's corner is used; S rows of
-#: nv); `_slot_terms`' rows; and the equality rows' part of the system (nv x nv).
+#: nv); `_slot_terms`' rows; and the two-sided constraint rows' part of the system (nv x nv).
 SolveSpace = namedtuple('SolveSpace', [
     'chain', 'chain_count', 'inverse_mass', 'w_moving', 'k_rank', 'k_iso', 'dirty',
     'momentum', 'system', 'rhs', 'factored', 'solution', 'factor', 'translational', 'blocks',
-    'products', 'force_terms', 'chain_work', 'equality_matrix'])
+    'products', 'force_terms', 'chain_work', 'constraint_matrix'])
 
 
 def solve_space(nv, bodies):
@@ -194,7 +189,7 @@ def solve_space(nv, bodies):
         solution=np.zeros(nv), factor=np.zeros((nv, nv)), translational=np.zeros((nv, 3 * bodies)),
         blocks=np.zeros((6 * bodies, 6)), products=np.zeros((nv * bodies, nv)),
         force_terms=np.zeros((bodies, nv)), chain_work=np.zeros((12, nv)),
-        equality_matrix=np.zeros((nv, nv)))
+        constraint_matrix=np.zeros((nv, nv)))
 
 
 #: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
@@ -208,12 +203,10 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     # joint friction the engine solves (`implicit_wrenches`' friction)
     'friction_dofs', 'friction_force', 'friction_memory', 'friction_flags',
     'friction_torque',
-    # joint limits the engine solves (`limit_rows`): joints (dof, qpos address), their
-    # parameters, this step's rows and their flags; mjData's qpos
-    'limit_joints', 'limit_params', 'limit_rows', 'limit_flags', 'qpos',
-    # equality constraint rows the engine solves: this step's Jacobian rows (copied from
-    # MuJoCo's, `SandEngine`), their D, aref and force (EQUALITY_D ...)
-    'equality_jac', 'equality_rows',
+    # MuJoCo's constraint rows the engine solves (`take_constraint_rows`): Jacobian rows,
+    # their nonzero columns and counts, their columns ROW_D ... and their sets' flags
+    'constraint_jac', 'constraint_columns', 'constraint_counts', 'constraint_rows',
+    'constraint_flags',
     # implicit_damping's model and data arrays
     'dof_damping', 'trntype', 'trnid', 'gear', 'jnt_type', 'jnt_dofadr', 'dyntype',
     'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
@@ -643,11 +636,9 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
     d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
     tau_free = passive + actuator + applied + constraint - bias (N or N m per dof), the
-    constraint force of the constraints the solve leaves to MuJoCo (rigid contacts, ball
-    joint and tendon limits) being MuJoCo's of the step before (mj_step2 computes this
-    step's after the solve: in a lasting contact the last one is the estimate; left out, the
-    solve's end velocities ignored it and a robot held by such a constraint jittered in
-    sand).
+    constraint force of the constraints the solve leaves to MuJoCo (elliptic contacts,
+    tendon friction) being MuJoCo's of the step before (mj_step2 computes this step's after
+    the solve; in a lasting contact the last one is the estimate).
     chain[s, :chain_count[s]] (S x nv, S) become the dofs slot s's rows reach: its kinematic
     chain, leaf to root."""
     rows[:6 * slots + 1, :] = 0.0
@@ -1138,7 +1129,7 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
                       dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
-                      friction, limits, equalities):
+                      friction, constraints):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -1165,14 +1156,13 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     rows STATE, VISITED, SOLVED) and the friction torque the step applies (written, N m or
     N). Each joint is in a set (STICK: -F qvel+ / v_reg in the system; SLIP_UP, SLIP_DOWN: a
     constant -F or +F) chosen by its end speed like a plate's, starting from its last set.
-    limits: (rows, flags, n): the n joint limit rows of this step (`limit_rows`) and their
-    flags ((3, >= n) int8 work space). A row starts active (pushing: MuJoCo's soft
-    constraint, f = D (aref - sign dv / dt) >= 0, in the system) and leaves the set when its
-    force would pull; its force is written to rows[:, ROW_FORCE].
-    equalities: (jac, rows, n): the n equality constraint rows of this step, MuJoCo's own
-    (their Jacobian rows jac[:n], nv wide; rows[:n]: D, aref, `EQUALITY_D` ...): each is
-    MuJoCo's soft constraint f = D (aref - J (qvel+ - qvel) / dt), two-sided, in every solve;
-    its force is written to rows[:, EQUALITY_FORCE].
+    constraints: (jac, columns, counts, rows, flags, n): the n rows of MuJoCo's constraints
+    the engine solves this step (`take_constraint_rows`: Jacobian rows, their nonzero
+    columns, ROW_D ...) and their flags ((3, >= n) int8 work space: STATE, VISITED, SOLVED).
+    Each row is MuJoCo's soft constraint f = D (aref - J (qvel+ - qvel) / dt) (N or N m):
+    a two-sided row (an equality) is in every solve; a one-sided row (a limit, a contact's
+    pyramid edge) starts active (pushing, in the system) and leaves the set when its force
+    would pull. Their forces are written to rows[:, ROW_FORCE].
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -1200,9 +1190,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         for c in range(nv):
             acc += mass_h[r, c] * qvel[c]
         momentum[r] = acc
-    constrained = equalities[2] > 0
-    if constrained:
-        _equality_start(equalities, qvel, timestep, space.equality_matrix, momentum)
+    constrained = constraints[5] > 0
+    two_sided = _constraint_start(constraints, qvel, timestep, space.constraint_matrix,
+                                  momentum) if constrained else 0
     first = slot_start  # slot s holds plates first[s] .. first[s + 1] - 1
     h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
     magnitude = work[MAGNITUDE]
@@ -1246,10 +1236,6 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     frictional = friction[0].shape[0] > 0
     if frictional:
         _friction_start(friction, qvel, v_reg, last)
-    limited = limits[2] > 0
-    if limited:
-        limits[1][STATE, :limits[2]] = ACTIVE
-        limits[1][VISITED, :limits[2]] = 1 << ACTIVE
     w_moving, k_rank, k_iso = space.w_moving, space.k_rank, space.k_iso
     dirty = space.dirty  # slots whose accumulators must be summed again
     dirty[:slots] = True
@@ -1278,10 +1264,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                       timestep, system, rhs)
         if frictional:
             _friction_terms(friction, qvel, v_reg, timestep, system, rhs)
-        if limited:
-            _limit_terms(limits, qvel, timestep, system, rhs)
+        if two_sided:
+            _add_matrix(space.constraint_matrix, system)
         if constrained:
-            _add_matrix(space.equality_matrix, system)
+            _constraint_terms(constraints, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
@@ -1290,8 +1276,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             changed, cycles = _friction_sets(friction, solution, v_reg)
             frozen += cycles
             converged = changed == 0
-        if limited:
-            changed, cycles = _limit_sets(limits, qvel, solution, timestep)
+        if constrained:
+            changed, cycles = _constraint_sets(constraints, qvel, solution, timestep)
             frozen += cycles
             converged &= changed == 0
         for s in range(slots):  # xi+ = J qvel+, over each chain's dofs
@@ -1353,134 +1339,84 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
     if frictional:
         _friction_finish(friction, qvel, v_reg, solution, step)
-    if limited:
-        rows, limit_flags, n = limits
-        for r in range(n):  # the force the last solve assumed (a frozen row stays in)
-            rows[r, ROW_FORCE] = (_limit_force(rows, r, qvel, solution, timestep)
-                                  if limit_flags[SOLVED, r] != INACTIVE else 0.0)
     if constrained:
-        _equality_forces(equalities, qvel, solution, timestep)
+        _constraint_forces(constraints, qvel, solution, timestep)
     return iterations if converged and frozen == 0 else -iterations
 
 
 @njit(cache=True)
-def limit_rows(joints, params, qpos, qvel, timestep, refsafe, rows):
-    """This step's joint limit rows, as MuJoCo's mj_makeConstraint and mj_makeImpedance make
-    them, into rows (`ROW_DOF` ...; (>= 2L, LIMIT_COLUMNS)): a row for each limit whose
-    distance pos (q - low, or high - q; rad or m) is below the joint's margin, with
-    D = 1 / R, R = (1 - imp) dof_invweight0 / imp, and the reference acceleration
-    aref = -B sign qdot - K imp (pos - margin) (imp: the impedance of solimp at pos; K, B
-    from solref, its time constant at least two timesteps with `refsafe`). joints: (L, 2)
-    dof and qpos address of each limited joint; params: (L, LIMIT_PARAMS). Returns the
-    number of rows."""
+def take_constraint_rows(kinds, efc_type, efc_j, efc_d, efc_aref, rownnz, rowadr, colind,
+                         sparse, jac, columns, counts, rows):
+    """The rows of MuJoCo's constraints that the implicit law solves, taken from mjData
+    after mj_step1 made them: each row e whose kind kinds[efc_type[e]] is TWO_SIDED or
+    ONE_SIDED (KEPT: left to MuJoCo) is copied, its Jacobian row into jac (dense, nv wide)
+    with its nonzero columns in columns[:, :counts], its efc_D and efc_aref into rows
+    (ROW_D ...), and emptied in mjData (Jacobian, D and aref zero: mj_step2's solve, any
+    solver, gives it no force). efc_j: mjData.efc_J, dense (nefc x nv, flat) or, with
+    `sparse`, its nonzeros (rownnz, rowadr, colind). Returns the rows taken, or minus the
+    rows needed where jac has fewer (then nothing is changed)."""
+    nefc, nv = efc_type.shape[0], jac.shape[1]
+    needed = 0
+    for e in range(nefc):
+        needed += kinds[efc_type[e]] != KEPT
+    if needed > jac.shape[0]:
+        return -needed
     n = 0
-    for j in range(joints.shape[0]):
-        dof, q = joints[j, 0], qpos[joints[j, 1]]
-        margin = params[j, MARGIN]
-        dmax = min(max(params[j, SOLIMP + 1], MIN_IMPEDANCE), MAX_IMPEDANCE)
-        ref0, ref1 = params[j, SOLREF], params[j, SOLREF + 1]
-        if ref0 > 0.0:
-            timeconst = max(ref0, 2.0 * timestep) if refsafe else ref0
-            stiffness = 1.0 / max(MIN_VALUE, dmax * dmax * timeconst * timeconst * ref1 * ref1)
-            damping = 2.0 / max(MIN_VALUE, dmax * timeconst)
-        else:
-            stiffness = -ref0 / max(MIN_VALUE, dmax * dmax)
-            damping = -ref1 / max(MIN_VALUE, dmax)
-        for sign in (1.0, -1.0):
-            pos = q - params[j, LOW] if sign > 0.0 else params[j, HIGH] - q
-            if pos >= margin:
-                continue
-            imp = min(max(_impedance(params[j], pos, margin), MIN_IMPEDANCE), MAX_IMPEDANCE)
-            rows[n, ROW_DOF], rows[n, ROW_SIGN] = dof, sign
-            rows[n, ROW_D] = 1.0 / max(MIN_VALUE, (1.0 - imp) * params[j, INVWEIGHT] / imp)
-            rows[n, ROW_AREF] = -damping * sign * qvel[dof] - stiffness * imp * (pos - margin)
-            rows[n, ROW_FORCE] = 0.0
-            n += 1
+    for e in range(nefc):
+        kind = kinds[efc_type[e]]
+        if kind == KEPT:
+            continue
+        row = jac[n]
+        for c in range(nv):
+            row[c] = 0.0
+        start, stop = (rowadr[e], rowadr[e] + rownnz[e]) if sparse else (e * nv, e * nv + nv)
+        count = 0
+        for a in range(start, stop):
+            c = colind[a] if sparse else a - start
+            if efc_j[a] != 0.0:
+                row[c] = efc_j[a]
+                columns[n, count] = c
+                count += 1
+            efc_j[a] = 0.0
+        counts[n] = count
+        rows[n, ROW_D], rows[n, ROW_AREF], rows[n, ROW_KIND] = efc_d[e], efc_aref[e], kind
+        efc_d[e] = efc_aref[e] = 0.0
+        n += 1
     return n
 
 
-@njit(cache=True, inline='always')
-def _impedance(params, pos, margin):
-    """MuJoCo's impedance of solimp (d0, dwidth, width, midpoint, power; params[SOLIMP:]) at
-    distance pos from a limit with margin `margin`: d0 at the margin, dwidth a width beyond,
-    in between a power-law sigmoid of |pos - margin| / width."""
-    d0, dwidth, width = params[SOLIMP], params[SOLIMP + 1], params[SOLIMP + 2]
-    midpoint, power = params[SOLIMP + 3], params[SOLIMP + 4]
-    if d0 == dwidth or width <= MIN_VALUE:
-        return 0.5 * (d0 + dwidth)
-    x = abs(pos - margin) / width
-    if x >= 1.0 or x <= 0.0:
-        return dwidth if x >= 1.0 else d0
-    if power == 1.0:
-        y = x
-    elif x <= midpoint:
-        y = x ** power / midpoint ** (power - 1.0)
-    else:
-        y = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
-    return d0 + y * (dwidth - d0)
-
-
-@njit(cache=True, inline='always')
-def _limit_force(rows, r, qvel, solution, timestep):
-    """Row r's force at the end velocities `solution` (N or N m along its sign): MuJoCo's
-    soft constraint D (aref - sign (qvel+ - qvel) / dt)."""
-    dof = np.int64(rows[r, ROW_DOF])
-    return rows[r, ROW_D] * (rows[r, ROW_AREF]
-                             - rows[r, ROW_SIGN] * (solution[dof] - qvel[dof]) / timestep)
-
-
 @njit(cache=True)
-def _limit_terms(limits, qvel, timestep, system, rhs):
-    """The active (or frozen) limit rows' terms of the implicit system: with
-    f = D (aref - sign (qvel+ - qvel) / dt), dt sign f adds D to the diagonal and
-    D qvel + dt sign D aref to the right-hand side."""
-    rows, flags, n = limits
-    for r in range(n):
-        if flags[STATE, r] == INACTIVE:
-            continue
-        i, d = np.int64(rows[r, ROW_DOF]), rows[r, ROW_D]
-        system[i, i] += d
-        rhs[i] += d * qvel[i] + timestep * rows[r, ROW_SIGN] * d * rows[r, ROW_AREF]
-
-
-@njit(cache=True)
-def _limit_sets(limits, qvel, solution, timestep):
-    """After a solve: each limit row's set as solved (row SOLVED), then the set its force asks
-    for (active while it pushes; a return to a set it had this step: FROZEN, kept in).
-    Returns the rows that changed set and of those the ones frozen."""
-    rows, flags, n = limits
-    changed = frozen = 0
-    for r in range(n):
-        pushing = _limit_force(rows, r, qvel, solution, timestep) > 0.0
-        moved, cycle = _next_set(flags, r, ACTIVE if pushing else INACTIVE)
-        changed += moved
-        frozen += cycle
-    return changed, frozen
-
-
-@njit(cache=True)
-def _equality_start(equalities, qvel, timestep, matrix, momentum):
-    """The equality rows' part of the implicit system, the same in every solve of a step:
-    with f = D (aref - J (qvel+ - qvel) / dt), dt J^T f puts J^T D J into matrix (nv x nv,
-    overwritten; added to the system by each solve) and adds J^T D (J qvel + dt aref) to
-    momentum (the right-hand side's constant part)."""
-    jac, rows, n = equalities
+def _constraint_start(constraints, qvel, timestep, matrix, momentum):
+    """A step's start of its constraint rows (`implicit_wrenches`): with
+    f = D (aref - J (qvel+ - qvel) / dt), dt J^T f adds D J^T J to the system and J^T push,
+    push = D (J qvel + dt aref), to the right-hand side. Each row's push into ROW_PUSH; the
+    two-sided rows' D J^T J into matrix (nv x nv, overwritten; added by every solve) and
+    their J^T push to momentum; the one-sided rows active. Returns the two-sided rows."""
+    jac, columns, counts, rows, flags, n = constraints
     nv = qvel.shape[0]
     for i in range(nv):
         for c in range(nv):
             matrix[i, c] = 0.0
+    two_sided = 0
     for r in range(n):
-        row, damper = jac[r], rows[r, EQUALITY_D]
+        row, used = jac[r], columns[r, :counts[r]]
         speed = 0.0
-        for i in range(nv):
-            speed += row[i] * qvel[i]
-        push = damper * (speed + timestep * rows[r, EQUALITY_AREF])
-        for i in range(nv):
-            if row[i] != 0.0:
-                momentum[i] += row[i] * push
-                scaled, target = damper * row[i], matrix[i]
-                for c in range(nv):
-                    target[c] += scaled * row[c]
+        for c in used:
+            speed += row[c] * qvel[c]
+        damper = rows[r, ROW_D]
+        push = damper * (speed + timestep * rows[r, ROW_AREF])
+        rows[r, ROW_PUSH] = push
+        if rows[r, ROW_KIND] == ONE_SIDED:
+            flags[STATE, r] = ACTIVE
+            flags[VISITED, r] = 1 << ACTIVE
+            continue
+        two_sided += 1
+        for i in used:
+            momentum[i] += row[i] * push
+            scaled, target = damper * row[i], matrix[i]
+            for c in used:
+                target[c] += scaled * row[c]
+    return two_sided
 
 
 @njit(cache=True, inline='always')
@@ -1492,21 +1428,66 @@ def _add_matrix(matrix, system):
 
 
 @njit(cache=True)
-def _equality_forces(equalities, qvel, solution, timestep):
-    """Each equality row's force at the end velocities `solution` into its EQUALITY_FORCE
-    column: D (aref - J (qvel+ - qvel) / dt), N or N m."""
-    jac, rows, n = equalities
+def _constraint_terms(constraints, system, rhs):
+    """The active (or frozen) one-sided rows' terms of the implicit system: D J^T J into the
+    system, J^T push into the right-hand side (`_constraint_start`)."""
+    jac, columns, counts, rows, flags, n = constraints
     for r in range(n):
-        change = 0.0
-        for i in range(qvel.shape[0]):
-            change += jac[r, i] * (solution[i] - qvel[i])
-        rows[r, EQUALITY_FORCE] = rows[r, EQUALITY_D] * (rows[r, EQUALITY_AREF]
-                                                         - change / timestep)
+        if rows[r, ROW_KIND] != ONE_SIDED or flags[STATE, r] == INACTIVE:
+            continue
+        row, used = jac[r], columns[r, :counts[r]]
+        damper, push = rows[r, ROW_D], rows[r, ROW_PUSH]
+        for i in used:
+            rhs[i] += row[i] * push
+            scaled, target = damper * row[i], system[i]
+            for c in used:
+                target[c] += scaled * row[c]
+
+
+@njit(cache=True, inline='always')
+def _constraint_force(constraints, r, qvel, solution, timestep):
+    """Row r's force at the end velocities `solution` (N or N m): MuJoCo's soft constraint
+    D (aref - J (qvel+ - qvel) / dt)."""
+    jac, columns, counts, rows = constraints[0], constraints[1], constraints[2], constraints[3]
+    change = 0.0
+    for c in columns[r, :counts[r]]:
+        change += jac[r, c] * (solution[c] - qvel[c])
+    return rows[r, ROW_D] * (rows[r, ROW_AREF] - change / timestep)
+
+
+@njit(cache=True)
+def _constraint_sets(constraints, qvel, solution, timestep):
+    """After a solve: each one-sided row's set as solved (row SOLVED), then the set its force
+    asks for (active while it pushes; a return to a set it had this step: FROZEN, kept in).
+    Returns the rows that changed set and of those the ones frozen."""
+    rows, flags, n = constraints[3], constraints[4], constraints[5]
+    changed = frozen = 0
+    for r in range(n):
+        if rows[r, ROW_KIND] != ONE_SIDED:
+            continue
+        pushing = _constraint_force(constraints, r, qvel, solution, timestep) > 0.0
+        moved, cycle = _next_set(flags, r, ACTIVE if pushing else INACTIVE)
+        changed += moved
+        frozen += cycle
+    return changed, frozen
+
+
+@njit(cache=True)
+def _constraint_forces(constraints, qvel, solution, timestep):
+    """The force each row applies by the last solve into ROW_FORCE: its soft constraint's
+    (`_constraint_force`), zero for a one-sided row that solve had inactive (a frozen row
+    stays in)."""
+    rows, flags, n = constraints[3], constraints[4], constraints[5]
+    for r in range(n):
+        out = rows[r, ROW_KIND] == ONE_SIDED and flags[SOLVED, r] == INACTIVE
+        rows[r, ROW_FORCE] = 0.0 if out else _constraint_force(constraints, r, qvel, solution,
+                                                               timestep)
 
 
 @njit(cache=True, inline='always')
 def _next_set(flags, e, new):
-    """Element e (a frictional joint or a limit row; flags rows STATE, VISITED, SOLVED) after
+    """Element e (a frictional joint or a one-sided constraint row; flags rows STATE, VISITED,
+    SOLVED) after
     a solve: its set as solved kept in SOLVED, then the set `new` its solution asks for,
     unless frozen; a return to a set it had this step (a cycle) freezes it. Returns (moved,
     cycle), each 0 or 1."""
@@ -1594,14 +1575,13 @@ def implicit_step(timestep, arrays):
     """One step's implicit sand wrenches over the plates the step's gather kernel left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
-    over the gathered plates, the frictional joints, this step's joint limit rows
-    (`limit_rows`) and equality rows (counter EQUALITY_ROWS; when there are any), then
+    over the gathered plates, the frictional joints and the constraint rows taken this step
+    (`take_constraint_rows`, counter CONSTRAINT_ROWS; when there are any), then
     `scatter_wrenches` into xfrc_applied (zero wrenches when no plate is in the sand); the
-    joints' friction and the limits' and equalities' forces (J^T f) are added to
-    qfrc_passive, which mj_step2 applies. Arguments as in
-    those functions (timestep: s); arrays: the table of an `ArrayTable` of `ImplicitArrays`,
-    settings REST_SPEED, DAMPER, ACTUATORS, REFSAFE. Adds the solves to the SOLVES counter and
-    counts the step in UNSETTLED where it did not settle."""
+    joints' friction and the rows' forces (J^T f) are added to qfrc_passive, which mj_step2
+    applies. Arguments as in those functions (timestep: s); arrays: the table of an
+    `ArrayTable` of `ImplicitArrays`, settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves
+    to the SOLVES counter and counts the step in UNSETTLED where it did not settle."""
     a = IMPLICIT
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     k, slots, step = counters[GATHERED], counters[SLOTS], counters[STEPS]
@@ -1650,17 +1630,16 @@ def implicit_step(timestep, arrays):
         float_matrix(arrays, a.factor), float_matrix(arrays, a.translational),
         float_matrix(arrays, a.blocks), float_matrix(arrays, a.products),
         float_matrix(arrays, a.force_terms), float_matrix(arrays, a.chain_work),
-        float_matrix(arrays, a.equality_matrix))
-    limit_table = float_matrix(arrays, a.limit_rows)
-    equality_jac = float_matrix(arrays, a.equality_jac)
-    equality_rows = float_matrix(arrays, a.equality_rows)
-    equalities = (equality_jac, equality_rows, counters[EQUALITY_ROWS])
-    limits = (limit_table, int8_matrix(arrays, a.limit_flags),
-              limit_rows(int_matrix(arrays, a.limit_joints), float_matrix(arrays, a.limit_params),
-                         float_vector(arrays, a.qpos), qvel, timestep, settings[REFSAFE] != 0.0,
-                         limit_table))
+        float_matrix(arrays, a.constraint_matrix))
+    constraint_jac, constraint_rows = (float_matrix(arrays, a.constraint_jac),
+                                       float_matrix(arrays, a.constraint_rows))
+    constraint_columns = int_matrix(arrays, a.constraint_columns)
+    constraint_counts = int_vector(arrays, a.constraint_counts)
+    taken = counters[CONSTRAINT_ROWS]
+    constraints = (constraint_jac, constraint_columns, constraint_counts, constraint_rows,
+                   int8_matrix(arrays, a.constraint_flags), taken)
     friction_dofs, friction_torque = friction[0], friction[4]
-    if slots > 0 or friction_dofs.shape[0] > 0 or limits[2] > 0 or equalities[2] > 0:
+    if slots > 0 or friction_dofs.shape[0] > 0 or taken > 0:  # (none: zero wrenches)
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
@@ -1673,18 +1652,16 @@ def implicit_step(timestep, arrays):
         implicit_mass(mass, damping, timestep)
         iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
                                        rows, space, mass, dof_parentid, qvel, timestep, step,
-                                       memory, work, flags, xi_new, wrench, friction, limits,
-                                       equalities)
+                                       memory, work, flags, xi_new, wrench, friction,
+                                       constraints)
         counters[SOLVES] += abs(iterations)
         counters[UNSETTLED] += iterations < 0
         for f in range(friction_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
             qfrc_passive[friction_dofs[f]] += friction_torque[f]
-        for r in range(limits[2]):
-            qfrc_passive[np.int64(limit_table[r, ROW_DOF])] += (limit_table[r, ROW_SIGN]
-                                                                * limit_table[r, ROW_FORCE])
-        for r in range(equalities[2]):
-            for i in range(qvel.shape[0]):
-                qfrc_passive[i] += equality_jac[r, i] * equality_rows[r, EQUALITY_FORCE]
+        for r in range(taken):
+            force_r = constraint_rows[r, ROW_FORCE]
+            for c in constraint_columns[r, :constraint_counts[r]]:
+                qfrc_passive[c] += constraint_jac[r, c] * force_r
     # one call site for any slot count (a literal 0 at a second one compiled it twice)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
                      wrench_sum)

@@ -32,6 +32,9 @@ LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 #: `_load_kernels`), measured on the 2-core VM of the README's figures (11-13 s idle; a busy
 #: or one-core machine takes longer); start-up messages quote it.
 COLD_START_S = 15
+#: Constraint rows an engine has room for at first (`SandEngine._take_constraint_rows` grows
+#: it for a step with more: a few contacts' pyramid edges, equalities, limits).
+CONSTRAINT_ROOM = 16
 
 
 def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
@@ -41,7 +44,8 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
     first run after install, or after an upgrade)."""
     gather = coupling.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
-        kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces)
+        kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces,
+                   coupling.take_constraint_rows)
     else:
         kernels = (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
     return all(is_cached(kernel) for kernel in kernels)
@@ -93,13 +97,11 @@ class SandEngine:
     With the implicit law the engine takes over the model's joint friction (MJCF
     frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
     (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
-    MuJoCo's friction constraint does not act a second time after the solve; and the limits
-    of hinge and slide joints: `joint_limits` names those joints, whose limits are solved
-    with the sand as MuJoCo's soft constraints (`coupling.limit_rows`), model.jnt_limited
-    being cleared for them (not with MuJoCo's solref/solimp override on); and the equality
-    constraints: each step the rows MuJoCo made for them in mj_step1 are copied into the
-    solve (`coupling.implicit_wrenches`' equalities) and emptied in mjData (Jacobian, D and
-    aref zero: no force), so that mj_step2's solve leaves them out.
+    MuJoCo's friction constraint does not act a second time after the solve; and MuJoCo's
+    equality, limit and contact constraints (but elliptic cones): each step the rows MuJoCo
+    made for them in mj_step1 are taken into the solve and emptied in mjData
+    (`coupling.take_constraint_rows`), so that mj_step2's solve leaves them out; their
+    forces are in qfrc_passive, not qfrc_constraint.
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -154,8 +156,7 @@ class SandEngine:
         # each plate's last step in the sand and its set then (coupling.implicit_wrenches)
         self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._take_friction(model)
-        self._take_limits(model)
-        self._take_equalities(model, data)
+        self._take_constraints(model)
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -252,73 +253,57 @@ class SandEngine:
         self._friction_torque = np.zeros(len(frictional))
         model.dof_frictionloss[frictional] = 0.0
 
-    def _take_limits(self, model):
-        """The hinge and slide joint limits the implicit law solves (`coupling.limit_rows`):
-        their joints, parameters and row work space; MuJoCo's own limit rows switched off."""
-        slide_or_hinge = (int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE))
-        override = model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE
-        taken = [] if override or not self._implicit_method else [
-            j for j in range(model.njnt)
-            if model.jnt_limited[j] and int(model.jnt_type[j]) in slide_or_hinge]
-        self.joint_limits = tuple(model.joint(j).name or str(j) for j in taken)
-        dofs = model.jnt_dofadr[taken]
-        self._limit_joints = np.stack([dofs, model.jnt_qposadr[taken]], axis=1).astype(
-            np.int64).reshape(-1, 2)
-        params = np.zeros((len(taken), coupling.LIMIT_PARAMS))
-        if taken:
-            params[:, coupling.LOW:coupling.HIGH + 1] = model.jnt_range[taken]
-            params[:, coupling.MARGIN] = model.jnt_margin[taken]
-            params[:, coupling.SOLREF:coupling.SOLREF + 2] = model.jnt_solref[taken]
-            params[:, coupling.SOLIMP:coupling.SOLIMP + 5] = model.jnt_solimp[taken]
-            params[:, coupling.INVWEIGHT] = model.dof_invweight0[dofs]
-        self._limit_params = params
-        self._limit_rows = np.zeros((2 * len(taken), coupling.LIMIT_COLUMNS))
-        self._limit_flags = np.zeros((3, 2 * len(taken)), dtype=np.int8)
-        self._settings[coupling.REFSAFE] = not (model.opt.disableflags
-                                                & mujoco.mjtDisableBit.mjDSBL_REFSAFE)
-        model.jnt_limited[taken] = 0
-
-    def _take_equalities(self, model, data):
-        """Room for the equality constraint rows the implicit law solves: as many as MuJoCo
-        makes with every equality active (none with the explicit methods, or with equality
-        constraints disabled), each nv wide."""
-        rows = 0
-        if self._implicit_method and model.neq:
-            scratch = mujoco.MjData(model)
-            scratch.eq_active[:] = 1
-            mujoco.mj_fwdPosition(model, scratch)
-            rows = scratch.ne
-        self._equality_jac = np.zeros((rows, model.nv))
-        self._equality_rows = np.zeros((rows, coupling.EQUALITY_COLUMNS))
+    def _take_constraints(self, model):
+        """Which of MuJoCo's constraint rows the implicit law solves (`coupling`'s KEPT,
+        TWO_SIDED, ONE_SIDED by mjtConstraint; none with the explicit methods) and room for
+        a step's rows, grown when a step has more (`_take_constraint_rows`)."""
+        kind = mujoco.mjtConstraint
+        self._constraint_kinds = np.full(len(kind.__members__), coupling.KEPT,
+                                         dtype=np.int64)
+        if self._implicit_method:
+            self._constraint_kinds[int(kind.mjCNSTR_EQUALITY)] = coupling.TWO_SIDED
+            for one_sided in (kind.mjCNSTR_LIMIT_JOINT, kind.mjCNSTR_LIMIT_TENDON,
+                              kind.mjCNSTR_CONTACT_FRICTIONLESS, kind.mjCNSTR_CONTACT_PYRAMIDAL):
+                self._constraint_kinds[int(one_sided)] = coupling.ONE_SIDED
         self._sparse = bool(mujoco.mj_isSparse(model))
+        self._constraint_room(model.nv, CONSTRAINT_ROOM)
 
-    def _read_equalities(self):
-        """This step's equality rows (the first mjData.ne constraint rows, made by mj_step1)
-        into the engine's arrays and the EQUALITY_ROWS counter, then emptied in mjData:
-        Jacobian, D and aref zero, so that mj_step2's constraint solve gives them no force
-        (any solver, dense or sparse Jacobian)."""
+    def _constraint_room(self, nv, rows):
+        """Room for `rows` constraint rows of nv dofs (`coupling.take_constraint_rows`)."""
+        self._constraint_jac = np.zeros((rows, nv))
+        self._constraint_columns = np.zeros((rows, nv), dtype=np.int64)
+        self._constraint_counts = np.zeros(rows, dtype=np.int64)
+        self._constraint_rows = np.zeros((rows, coupling.ROW_COLUMNS))
+        self._constraint_flags = np.zeros((3, rows), dtype=np.int8)
+
+    def _compile_constraint_rows(self):
+        """`coupling.take_constraint_rows` compiled or loaded for mjData's arrays, on none of
+        their rows."""
         d = self.data
-        n = d.ne
-        self._counters[coupling.EQUALITY_ROWS] = n
-        if not n:
-            return
-        rows = self._equality_rows
-        rows[:n, coupling.EQUALITY_D] = d.efc_D[:n]
-        rows[:n, coupling.EQUALITY_AREF] = d.efc_aref[:n]
-        values, jac = d.efc_J, self._equality_jac
-        if self._sparse:
-            jac[:n] = 0.0
-            start, count, columns = d.efc_J_rowadr, d.efc_J_rownnz, d.efc_J_colind
-            for r in range(n):
-                entries = slice(start[r], start[r] + count[r])
-                jac[r, columns[entries]] = values[entries]
-                values[entries] = 0.0
-        else:
-            nv = self.model.nv
-            jac[:n] = values[:n * nv].reshape(n, nv)
-            values[:n * nv] = 0.0
-        d.efc_D[:n] = 0.0
-        d.efc_aref[:n] = 0.0
+        coupling.take_constraint_rows(
+            self._constraint_kinds, d.efc_type[:0], d.efc_J[:0], d.efc_D[:0], d.efc_aref[:0],
+            d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0], self._sparse,
+            self._constraint_jac, self._constraint_columns, self._constraint_counts,
+            self._constraint_rows)
+
+    def _take_constraint_rows(self):
+        """This step's rows of the constraints the implicit law solves, taken from mjData
+        (made by mj_step1; `coupling.take_constraint_rows`) into the engine's arrays and the
+        CONSTRAINT_ROWS counter; the room doubles (at least) when a step needs more."""
+        d = self.data
+        taken = 0
+        if d.nefc:
+            while True:
+                taken = coupling.take_constraint_rows(
+                    self._constraint_kinds, d.efc_type, d.efc_J, d.efc_D, d.efc_aref,
+                    d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, self._sparse,
+                    self._constraint_jac, self._constraint_columns, self._constraint_counts,
+                    self._constraint_rows)
+                if taken >= 0:
+                    break
+                self._constraint_room(self.model.nv, max(-taken, 2 * len(self._constraint_rows)))
+                self._implicit_arrays = self._implicit_table()
+        self._counters[coupling.CONSTRAINT_ROWS] = taken
 
     def _views(self):
         """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
@@ -355,7 +340,13 @@ class SandEngine:
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
             force=self._force))
-        self._implicit_arrays = ArrayTable(*coupling.ImplicitArrays(
+        self._solve_space = coupling.solve_space(m.nv, len(self.body_ids))
+        self._implicit_arrays = self._implicit_table()
+
+    def _implicit_table(self):
+        """The ArrayTable of `coupling.implicit_step`'s arrays (`coupling.ImplicitArrays`)."""
+        m, d = self.model, self.data
+        return ArrayTable(*coupling.ImplicitArrays(
             settings=self._settings, counters=self._counters, slot_body=self._slot_body,
             slot_start=self._slot_start, out_plate=self._plate, table=self._table,
             force=self._force, body_ids=self.body_ids,
@@ -366,10 +357,10 @@ class SandEngine:
             qfrc_constraint=d.qfrc_constraint, qfrc_bias=d.qfrc_bias,
             friction_dofs=self._friction_dofs, friction_force=self._friction_force,
             friction_memory=self._friction_memory, friction_flags=self._friction_flags,
-            friction_torque=self._friction_torque, limit_joints=self._limit_joints,
-            limit_params=self._limit_params, limit_rows=self._limit_rows,
-            limit_flags=self._limit_flags, qpos=d.qpos, equality_jac=self._equality_jac,
-            equality_rows=self._equality_rows,
+            friction_torque=self._friction_torque, constraint_jac=self._constraint_jac,
+            constraint_columns=self._constraint_columns,
+            constraint_counts=self._constraint_counts, constraint_rows=self._constraint_rows,
+            constraint_flags=self._constraint_flags,
             dof_damping=m.dof_damping, trntype=m.actuator_trntype, trnid=m.actuator_trnid,
             gear=m.actuator_gear, jnt_type=m.jnt_type, jnt_dofadr=m.jnt_dofadr,
             dyntype=m.actuator_dyntype, gaintype=m.actuator_gaintype,
@@ -380,8 +371,7 @@ class SandEngine:
             mass=self._mass, jac=self._jac, memory=self._plate_memory, work=self._work,
             flags=self._flags, xi_new=self._xi, wrench=self._slot_wrench,
             body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied,
-            wrench_sum=self._wrench_sum,
-            **coupling.solve_space(m.nv, len(self.body_ids))._asdict()))
+            wrench_sum=self._wrench_sum, **self._solve_space._asdict()))
 
     @property
     def zeta(self):
@@ -462,8 +452,7 @@ class SandEngine:
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
         self._gather(self._gather_arrays.table)
-        if len(self._equality_rows):
-            self._read_equalities()
+        self._take_constraint_rows()
         coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
 
     def _load_kernels(self):
@@ -482,6 +471,7 @@ class SandEngine:
                   else contextlib.nullcontext()) as compiling:
                 coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
                 self._implicit_plate_forces(0)
+                self._compile_constraint_rows()
                 if compiling is not None:
                     compiling.wait()  # (a kernel it did not cache compiles below)
         else:

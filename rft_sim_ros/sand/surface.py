@@ -268,7 +268,7 @@ class HeightGrid(Surface):
         yaw = np.arctan2(rotation[1, 0], rotation[0, 0])
         if abs(rotation[2, 2] - 1.0) > 1e-9:
             tilt = np.degrees(np.arccos(np.clip(rotation[2, 2], -1.0, 1.0)))
-            raise ValueError(f'sand.surface.geom: hfield geom {_hfield_label(model, g)!r} is '
+            raise ValueError(f'sand.surface.geom: hfield geom {hfield_label(model, g)!r} is '
                              f'tilted {tilt:.6g} deg: only level hfields (turned about z '
                              'alone) are read')
         h = int(model.geom_dataid[g])
@@ -280,7 +280,7 @@ class HeightGrid(Surface):
         turns = int(np.rint(yaw / (np.pi / 2)))
         if abs(yaw / (np.pi / 2) - turns) > 1e-9:
             return _resampled(cls(heights, size), yaw, (pos[0], pos[1]),
-                              f'hfield geom {_hfield_label(model, g)!r}')
+                              f'hfield geom {hfield_label(model, g)!r}')
         # rows are y (row 0 lowest), so a turn counterclockwise seen from above is rot90's
         # clockwise one
         heights = np.rot90(heights, -turns)
@@ -355,7 +355,7 @@ def hfield_geom(model, name=None):
     import mujoco
     hfields = [g for g in range(model.ngeom)
                if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_HFIELD]
-    listed = ', '.join(_hfield_label(model, g) for g in hfields)
+    listed = ', '.join(hfield_label(model, g) for g in hfields)
     if name is None:
         if not hfields:
             raise ValueError("sand.surface.type 'hfield' reads the model's own <hfield> geom; "
@@ -367,7 +367,7 @@ def hfield_geom(model, name=None):
     else:
         g = _named_hfield_geom(model, str(name), hfields, listed)
     if model.body_weldid[model.geom_bodyid[g]] != 0:  # (a joint or a mocap body between)
-        raise ValueError(f'sand.surface.geom: hfield geom {_hfield_label(model, g)!r} must be '
+        raise ValueError(f'sand.surface.geom: hfield geom {hfield_label(model, g)!r} must be '
                          'fixed to the world (its body or a parent has a joint or is a '
                          'mocap body)')
     return g
@@ -393,7 +393,7 @@ def _named_hfield_geom(model, name, hfields, listed):
     return g
 
 
-def _hfield_label(model, g):
+def hfield_label(model, g):
     """How errors and notices name hfield geom g, in a form `hfield_geom` takes back: its
     name, else its <hfield>'s if no other geom uses that, else its id g."""
     import mujoco

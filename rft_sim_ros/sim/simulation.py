@@ -26,7 +26,7 @@ from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
-from ..sand.surface import SURFACE_KINDS, hfield_geom, surface_from_settings
+from ..sand.surface import SURFACE_KINDS, hfield_geom, hfield_label, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
@@ -56,22 +56,26 @@ def can_collide(model):
 FLOOR_TILT_DEG = 45.0
 
 
-def floor_planes(model):
-    """Ids of the floor planes of a model: plane geoms fixed to the world (their body welded
-    to it), facing up (within FLOOR_TILT_DEG of +z; a wall is not a floor), that can collide
-    with a geom of a moving body (contype/conaffinity bits)."""
+def world_ground(model, geom_type):
+    """Ids of the geoms of `geom_type` (mjtGeom) fixed to the world (their body welded to
+    it) that can collide with a geom of a moving body (contype/conaffinity bits)."""
     moving = model.body_weldid[model.geom_bodyid] != 0
     contype = np.bitwise_or.reduce(model.geom_contype[moving], initial=0)
     conaffinity = np.bitwise_or.reduce(model.geom_conaffinity[moving], initial=0)
-    planes = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE) & ~moving)
-    if not planes.size:
+    return [int(g) for g in np.flatnonzero((model.geom_type == geom_type) & ~moving)
+            if model.geom_contype[g] & conaffinity or model.geom_conaffinity[g] & contype]
+
+
+def floor_planes(model):
+    """Ids of the floor planes of a model: planes of its `world_ground`, facing up (within
+    FLOOR_TILT_DEG of +z; a wall is not a floor)."""
+    planes = world_ground(model, mujoco.mjtGeom.mjGEOM_PLANE)
+    if not planes:
         return []
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)  # the poses of geoms fixed to the world
     up = data.geom_xmat[planes, 8]  # z of each plane's normal (its local z axis)
-    return [int(g) for g, z in zip(planes, up)
-            if z >= np.cos(np.radians(FLOOR_TILT_DEG))
-            and (model.geom_contype[g] & conaffinity or model.geom_conaffinity[g] & contype)]
+    return [g for g, z in zip(planes, up) if z >= np.cos(np.radians(FLOOR_TILT_DEG))]
 
 
 def compile_notice(scene):
@@ -141,6 +145,13 @@ class Simulation:
         self._ground_to_sand()
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        elif (self.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+              and scene.low_velocity['method'] == 'implicit'):
+            self.notices.append(
+                'rigid contacts with elliptic friction cones (MJCF <option cone="elliptic"/>) '
+                "stay MuJoCo's, solved after the sand's: a foot resting on a rigid obstacle "
+                'settles in more solves a step; with cone="pyramidal" the engine solves them '
+                'with the sand')
         self.data = mujoco.MjData(self.model)
         # initial pose: ros2_control initial values of the description, then the scene's
         self._initial_positions = {**(self.description.initial_positions or {}),
@@ -390,15 +401,25 @@ class Simulation:
     def _ground_to_sand(self):
         """Switch off the rigid collisions of the model's ground that the sand replaces: the
         hfield geom that is the sand's surface, and the floor planes (`floor_planes`, said in
-        a notice) unless sand.keep_floor."""
+        a notice) unless sand.keep_floor. The model's other hfields stay rigid ground, said
+        in a notice with the keys that make one of them the sand's surface."""
         scene, model = self.scene, self.model
         ground = [] if scene.keep_floor else floor_planes(model)
         if ground:
             names = ', '.join(model.geom(g).name or f'#{g}' for g in ground)
             self.notices.append(f'floor plane {names}: rigid collisions switched off, the sand '
                                 'carries the robot (sand.keep_floor: true keeps it)')
-        if scene.surface.get('type') == 'hfield':
+        kind = scene.surface.get('type', 'plane')
+        if kind == 'hfield':
             ground.append(hfield_geom(model, scene.surface.get('geom')))
+        rigid = [g for g in world_ground(model, mujoco.mjtGeom.mjGEOM_HFIELD) if g not in ground]
+        if rigid:
+            labels = [hfield_label(model, g) for g in rigid]
+            self.notices.append(
+                f'hfield geom{"s" * (len(labels) > 1)} {", ".join(labels)}: rigid ground where '
+                f"the robot meets it, not sand (the sand's surface is the {kind}); --set "
+                f'sand.surface.type=hfield --set sand.surface.geom={labels[0]} makes it the '
+                "sand's surface")
         model.geom_contype[ground] = model.geom_conaffinity[ground] = 0
 
     def terrain_warning(self):
