@@ -1161,8 +1161,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     columns, ROW_D ...) and their flags ((3, >= n) int8 work space: STATE, VISITED, SOLVED).
     Each row is MuJoCo's soft constraint f = D (aref - J (qvel+ - qvel) / dt) (N or N m):
     a two-sided row (an equality) is in every solve; a one-sided row (a limit, a contact's
-    pyramid edge) starts active (pushing, in the system) and leaves the set when its force
-    would pull. Their forces are written to rows[:, ROW_FORCE].
+    pyramid edge) starts active (pushing, in the system) where its reference acceleration
+    pushes (aref > 0: the force it would have if nothing else acted), and changes set as its
+    force at the solve's end velocities asks. Their forces are written to rows[:, ROW_FORCE].
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -1391,7 +1392,8 @@ def _constraint_start(constraints, qvel, timestep, matrix, momentum):
     f = D (aref - J (qvel+ - qvel) / dt), dt J^T f adds D J^T J to the system and J^T push,
     push = D (J qvel + dt aref), to the right-hand side. Each row's push into ROW_PUSH; the
     two-sided rows' D J^T J into matrix (nv x nv, overwritten; added by every solve) and
-    their J^T push to momentum; the one-sided rows active. Returns the two-sided rows."""
+    their J^T push to momentum; the one-sided rows active where aref > 0. Returns the
+    two-sided rows."""
     jac, columns, counts, rows, flags, n = constraints
     nv = qvel.shape[0]
     for i in range(nv):
@@ -1407,8 +1409,9 @@ def _constraint_start(constraints, qvel, timestep, matrix, momentum):
         push = damper * (speed + timestep * rows[r, ROW_AREF])
         rows[r, ROW_PUSH] = push
         if rows[r, ROW_KIND] == ONE_SIDED:
-            flags[STATE, r] = ACTIVE
-            flags[VISITED, r] = 1 << ACTIVE
+            state = ACTIVE if rows[r, ROW_AREF] > 0.0 else INACTIVE
+            flags[STATE, r] = state
+            flags[VISITED, r] = 1 << state
             continue
         two_sided += 1
         for i in used:
