@@ -60,8 +60,9 @@ def test_constraints_in_the_air_move_as_mujocos_own(jacobian):
     connect to a pendulum in another branch (rows that are not tree-sparse), its links
     colliding with each other and the pendulum, a wrist reaching its stops, a welded body,
     and an equality switched on halfway: everything started off its constraints and moving.
-    With the rows solved by the engine (and emptied for MuJoCo's own solve) the motion is
-    MuJoCo's, with more rows than the engine first had room for."""
+    With the rows solved by the engine (their Jacobian zeroed for MuJoCo's own solve) the
+    motion is MuJoCo's, and so are the forces mjData reports for them (efc_force), with more
+    rows than the engine first had room for."""
     own, own_data, model, data, engine = _own_and_engine(LINKAGE, 'hand', jacobian)
     for d in (own_data, data):
         d.qvel[:] = [1.0, -2.0, 0.5, 0.3, 0.8, 0.1]
@@ -74,7 +75,8 @@ def test_constraints_in_the_air_move_as_mujocos_own(jacobian):
         assert data.qpos == pytest.approx(own_data.qpos, abs=1e-9)
         kinds |= set(own_data.efc_type.tolist())
         most = max(most, data.nefc)
-        assert not data.efc_force.any()  # (every row the engine's, none MuJoCo's)
+        assert data.efc_force == pytest.approx(own_data.efc_force, rel=1e-6, abs=1e-6)
+        assert not data.qfrc_constraint.any()  # (every row the engine's: in qfrc_passive)
     constraint = mujoco.mjtConstraint
     assert kinds == {constraint.mjCNSTR_EQUALITY, constraint.mjCNSTR_LIMIT_JOINT,
                      constraint.mjCNSTR_CONTACT_PYRAMIDAL}
@@ -153,15 +155,17 @@ def test_legs_coupled_by_a_stiff_tendon_equality_stand_in_sand_in_one_solve_a_st
 
 def test_a_load_resting_on_the_robot_stands_in_sand_in_one_solve_a_step():
     """A 2 kg ball dropped onto the torso rests there (a rigid contact between two free
-    bodies) while the robot stands in sand: one solve a step, robot and ball at rest.
-    (With the contact left to MuJoCo after the sand's solve: 6.5 solves a step, 80 % of the
-    steps unsettled, jitter at 1 cm/s.)"""
+    bodies) while the robot stands in sand: one solve a step, robot and ball at rest, and a
+    touch sensor under the ball reads its weight. (With the contact left to MuJoCo after the
+    sand's solve: 6.5 solves a step, 80 % of the steps unsettled, jitter at 1 cm/s.)"""
     ball = ('<body name="ball" pos="0 0 0.35"><freejoint/>'
-            '<geom type="sphere" size="0.05" mass="2"/></body>')
-    model, data, engine = four_legs(world=ball)
+            '<geom type="sphere" size="0.05" mass="2"/><site name="under" size="0.06"/></body>')
+    touch = '<sensor><touch site="under"/></sensor>'
+    model, data, engine = four_legs(world=ball, extra=touch)
     solves, unsettled, top = settle(data, engine)
     assert solves == 1000 and unsettled == 0 and top < 1e-4
-    assert data.ncon == 1 and not data.efc_force.any()  # (the contact is the engine's)
+    assert data.ncon == 1 and not data.qfrc_constraint.any()  # (the contact is the engine's)
+    assert data.sensordata[0] == pytest.approx(2.0 * 9.81, rel=1e-3)  # N
     ball_z, torso_z = data.qpos[model.jnt_qposadr[-1] + 2], data.qpos[2]
     assert ball_z - torso_z == pytest.approx(0.03 + 0.05, abs=1e-3)  # on the torso
     assert np.linalg.norm(data.qvel[-6:-3]) < 1e-3  # m/s (it may roll, slowly)
@@ -175,7 +179,8 @@ def test_elliptic_cones_stay_mujocos(cone, mujocos):
     model, data, engine = four_legs(world=rock, cone=cone)
     for _ in range(500):
         engine.step()
-    assert data.ncon == 1 and bool(data.efc_force.any()) == mujocos
+    assert data.ncon == 1 and data.efc_force.any()  # (the rock pushes)
+    assert bool(data.qfrc_constraint.any()) == mujocos
 
 
 def test_explicit_methods_leave_constraints_to_mujoco():

@@ -36,8 +36,9 @@ are MuJoCo's other constraints, as the rows MuJoCo itself makes for them in mj_s
 (`take_constraint_rows`): equalities (two-sided), joint and tendon limits and contacts
 (one-sided, active while they push; a pyramidal cone's edges are such rows, an elliptic
 cone is not and stays MuJoCo's, as does tendon friction). Each is MuJoCo's soft constraint
-f = D (aref - J (qvel+ - qvel) / dt) in the same active-set iteration; emptied in mjData,
-MuJoCo's own solve in mj_step2 leaves them out. Left to that solve, after the sand's, they
+f = D (aref - J (qvel+ - qvel) / dt) in the same active-set iteration; with their Jacobian
+rows zeroed in mjData, MuJoCo's own solve in mj_step2 adds no force of theirs, and reports
+the solve's (`report_constraint_forces`). Left to that solve, after the sand's, they
 undid the end velocities the sand's solve chose (a knee at its stop, a stiff tendon
 coupling of a leg's joints, a load resting on the robot): the feet cycled through the sets
 every step."""
@@ -1347,15 +1348,16 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
 
 @njit(cache=True)
 def take_constraint_rows(kinds, efc_type, efc_j, efc_d, efc_aref, rownnz, rowadr, colind,
-                         sparse, jac, columns, counts, rows):
+                         sparse, jac, columns, counts, rows, efc_rows):
     """The rows of MuJoCo's constraints that the implicit law solves, taken from mjData
     after mj_step1 made them: each row e whose kind kinds[efc_type[e]] is TWO_SIDED or
     ONE_SIDED (KEPT: left to MuJoCo) is copied, its Jacobian row into jac (dense, nv wide)
     with its nonzero columns in columns[:, :counts], its efc_D and efc_aref into rows
-    (ROW_D ...), and emptied in mjData (Jacobian, D and aref zero: mj_step2's solve, any
-    solver, gives it no force). efc_j: mjData.efc_J, dense (nefc x nv, flat) or, with
-    `sparse`, its nonzeros (rownnz, rowadr, colind). Returns the rows taken, or minus the
-    rows needed where jac has fewer (then nothing is changed)."""
+    (ROW_D ...), its index e into efc_rows, and its Jacobian row and aref zeroed in mjData
+    (mj_step2's solve then gives it no generalised force, and, until
+    `report_constraint_forces`, no force). efc_j: mjData.efc_J, dense (nefc x nv, flat) or,
+    with `sparse`, its nonzeros (rownnz, rowadr, colind). Returns the rows taken, or minus
+    the rows needed where jac has fewer (then nothing is changed)."""
     nefc, nv = efc_type.shape[0], jac.shape[1]
     needed = 0
     for e in range(nefc):
@@ -1381,9 +1383,22 @@ def take_constraint_rows(kinds, efc_type, efc_j, efc_d, efc_aref, rownnz, rowadr
             efc_j[a] = 0.0
         counts[n] = count
         rows[n, ROW_D], rows[n, ROW_AREF], rows[n, ROW_KIND] = efc_d[e], efc_aref[e], kind
-        efc_d[e] = efc_aref[e] = 0.0
+        efc_rows[n] = e
+        efc_aref[e] = 0.0
         n += 1
     return n
+
+
+@njit(cache=True)
+def report_constraint_forces(rows, efc_rows, n, efc_d, efc_aref):
+    """The forces the implicit solve gave the n rows it took (`take_constraint_rows`), made
+    the forces MuJoCo's solve in mj_step2 reports for them (efc_force, and from it touch
+    sensors, contact forces, cfrc_ext): with the row's Jacobian zero, any of MuJoCo's solvers
+    gives it f = D aref, so aref = f / D (generalised force J^T f still zero: the engine's
+    is in qfrc_passive)."""
+    for r in range(n):
+        e = efc_rows[r]
+        efc_aref[e] = rows[r, ROW_FORCE] / efc_d[e]
 
 
 @njit(cache=True)

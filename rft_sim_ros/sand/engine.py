@@ -45,7 +45,7 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
     gather = coupling.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
         kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces,
-                   coupling.take_constraint_rows)
+                   coupling.take_constraint_rows, coupling.report_constraint_forces)
     else:
         kernels = (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
     return all(is_cached(kernel) for kernel in kernels)
@@ -99,9 +99,10 @@ class SandEngine:
     (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
     MuJoCo's friction constraint does not act a second time after the solve; and MuJoCo's
     equality, limit and contact constraints (but elliptic cones): each step the rows MuJoCo
-    made for them in mj_step1 are taken into the solve and emptied in mjData
-    (`coupling.take_constraint_rows`), so that mj_step2's solve leaves them out; their
-    forces are in qfrc_passive, not qfrc_constraint.
+    made for them in mj_step1 are taken into the solve, their Jacobian zeroed in mjData
+    (`coupling.take_constraint_rows`), so that mj_step2's solve adds no force of theirs but
+    reports the solve's in efc_force (`coupling.report_constraint_forces`); their
+    generalised force is in qfrc_passive, not qfrc_constraint.
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -275,21 +276,25 @@ class SandEngine:
         self._constraint_counts = np.zeros(rows, dtype=np.int64)
         self._constraint_rows = np.zeros((rows, coupling.ROW_COLUMNS))
         self._constraint_flags = np.zeros((3, rows), dtype=np.int8)
+        self._constraint_efc = np.zeros(rows, dtype=np.int64)  # their rows in mjData's efc
 
     def _compile_constraint_rows(self):
-        """`coupling.take_constraint_rows` compiled or loaded for mjData's arrays, on none of
-        their rows."""
+        """`coupling.take_constraint_rows` and `report_constraint_forces` compiled or loaded
+        for mjData's arrays, on none of their rows."""
         d = self.data
         coupling.take_constraint_rows(
             self._constraint_kinds, d.efc_type[:0], d.efc_J[:0], d.efc_D[:0], d.efc_aref[:0],
             d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0], self._sparse,
             self._constraint_jac, self._constraint_columns, self._constraint_counts,
-            self._constraint_rows)
+            self._constraint_rows, self._constraint_efc)
+        coupling.report_constraint_forces(self._constraint_rows, self._constraint_efc, 0,
+                                          d.efc_D[:0], d.efc_aref[:0])
 
     def _take_constraint_rows(self):
         """This step's rows of the constraints the implicit law solves, taken from mjData
         (made by mj_step1; `coupling.take_constraint_rows`) into the engine's arrays and the
-        CONSTRAINT_ROWS counter; the room doubles (at least) when a step needs more."""
+        CONSTRAINT_ROWS counter; the room doubles (at least) when a step needs more. Returns
+        the rows taken."""
         d = self.data
         taken = 0
         if d.nefc:
@@ -298,12 +303,13 @@ class SandEngine:
                     self._constraint_kinds, d.efc_type, d.efc_J, d.efc_D, d.efc_aref,
                     d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, self._sparse,
                     self._constraint_jac, self._constraint_columns, self._constraint_counts,
-                    self._constraint_rows)
+                    self._constraint_rows, self._constraint_efc)
                 if taken >= 0:
                     break
                 self._constraint_room(self.model.nv, max(-taken, 2 * len(self._constraint_rows)))
                 self._implicit_arrays = self._implicit_table()
         self._counters[coupling.CONSTRAINT_ROWS] = taken
+        return taken
 
     def _views(self):
         """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
@@ -452,8 +458,12 @@ class SandEngine:
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
         self._gather(self._gather_arrays.table)
-        self._take_constraint_rows()
+        taken = self._take_constraint_rows()
         coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
+        if taken:
+            d = self.data
+            coupling.report_constraint_forces(self._constraint_rows, self._constraint_efc,
+                                              taken, d.efc_D, d.efc_aref)
 
     def _load_kernels(self):
         """Load every compiled kernel the engine runs from numba's cache (or compile it) now,
