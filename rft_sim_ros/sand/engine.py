@@ -267,6 +267,7 @@ class SandEngine:
                               kind.mjCNSTR_CONTACT_FRICTIONLESS, kind.mjCNSTR_CONTACT_PYRAMIDAL):
                 self._constraint_kinds[int(one_sided)] = coupling.ONE_SIDED
         self._sparse = bool(mujoco.mj_isSparse(model))
+        self._dense_index = tuple(np.zeros(0, dtype=np.int32) for _ in range(3))
         self._constraint_room(model.nv, CONSTRAINT_ROOM)
 
     def _constraint_room(self, nv, rows):
@@ -298,12 +299,14 @@ class SandEngine:
         d = self.data
         taken = 0
         if d.nefc:
+            # (a dense Jacobian has no index arrays to read: three views fewer, ~0.5 us)
+            index = ((d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind) if self._sparse
+                     else self._dense_index)
             while True:
                 taken = coupling.take_constraint_rows(
-                    self._constraint_kinds, d.efc_type, d.efc_J, d.efc_D, d.efc_aref,
-                    d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind, self._sparse,
-                    self._constraint_jac, self._constraint_columns, self._constraint_counts,
-                    self._constraint_rows, self._constraint_efc)
+                    self._constraint_kinds, d.efc_type, d.efc_J, d.efc_D, d.efc_aref, *index,
+                    self._sparse, self._constraint_jac, self._constraint_columns,
+                    self._constraint_counts, self._constraint_rows, self._constraint_efc)
                 if taken >= 0:
                     break
                 self._constraint_room(self.model.nv, max(-taken, 2 * len(self._constraint_rows)))
