@@ -18,13 +18,13 @@ LINKAGE = """
   <body name="upper" pos="0 0 1"><joint name="shoulder" axis="0 1 0"/>
     <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="0.5"/>
     <body name="fore" pos="0.3 0 0"><joint name="elbow" axis="0 1 0"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="0.3"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="0.3" condim="1"/>
       <body name="hand" pos="0.3 0 0"><joint name="wrist" axis="0 1 0" range="-0.2 0.2"/>
         <geom type="sphere" size="0.03" mass="0.2"/></body>
     </body>
   </body>
   <body name="strut" pos="0.6 0 1.3"><joint name="pivot" axis="0 1 0"/>
-    <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.02" mass="0.4"/>
+    <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.02" mass="0.4" condim="1"/>
   </body>
   <body name="lever" pos="-0.3 0 1"><joint name="spin" axis="0 1 0"/>
     <joint name="lift" type="slide" axis="0 0 1"/>
@@ -32,7 +32,7 @@ LINKAGE = """
   </body>
 </worldbody>
 <tendon><fixed name="pair"><joint joint="shoulder" coef="1"/><joint joint="elbow" coef="0.5"/>
-</fixed></tendon>
+</fixed><fixed name="span" range="-0.05 0.05"><joint joint="pivot" coef="1"/></fixed></tendon>
 <equality>
   <tendon tendon1="pair" polycoef="0.1 0 0 0 0"/>
   <joint joint1="wrist" joint2="elbow" polycoef="0 -1 0 0 0" active="false"/>
@@ -58,7 +58,8 @@ def _own_and_engine(xml, body, jacobian=None):
 def test_constraints_in_the_air_move_as_mujocos_own(jacobian):
     """No sand: an arm whose joints a tendon equality couples, closed into a loop by a
     connect to a pendulum in another branch (rows that are not tree-sparse), its links
-    colliding with each other and the pendulum, a wrist reaching its stops, a welded body,
+    colliding with each other and the pendulum (frictionless where a geom has condim 1), a
+    wrist reaching its stops, the pendulum its tendon's range, a welded body,
     and an equality switched on halfway: everything started off its constraints and moving.
     With the rows solved by the engine (their Jacobian zeroed for MuJoCo's own solve) the
     motion is MuJoCo's, and so are the forces mjData reports for them (efc_force), with more
@@ -79,6 +80,7 @@ def test_constraints_in_the_air_move_as_mujocos_own(jacobian):
         assert not data.qfrc_constraint.any()  # (every row the engine's: in qfrc_passive)
     constraint = mujoco.mjtConstraint
     assert kinds == {constraint.mjCNSTR_EQUALITY, constraint.mjCNSTR_LIMIT_JOINT,
+                     constraint.mjCNSTR_LIMIT_TENDON, constraint.mjCNSTR_CONTACT_FRICTIONLESS,
                      constraint.mjCNSTR_CONTACT_PYRAMIDAL}
     assert most > CONSTRAINT_ROOM and engine.solves >= 500
 
