@@ -32,16 +32,10 @@ regularised Coulomb law with the same v_reg: a joint whose end speed is below v_
 (a damper F / v_reg: at most F), otherwise it slips (F against its motion). The engine takes
 it over from MuJoCo, whose friction constraint, acting after the sand's solve, would undo
 the end velocities the solve chose and keep a standing robot jittering between sets. So
-are MuJoCo's other constraints, as the rows MuJoCo itself makes for them in mj_step1
-(`take_constraint_rows`): equalities (two-sided), joint and tendon limits and contacts
-(one-sided, active while they push; a pyramidal cone's edges are such rows, an elliptic
-cone is not and stays MuJoCo's, as does tendon friction). Each is MuJoCo's soft constraint
-f = D (aref - J (qvel+ - qvel) / dt) in the same active-set iteration; with their Jacobian
-rows zeroed in mjData, MuJoCo's own solve in mj_step2 adds no force of theirs, and reports
-the solve's (`report_constraint_forces`). Left to that solve, after the sand's, they
-undid the end velocities the sand's solve chose (a knee at its stop, a stiff tendon
-coupling of a leg's joints, a load resting on the robot): the feet cycled through the sets
-every step."""
+are MuJoCo's equality, limit and contact constraints (but elliptic cones), as the rows
+MuJoCo itself makes for them (`constraint_rows`), in the same active-set iteration
+(`active_set`).
+"""
 from collections import namedtuple
 
 import numpy as np
@@ -51,28 +45,20 @@ from ..kernel_cache import forget_stale
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
+from .active_set import FROZEN, SOLVED, STATE, VISITED, next_set
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
+from .constraint_rows import (ROW_FORCE, add_matrix, constraint_forces, constraint_sets,
+                              constraint_start, constraint_terms)
 from .deformable import OUTSIDE, mark_cell, settle, touch_cell
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
                               map_factor, node_height, plane_top, surface_range,
                               tile_plane, window_range)
 
-MOVING, RESTING, OFF, FROZEN = 1, 0, 2, 3  # a >= 1, 0 <= a < 1, a < 0; anti-cycling
+MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0 (and FROZEN: anti-cycling)
 #: A frictional joint's sets: |end speed| < v_reg, end speed >= v_reg, <= -v_reg (and FROZEN).
 STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2
-#: A one-sided constraint row's sets (a limit, a contact's pyramid edge): pushing (MuJoCo's
-#: soft constraint in the system) or not.
-INACTIVE, ACTIVE = 0, 1
-#: The kinds of MuJoCo's constraint rows (`take_constraint_rows`' kinds, by mjtConstraint):
-#: left to MuJoCo, two-sided (equalities) or one-sided (limits, contacts but elliptic ones).
-KEPT, TWO_SIDED, ONE_SIDED = -1, 0, 1
-#: Columns of a constraint row the engine solves: MuJoCo's efc_D and efc_aref, its kind
-#: (TWO_SIDED or ONE_SIDED), its push D (J qvel + dt aref) (N s or N m s: its term of the
-#: system's right-hand side) and the force the step applies along it (N or N m).
-ROW_D, ROW_AREF, ROW_KIND, ROW_PUSH, ROW_FORCE = range(5)
-ROW_COLUMNS = 5
 #: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
 MEMORY_SHIFT = 2
 
@@ -83,8 +69,9 @@ MAX_ITERATIONS = 16
 #: second axis: |G|, across damper c (N s/m), the set coefficients.
 MAGNITUDE, ACROSS, COEF_ALONG, COEF_ACROSS, COEF_MOVING = 0, 1, 2, 3, 4
 WORK_ROWS = 5
-#: Rows of its per-plate flags (int8): final set, sets visited (bits), solved, wanted set.
-STATE, VISITED, SOLVED, WANTED = 0, 1, 2, 3
+#: Rows of its per-plate flags (int8): those of `active_set` (final set, sets visited,
+#: solved), then the set the last solve asks for.
+WANTED = 3
 FLAG_ROWS = 4
 
 
@@ -1193,7 +1180,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             acc += mass_h[r, c] * qvel[c]
         momentum[r] = acc
     constrained = constraints[5] > 0
-    two_sided = _constraint_start(constraints, qvel, timestep, space.constraint_matrix,
+    two_sided = constraint_start(constraints, qvel, timestep, space.constraint_matrix,
                                   momentum) if constrained else 0
     first = slot_start  # slot s holds plates first[s] .. first[s + 1] - 1
     h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
@@ -1267,9 +1254,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         if frictional:
             _friction_terms(friction, qvel, v_reg, timestep, system, rhs)
         if two_sided:
-            _add_matrix(space.constraint_matrix, system)
+            add_matrix(space.constraint_matrix, system)
         if constrained:
-            _constraint_terms(constraints, system, rhs)
+            constraint_terms(constraints, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
@@ -1279,7 +1266,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             frozen += cycles
             converged = changed == 0
         if constrained:
-            changed, cycles = _constraint_sets(constraints, qvel, solution, timestep)
+            changed, cycles = constraint_sets(constraints, qvel, solution, timestep)
             frozen += cycles
             converged &= changed == 0
         for s in range(slots):  # xi+ = J qvel+, over each chain's dofs
@@ -1342,182 +1329,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     if frictional:
         _friction_finish(friction, qvel, v_reg, solution, step)
     if constrained:
-        _constraint_forces(constraints, qvel, solution, timestep)
+        constraint_forces(constraints, qvel, solution, timestep)
     return iterations if converged and frozen == 0 else -iterations
-
-
-@njit(cache=True)
-def take_constraint_rows(kinds, efc_type, efc_j, efc_d, efc_aref, rownnz, rowadr, colind,
-                         sparse, jac, columns, counts, rows, efc_rows):
-    """The rows of MuJoCo's constraints that the implicit law solves, taken from mjData
-    after mj_step1 made them: each row e whose kind kinds[efc_type[e]] is TWO_SIDED or
-    ONE_SIDED (KEPT: left to MuJoCo) is copied, its Jacobian row into jac (dense, nv wide)
-    with its nonzero columns in columns[:, :counts], its efc_D and efc_aref into rows
-    (ROW_D ...), its index e into efc_rows, and its Jacobian row and aref zeroed in mjData
-    (mj_step2's solve then gives it no generalised force, and, until
-    `report_constraint_forces`, no force). efc_j: mjData.efc_J, dense (nefc x nv, flat) or,
-    with `sparse`, its nonzeros (rownnz, rowadr, colind). Returns the rows taken, or minus
-    the rows needed where jac has fewer (then nothing is changed)."""
-    nefc, nv = efc_type.shape[0], jac.shape[1]
-    needed = 0
-    for e in range(nefc):
-        needed += kinds[efc_type[e]] != KEPT
-    if needed > jac.shape[0]:
-        return -needed
-    n = 0
-    for e in range(nefc):
-        kind = kinds[efc_type[e]]
-        if kind == KEPT:
-            continue
-        row = jac[n]
-        for c in range(nv):
-            row[c] = 0.0
-        start, stop = (rowadr[e], rowadr[e] + rownnz[e]) if sparse else (e * nv, e * nv + nv)
-        count = 0
-        for a in range(start, stop):
-            c = colind[a] if sparse else a - start
-            if efc_j[a] != 0.0:
-                row[c] = efc_j[a]
-                columns[n, count] = c
-                count += 1
-            efc_j[a] = 0.0
-        counts[n] = count
-        rows[n, ROW_D], rows[n, ROW_AREF], rows[n, ROW_KIND] = efc_d[e], efc_aref[e], kind
-        efc_rows[n] = e
-        efc_aref[e] = 0.0
-        n += 1
-    return n
-
-
-@njit(cache=True)
-def report_constraint_forces(rows, efc_rows, n, efc_d, efc_aref):
-    """The forces the implicit solve gave the n rows it took (`take_constraint_rows`), made
-    the forces MuJoCo's solve in mj_step2 reports for them (efc_force, and from it touch
-    sensors, contact forces, cfrc_ext): with the row's Jacobian zero, any of MuJoCo's solvers
-    gives it f = D aref, so aref = f / D (generalised force J^T f still zero: the engine's
-    is in qfrc_passive)."""
-    for r in range(n):
-        e = efc_rows[r]
-        efc_aref[e] = rows[r, ROW_FORCE] / efc_d[e]
-
-
-@njit(cache=True)
-def _constraint_start(constraints, qvel, timestep, matrix, momentum):
-    """A step's start of its constraint rows (`implicit_wrenches`): with
-    f = D (aref - J (qvel+ - qvel) / dt), dt J^T f adds D J^T J to the system and J^T push,
-    push = D (J qvel + dt aref), to the right-hand side. Each row's push into ROW_PUSH; the
-    two-sided rows' D J^T J into matrix (nv x nv, overwritten; added by every solve) and
-    their J^T push to momentum; the one-sided rows active where aref > 0. Returns the
-    two-sided rows."""
-    jac, columns, counts, rows, flags, n = constraints
-    nv = qvel.shape[0]
-    for i in range(nv):
-        for c in range(nv):
-            matrix[i, c] = 0.0
-    two_sided = 0
-    for r in range(n):
-        row, used = jac[r], columns[r, :counts[r]]
-        speed = 0.0
-        for c in used:
-            speed += row[c] * qvel[c]
-        damper = rows[r, ROW_D]
-        push = damper * (speed + timestep * rows[r, ROW_AREF])
-        rows[r, ROW_PUSH] = push
-        if rows[r, ROW_KIND] == ONE_SIDED:
-            state = ACTIVE if rows[r, ROW_AREF] > 0.0 else INACTIVE
-            flags[STATE, r] = state
-            flags[VISITED, r] = 1 << state
-            continue
-        two_sided += 1
-        for i in used:
-            momentum[i] += row[i] * push
-            scaled, target = damper * row[i], matrix[i]
-            for c in used:
-                target[c] += scaled * row[c]
-    return two_sided
-
-
-@njit(cache=True, inline='always')
-def _add_matrix(matrix, system):
-    """system += matrix (same square shapes), element by element."""
-    for i in range(matrix.shape[0]):
-        for c in range(matrix.shape[1]):
-            system[i, c] += matrix[i, c]
-
-
-@njit(cache=True)
-def _constraint_terms(constraints, system, rhs):
-    """The active (or frozen) one-sided rows' terms of the implicit system: D J^T J into the
-    system, J^T push into the right-hand side (`_constraint_start`)."""
-    jac, columns, counts, rows, flags, n = constraints
-    for r in range(n):
-        if rows[r, ROW_KIND] != ONE_SIDED or flags[STATE, r] == INACTIVE:
-            continue
-        row, used = jac[r], columns[r, :counts[r]]
-        damper, push = rows[r, ROW_D], rows[r, ROW_PUSH]
-        for i in used:
-            rhs[i] += row[i] * push
-            scaled, target = damper * row[i], system[i]
-            for c in used:
-                target[c] += scaled * row[c]
-
-
-@njit(cache=True, inline='always')
-def _constraint_force(constraints, r, qvel, solution, timestep):
-    """Row r's force at the end velocities `solution` (N or N m): MuJoCo's soft constraint
-    D (aref - J (qvel+ - qvel) / dt)."""
-    jac, columns, counts, rows = constraints[0], constraints[1], constraints[2], constraints[3]
-    change = 0.0
-    for c in columns[r, :counts[r]]:
-        change += jac[r, c] * (solution[c] - qvel[c])
-    return rows[r, ROW_D] * (rows[r, ROW_AREF] - change / timestep)
-
-
-@njit(cache=True)
-def _constraint_sets(constraints, qvel, solution, timestep):
-    """After a solve: each one-sided row's set as solved (row SOLVED), then the set its force
-    asks for (active while it pushes; a return to a set it had this step: FROZEN, kept in).
-    Returns the rows that changed set and of those the ones frozen."""
-    rows, flags, n = constraints[3], constraints[4], constraints[5]
-    changed = frozen = 0
-    for r in range(n):
-        if rows[r, ROW_KIND] != ONE_SIDED:
-            continue
-        pushing = _constraint_force(constraints, r, qvel, solution, timestep) > 0.0
-        moved, cycle = _next_set(flags, r, ACTIVE if pushing else INACTIVE)
-        changed += moved
-        frozen += cycle
-    return changed, frozen
-
-
-@njit(cache=True)
-def _constraint_forces(constraints, qvel, solution, timestep):
-    """The force each row applies by the last solve into ROW_FORCE: its soft constraint's
-    (`_constraint_force`), zero for a one-sided row that solve had inactive (a frozen row
-    stays in)."""
-    rows, flags, n = constraints[3], constraints[4], constraints[5]
-    for r in range(n):
-        out = rows[r, ROW_KIND] == ONE_SIDED and flags[SOLVED, r] == INACTIVE
-        rows[r, ROW_FORCE] = 0.0 if out else _constraint_force(constraints, r, qvel, solution,
-                                                               timestep)
-
-
-@njit(cache=True, inline='always')
-def _next_set(flags, e, new):
-    """Element e (a frictional joint or a one-sided constraint row; flags rows STATE, VISITED,
-    SOLVED) after
-    a solve: its set as solved kept in SOLVED, then the set `new` its solution asks for,
-    unless frozen; a return to a set it had this step (a cycle) freezes it. Returns (moved,
-    cycle), each 0 or 1."""
-    old = flags[STATE, e]
-    flags[SOLVED, e] = old
-    if old == FROZEN or new == old:
-        return 0, 0
-    cycle = (flags[VISITED, e] >> new) & 1
-    new = FROZEN if cycle else new
-    flags[STATE, e] = new
-    flags[VISITED, e] |= 1 << new
-    return 1, cycle
 
 
 @njit(cache=True)
@@ -1554,7 +1367,7 @@ def _friction_sets(friction, solution, v_reg):
     dofs, flags = friction[0], friction[3]
     changed = frozen = 0
     for f in range(dofs.shape[0]):
-        moved, cycle = _next_set(flags, f, _friction_set(solution[dofs[f]], v_reg))
+        moved, cycle = next_set(flags, f, _friction_set(solution[dofs[f]], v_reg))
         changed += moved
         frozen += cycle
     return changed, frozen

@@ -20,7 +20,7 @@ from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
-from . import coupling
+from . import constraint_rows, coupling
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand, no_bed_arrays
 from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
@@ -45,7 +45,7 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
     gather = coupling.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
         kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces,
-                   coupling.take_constraint_rows, coupling.report_constraint_forces)
+                   constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces)
     else:
         kernels = (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
     return all(is_cached(kernel) for kernel in kernels)
@@ -99,10 +99,9 @@ class SandEngine:
     (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
     MuJoCo's friction constraint does not act a second time after the solve; and MuJoCo's
     equality, limit and contact constraints (but elliptic cones): each step the rows MuJoCo
-    made for them in mj_step1 are taken into the solve, their Jacobian zeroed in mjData
-    (`coupling.take_constraint_rows`), so that mj_step2's solve adds no force of theirs but
-    reports the solve's in efc_force (`coupling.report_constraint_forces`); their
-    generalised force is in qfrc_passive, not qfrc_constraint.
+    made for them in mj_step1 are taken into the solve (`constraint_rows`), their Jacobian
+    zeroed in mjData, so that mj_step2's solve adds no force of theirs but reports the
+    solve's in efc_force; their generalised force is in qfrc_passive, not qfrc_constraint.
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -259,44 +258,44 @@ class SandEngine:
         TWO_SIDED, ONE_SIDED by mjtConstraint; none with the explicit methods) and room for
         a step's rows, grown when a step has more (`_take_constraint_rows`)."""
         kind = mujoco.mjtConstraint
-        self._constraint_kinds = np.full(len(kind.__members__), coupling.KEPT,
+        self._constraint_kinds = np.full(len(kind.__members__), constraint_rows.KEPT,
                                          dtype=np.int64)
         if self._implicit_method:
-            self._constraint_kinds[int(kind.mjCNSTR_EQUALITY)] = coupling.TWO_SIDED
+            self._constraint_kinds[int(kind.mjCNSTR_EQUALITY)] = constraint_rows.TWO_SIDED
             for one_sided in (kind.mjCNSTR_LIMIT_JOINT, kind.mjCNSTR_LIMIT_TENDON,
                               kind.mjCNSTR_CONTACT_FRICTIONLESS, kind.mjCNSTR_CONTACT_PYRAMIDAL):
-                self._constraint_kinds[int(one_sided)] = coupling.ONE_SIDED
+                self._constraint_kinds[int(one_sided)] = constraint_rows.ONE_SIDED
         self._sparse = bool(mujoco.mj_isSparse(model))
         self._dense_index = tuple(np.zeros(0, dtype=np.int32) for _ in range(3))
         self._rows_taken = False  # (the last step's: its counter must return to 0)
         self._constraint_room(model.nv, CONSTRAINT_ROOM)
 
     def _constraint_room(self, nv, rows):
-        """Room for `rows` constraint rows of nv dofs (`coupling.take_constraint_rows`)."""
+        """Room for `rows` constraint rows of nv dofs (`constraint_rows`)."""
         self._constraint_jac = np.zeros((rows, nv))
         self._constraint_columns = np.zeros((rows, nv), dtype=np.int64)
         self._constraint_counts = np.zeros(rows, dtype=np.int64)
-        self._constraint_rows = np.zeros((rows, coupling.ROW_COLUMNS))
+        self._constraint_rows = np.zeros((rows, constraint_rows.ROW_COLUMNS))
         self._constraint_flags = np.zeros((3, rows), dtype=np.int8)
         self._constraint_efc = np.zeros(rows, dtype=np.int64)  # their rows in mjData's efc
 
     def _compile_constraint_rows(self):
-        """`coupling.take_constraint_rows` and `report_constraint_forces` compiled or loaded
-        for mjData's arrays, on none of their rows."""
+        """`constraint_rows`' take_constraint_rows and report_constraint_forces compiled or
+        loaded for mjData's arrays, on none of their rows."""
         d = self.data
-        coupling.take_constraint_rows(
+        constraint_rows.take_constraint_rows(
             self._constraint_kinds, d.efc_type[:0], d.efc_J[:0], d.efc_D[:0], d.efc_aref[:0],
             d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0], self._sparse,
             self._constraint_jac, self._constraint_columns, self._constraint_counts,
             self._constraint_rows, self._constraint_efc)
-        coupling.report_constraint_forces(self._constraint_rows, self._constraint_efc, 0,
-                                          d.efc_D[:0], d.efc_aref[:0])
+        constraint_rows.report_constraint_forces(self._constraint_rows, self._constraint_efc,
+                                                 0, d.efc_D[:0], d.efc_aref[:0])
 
     def _take_constraint_rows(self):
         """This step's rows of the constraints the implicit law solves, taken from mjData
-        (made by mj_step1; `coupling.take_constraint_rows`) into the engine's arrays and the
-        CONSTRAINT_ROWS counter (and whether there were any, `_rows_taken`); the room doubles
-        (at least) when a step needs more. Returns the rows taken."""
+        (made by mj_step1; `constraint_rows.take_constraint_rows`) into the engine's arrays and
+        the CONSTRAINT_ROWS counter (and whether there were any, `_rows_taken`); the room
+        doubles (at least) when a step needs more. Returns the rows taken."""
         d = self.data
         taken = 0
         if d.nefc:
@@ -304,7 +303,7 @@ class SandEngine:
             index = ((d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind) if self._sparse
                      else self._dense_index)
             while True:
-                taken = coupling.take_constraint_rows(
+                taken = constraint_rows.take_constraint_rows(
                     self._constraint_kinds, d.efc_type, d.efc_J, d.efc_D, d.efc_aref, *index,
                     self._sparse, self._constraint_jac, self._constraint_columns,
                     self._constraint_counts, self._constraint_rows, self._constraint_efc)
@@ -468,8 +467,9 @@ class SandEngine:
         coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
         if taken:
             d = self.data
-            coupling.report_constraint_forces(self._constraint_rows, self._constraint_efc,
-                                              taken, d.efc_D, d.efc_aref)
+            constraint_rows.report_constraint_forces(self._constraint_rows,
+                                                     self._constraint_efc, taken, d.efc_D,
+                                                     d.efc_aref)
 
     def _load_kernels(self):
         """Load every compiled kernel the engine runs from numba's cache (or compile it) now,
