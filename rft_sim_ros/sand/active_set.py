@@ -11,6 +11,9 @@ from numba import njit
 FROZEN = 3
 #: Rows of an element's flags.
 STATE, VISITED, SOLVED = 0, 1, 2
+#: An element's memory of its set in its last step (plates in the sand, frictional joints) is
+#: one int64: step << MEMORY_SHIFT | set.
+MEMORY_SHIFT = 2
 
 
 @njit(cache=True, inline='always')
@@ -27,3 +30,11 @@ def next_set(flags, e, new):
     flags[STATE, e] = new
     flags[VISITED, e] |= 1 << new
     return 1, cycle
+
+
+@njit(cache=True, inline='always')
+def remembered(memory, last):
+    """The set an element had in the step before by its memory (`MEMORY_SHIFT`; last: that
+    step << MEMORY_SHIFT), or -1 where it was not in that step or was frozen in it."""
+    previous = memory - last
+    return previous if (previous >= 0) & (previous < FROZEN) else -1

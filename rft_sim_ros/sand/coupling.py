@@ -34,7 +34,7 @@ it over from MuJoCo, whose friction constraint, acting after the sand's solve, w
 the end velocities the solve chose and keep a standing robot jittering between sets. So
 are MuJoCo's equality, limit and contact constraints (but elliptic cones), as the rows
 MuJoCo itself makes for them (`constraint_rows`), in the same active-set iteration
-(`active_set`).
+(`active_set`; joint friction's law: `joint_friction`).
 """
 from collections import namedtuple
 
@@ -45,22 +45,19 @@ from ..kernel_cache import forget_stale
 from ..rft.kernel import (AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE,
                            leading_forces)
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
-from .active_set import FROZEN, SOLVED, STATE, VISITED, next_set
+from .active_set import FROZEN, MEMORY_SHIFT, SOLVED, STATE, VISITED, remembered
 from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
 from .constraint_rows import (ROW_FORCE, add_matrix, constraint_forces, constraint_sets,
                               constraint_start, constraint_terms)
 from .deformable import OUTSIDE, mark_cell, settle, touch_cell
+from .joint_friction import friction_finish, friction_sets, friction_start, friction_terms
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
                               map_factor, node_height, plane_top, surface_range,
                               tile_plane, window_range)
 
 MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0 (and FROZEN: anti-cycling)
-#: A frictional joint's sets: |end speed| < v_reg, end speed >= v_reg, <= -v_reg (and FROZEN).
-STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2
-#: A plate's memory of its last step in the sand is one int64: step << MEMORY_SHIFT | set.
-MEMORY_SHIFT = 2
 
 #: Solves per step at most (the active set settles in one or two almost always).
 MAX_ITERATIONS = 16
@@ -112,7 +109,7 @@ PLATE_ROWS = LAW_ROWS + 7
 #: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
 #: (a plane or slope base: SURFACE, SLOPE_X, SLOPE_Y, which the bed's grid does not use),
 #: the height difference of axis neighbours at the angle of repose (m; `settle`), and a
-#: and a rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0:
+#: rigid grid's tile step (nodes) of its bounding planes (`surface.tile_planes`; 0:
 #: none).
 (SURFACE, ZETA, INV_A4, INV_B4, DYNAMIC, TRAILING, REST_SPEED, DAMPER, ACTUATORS,
  SLOPE_X, SLOPE_Y, GRID_X0, GRID_Y0, GRID_INV_DX, GRID_INV_DY,
@@ -1142,8 +1139,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     friction: (dofs, force, memory, flags, torque) of the J joints with friction: their dof
     indices, friction F (N m or N), memory (as the plates'), flags ((3, J) int8 work space:
     rows STATE, VISITED, SOLVED) and the friction torque the step applies (written, N m or
-    N). Each joint is in a set (STICK: -F qvel+ / v_reg in the system; SLIP_UP, SLIP_DOWN: a
-    constant -F or +F) chosen by its end speed like a plate's, starting from its last set.
+    N). Each joint is in a set (`joint_friction`: sticking, a damper -F qvel+ / v_reg in the
+    system; slipping, a constant -F or +F) chosen by its end speed like a plate's, starting
+    from its last set.
     constraints: (jac, columns, counts, rows, flags, n): the n rows of MuJoCo's constraints
     the engine solves this step (`take_constraint_rows`: Jacobian rows, their nonzero
     columns, ROW_D ...) and their flags ((3, >= n) int8 work space: STATE, VISITED, SOLVED).
@@ -1215,16 +1213,15 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     # moving (0/1)
     last = (step - 1) << MEMORY_SHIFT  # memory of a plate in the sand on the last step
     for j in range(k):
-        previous = memory[out_plate[j]] - last  # its set then, if in 0 .. FROZEN - 1
-        warm = (previous >= 0) & (previous < FROZEN)
-        state = previous if warm else (MOVING if speed[j] > v_reg else RESTING)
+        previous = remembered(memory[out_plate[j]], last)
+        state = previous if previous >= 0 else (MOVING if speed[j] > v_reg else RESTING)
         states[j] = state
         visited[j] = 1 << state
         _set_coefficients(j, state, speed[j], across[j], inv_reg, v_reg, coef_along,
                           coef_across, coef_moving)
     frictional = friction[0].shape[0] > 0
     if frictional:
-        _friction_start(friction, qvel, v_reg, last)
+        friction_start(friction, qvel, v_reg, last)
     w_moving, k_rank, k_iso = space.w_moving, space.k_rank, space.k_iso
     dirty = space.dirty  # slots whose accumulators must be summed again
     dirty[:slots] = True
@@ -1252,7 +1249,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             _add_slot(products[nv * s:nv * s + nv], force_terms[s], chain[s, :chain_count[s]],
                       timestep, system, rhs)
         if frictional:
-            _friction_terms(friction, qvel, v_reg, timestep, system, rhs)
+            friction_terms(friction, qvel, v_reg, timestep, system, rhs)
         if two_sided:
             add_matrix(space.constraint_matrix, system)
         if constrained:
@@ -1262,7 +1259,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             solved[j] = states[j]
         converged = True
         if frictional:
-            changed, cycles = _friction_sets(friction, solution, v_reg)
+            changed, cycles = friction_sets(friction, solution, v_reg)
             frozen += cycles
             converged = changed == 0
         if constrained:
@@ -1327,78 +1324,10 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     for j in range(k):
         memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
     if frictional:
-        _friction_finish(friction, qvel, v_reg, solution, step)
+        friction_finish(friction, qvel, v_reg, solution, step)
     if constrained:
         constraint_forces(constraints, qvel, solution, timestep)
     return iterations if converged and frozen == 0 else -iterations
-
-
-@njit(cache=True)
-def _friction_start(friction, qvel, v_reg, last):
-    """`implicit_wrenches`' frictional joints in their first sets: the last step's (their
-    memory, `last`: that step << MEMORY_SHIFT) unless frozen then, else their speed's."""
-    dofs, memory, flags = friction[0], friction[2], friction[3]
-    for f in range(dofs.shape[0]):
-        previous = memory[f] - last
-        warm = (previous >= 0) & (previous < FROZEN)
-        state = previous if warm else _friction_set(qvel[dofs[f]], v_reg)
-        flags[STATE, f] = state
-        flags[VISITED, f] = 1 << state
-
-
-@njit(cache=True)
-def _friction_terms(friction, qvel, v_reg, timestep, system, rhs):
-    """The frictional joints' terms of the implicit system: a sticking or frozen joint's
-    damper on the diagonal, a slipping joint's constant force in the right-hand side."""
-    dofs, forces, flags = friction[0], friction[1], friction[3]
-    for f in range(dofs.shape[0]):
-        i, force, state = dofs[f], forces[f], flags[STATE, f]
-        if state == SLIP_UP or state == SLIP_DOWN:
-            rhs[i] += timestep * force * (-1.0 if state == SLIP_UP else 1.0)
-        else:
-            system[i, i] += timestep * _friction_damper(state, force, qvel[i], v_reg)
-
-
-@njit(cache=True)
-def _friction_sets(friction, solution, v_reg):
-    """After a solve: each frictional joint's set as solved (row SOLVED), then the set its
-    end speed asks for (a return to a set it had this step: FROZEN). Returns the joints that
-    changed set and of those the ones frozen."""
-    dofs, flags = friction[0], friction[3]
-    changed = frozen = 0
-    for f in range(dofs.shape[0]):
-        moved, cycle = next_set(flags, f, _friction_set(solution[dofs[f]], v_reg))
-        changed += moved
-        frozen += cycle
-    return changed, frozen
-
-
-@njit(cache=True)
-def _friction_finish(friction, qvel, v_reg, solution, step):
-    """The friction torque the last solve assumed (friction's torque, N m or N) and each
-    joint's memory of its set in this step."""
-    dofs, forces, memory, flags, torque = friction
-    for f in range(dofs.shape[0]):
-        i, force, state = dofs[f], forces[f], flags[SOLVED, f]
-        if state == SLIP_UP or state == SLIP_DOWN:
-            torque[f] = force * (-1.0 if state == SLIP_UP else 1.0)
-        else:
-            torque[f] = -_friction_damper(state, force, qvel[i], v_reg) * solution[i]
-        memory[f] = (step << MEMORY_SHIFT) | state
-
-
-@njit(cache=True, inline='always')
-def _friction_set(speed, v_reg):
-    """The set a frictional joint's (end) speed asks for: STICK below v_reg, else SLIP_UP or
-    SLIP_DOWN with its sign."""
-    return SLIP_UP if speed >= v_reg else (SLIP_DOWN if speed <= -v_reg else STICK)
-
-
-@njit(cache=True, inline='always')
-def _friction_damper(state, force, speed, v_reg):
-    """Damper (N m s/rad or N s/m) of a sticking (F / v_reg) or frozen (F / max(|speed|,
-    v_reg), the secant through its speed at the step's start) joint of friction F."""
-    return force / (v_reg if state == STICK else max(abs(speed), v_reg))
 
 
 @njit(cache=True, error_model='numpy')

@@ -254,7 +254,7 @@ class SandEngine:
         model.dof_frictionloss[frictional] = 0.0
 
     def _take_constraints(self, model):
-        """Which of MuJoCo's constraint rows the implicit law solves (`coupling`'s KEPT,
+        """Which of MuJoCo's constraint rows the implicit law solves (`constraint_rows`' KEPT,
         TWO_SIDED, ONE_SIDED by mjtConstraint; none with the explicit methods) and room for
         a step's rows, grown when a step has more (`_take_constraint_rows`)."""
         kind = mujoco.mjtConstraint
