@@ -32,6 +32,7 @@ from pathlib import Path
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.constraint_rows',
                   'rft_sim_ros.sand.coupling', 'rft_sim_ros.sand.deformable',
+                  'rft_sim_ros.sand.elliptic_cones',
                   'rft_sim_ros.sand.joint_friction', 'rft_sim_ros.sand.surface_kernels',
                   'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics')
 #: The package's folder.

@@ -9,7 +9,7 @@ from rft_sim_ros.sand.engine import SandEngine
 from rft_sim_ros.sand.geoms import body_plates
 
 STANDING = """
-<mujoco><option timestep="0.001" integrator="implicitfast" cone="{cone}"/>
+<mujoco><option timestep="0.001" integrator="implicitfast" cone="{cone}" impratio="{impratio}"/>
 <default><joint damping="0.1" frictionloss="{friction}" armature="0.01"/>
   <position kp="60" kv="1.5"/></default>
 <worldbody>
@@ -34,17 +34,18 @@ CORNERS = ((0.12, 0.1), (0.12, -0.1), (-0.12, 0.1), (-0.12, -0.1))
 
 
 def four_legs(friction=0.0, knee='', servos=('hip', 'knee'), world='', extra='',
-              cone='pyramidal', override=False):
+              cone='pyramidal', impratio=1.0, override=False):
     """(model, data, SandEngine) of the body, 150 plates on each shin (foot included), zeta
     3.75. friction: every joint's frictionloss; knee: attributes of the knee joints (e.g. a
     range); servos: the joints with position servos; world: MJCF in the worldbody after the
     body (whose dofs stay first); extra: MJCF after the worldbody (tendons, equalities);
-    cone: MuJoCo's friction cone; override: MuJoCo's solref/solimp override on, at the
+    cone, impratio: MuJoCo's friction cone and impratio; override: MuJoCo's solref/solimp override on, at the
     knees' own values."""
     legs = ''.join(LEG.format(i=i, x=x, y=y, knee=knee) for i, (x, y) in enumerate(CORNERS))
     actuators = ''.join(f'<position joint="{j}{i}"/>' for i in range(4) for j in servos)
     model = mujoco.MjModel.from_xml_string(STANDING.format(
-        friction=friction, legs=legs, servos=actuators, world=world, extra=extra, cone=cone))
+        friction=friction, legs=legs, servos=actuators, world=world, extra=extra, cone=cone,
+        impratio=impratio))
     if override:
         model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_OVERRIDE
         model.opt.o_solref, model.opt.o_solimp = model.jnt_solref[0], model.jnt_solimp[0]

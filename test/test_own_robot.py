@@ -295,14 +295,3 @@ def test_a_models_own_hfield_is_rigid_ground_unless_it_is_the_sands_surface(tmp_
             assert said and said[0].endswith('--set sand.surface.type=hfield '
                                              "--set sand.surface.geom=park makes it the "
                                              "sand's surface")
-
-
-@pytest.mark.parametrize('cone', ['pyramidal', 'elliptic'])
-def test_elliptic_cones_with_rigid_obstacles_are_said(tmp_path, cone):
-    """Rigid contacts with elliptic cones stay MuJoCo's (docs/robots.md): a scene that has
-    them and something rigid to touch (a rock) says so at start-up."""
-    path = tmp_path / 'conebot.xml'
-    path.write_text(FLOORBOT.replace('<worldbody>', f'<option cone="{cone}"/><worldbody>', 1))
-    sim = Simulation(load_scene(path, {}))
-    said = [n for n in sim.notices if n.startswith('rigid contacts with elliptic friction')]
-    assert len(said) == (cone == 'elliptic')

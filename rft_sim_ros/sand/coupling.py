@@ -32,9 +32,9 @@ regularised Coulomb law with the same v_reg: a joint whose end speed is below v_
 (a damper F / v_reg: at most F), otherwise it slips (F against its motion). The engine takes
 it over from MuJoCo, whose friction constraint, acting after the sand's solve, would undo
 the end velocities the solve chose and keep a standing robot jittering between sets. So
-are MuJoCo's equality, limit and contact constraints (but elliptic cones), as the rows
-MuJoCo itself makes for them (`constraint_rows`), in the same active-set iteration
-(`active_set`; joint friction's law: `joint_friction`).
+are MuJoCo's equality, limit and contact constraints, as the rows MuJoCo itself makes for
+them (`constraint_rows`), in the same active-set iteration (`active_set`; joint friction's
+law: `joint_friction`); a step whose rows do not settle leaves them to MuJoCo's solve.
 """
 from collections import namedtuple
 
@@ -51,6 +51,8 @@ from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, 
 from .constraint_rows import (ROW_FORCE, add_matrix, constraint_forces, constraint_sets,
                               constraint_start, constraint_terms)
 from .deformable import OUTSIDE, mark_cell, settle, touch_cell
+from .elliptic_cones import (CONE_ITERATIONS, cone_errors, cone_reports, cone_settled, cone_start,
+                             cone_step, cone_terms)
 from .joint_friction import friction_finish, friction_sets, friction_start, friction_terms
 from .surface import FLAT, GRID, SLOPE
 from .surface_kernels import (base_height, bed_range, cell_height, grid_range, inside_grid,
@@ -119,10 +121,12 @@ PLATE_ROWS = LAW_ROWS + 7
 SETTING_COUNT = 27
 #: Its counters, one int64 vector in both tables, by index: steps taken (gathers), plates
 #: gathered at the last step, of those leading, slots, implicit solves so far, steps so
-#: far in which a plate was frozen or the sets had not settled, and MuJoCo's constraint rows
-#: the engine took this step (`take_constraint_rows`).
-STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED, CONSTRAINT_ROWS = range(7)
-COUNTER_COUNT = 7
+#: far in which a plate was frozen or the sets had not settled, MuJoCo's constraint rows
+#: the engine took this step (`take_constraint_rows`), steps so far whose rows were handed
+#: back to MuJoCo's solve (`implicit_wrenches`), and the last of them (its STEPS count).
+(STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED, CONSTRAINT_ROWS, HANDED_BACK,
+ HANDED_BACK_AT) = range(9)
+COUNTER_COUNT = 9
 
 #: The arrays of the gather kernels (`_gather_plates`), in the order of their `ArrayTable`;
 #: GATHER holds each field's row of the table. The engine builds the table from a
@@ -185,6 +189,10 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
     'qfrc_constraint', 'qfrc_bias',
+    # the constraint force of the rows left to MuJoCo held over a step whose rows were handed
+    # back (`implicit_step`), and the end velocities the cones are linearised at
+    # (`implicit_wrenches`)
+    'held_constraint', 'cone_point',
     # joint friction the engine solves (`implicit_wrenches`' friction)
     'friction_dofs', 'friction_force', 'friction_memory', 'friction_flags',
     'friction_torque',
@@ -621,9 +629,9 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
     d[v_com; omega]/d qvel of each slot's body (the linear part at the body's centre of mass,
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
     tau_free = passive + actuator + applied + constraint - bias (N or N m per dof), the
-    constraint force of the constraints the solve leaves to MuJoCo (elliptic contacts,
-    tendon friction) being MuJoCo's of the step before (mj_step2 computes this step's after
-    the solve; in a lasting contact the last one is the estimate).
+    constraint force of the constraints the solve leaves to MuJoCo (tendon friction) being
+    MuJoCo's of the step before (`implicit_step`; mj_step2 computes this step's after the
+    solve, and the last one is the estimate).
     chain[s, :chain_count[s]] (S x nv, S) become the dofs slot s's rows reach: its kinematic
     chain, leaf to root."""
     rows[:6 * slots + 1, :] = 0.0
@@ -1114,7 +1122,7 @@ def _accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_
 @njit(cache=True, error_model='numpy', fastmath=True)
 def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
                       dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
-                      friction, constraints):
+                      friction, constraints, point):
     """Sand wrenches over the coming step by the implicit law of the module docstring.
 
     jac: (>= 6S+1, nv) the 6S slot Jacobian rows, then tau_free, every generalised force
@@ -1149,7 +1157,11 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     a two-sided row (an equality) is in every solve; a one-sided row (a limit, a contact's
     pyramid edge) starts active (pushing, in the system) where its reference acceleration
     pushes (aref > 0: the force it would have if nothing else acted), and changes set as its
-    force at the solve's end velocities asks. Their forces are written to rows[:, ROW_FORCE].
+    force at the solve's end velocities asks. An elliptic cone's rows (`elliptic_cones`) are
+    in every solve, linearised at `point` ((nv,) work space: the end velocities they are
+    linearised at); after a solve where some cone's force is off MuJoCo's, the next solve is
+    its Newton step (`cone_step`) with every other element keeping its set. Their forces
+    are written to rows[:, ROW_FORCE].
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -1157,7 +1169,12 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     at rest, about G for a plate that keeps its speed, less as it slows - linear and
     opposing the plate's motion (RFT's G always opposes d). The wrench is exactly what the
     last solve assumed. Returns the number of solves, negative if some plate was frozen or
-    the sets had not settled within MAX_ITERATIONS. A joint that would return to a set is
+    the sets had not settled within MAX_ITERATIONS, and whether the constraint rows are
+    handed back to MuJoCo: where the rows' forces are not MuJoCo's at the last solve's end
+    velocities (a row or cone frozen, or the iteration ended first:
+    `constraint_rows.constraint_forces`), the step applies none of them and MuJoCo's own
+    solve in mj_step2 solves them, exactly, with the sand's wrenches as this solve left them
+    (the engine restores their rows, `constraint_rows.return_constraint_rows`). A joint that would return to a set is
     frozen likewise (a damper F / max(|qvel|, v_reg) through its speed at the step's start).
 
     Each plate enters its slot's accumulators with coefficients set by its set: moving ->
@@ -1178,8 +1195,14 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             acc += mass_h[r, c] * qvel[c]
         momentum[r] = acc
     constrained = constraints[5] > 0
-    two_sided = constraint_start(constraints, qvel, timestep, space.constraint_matrix,
-                                  momentum) if constrained else 0
+    two_sided = cones = 0
+    if constrained:
+        two_sided = constraint_start(constraints, qvel, timestep, space.constraint_matrix,
+                                     momentum)
+        cones = cone_start(constraints, timestep)
+    for i in range(nv if cones else 0):
+        point[i] = qvel[i]
+    cone_steps = cones_off = 0  # the cones' Newton steps; cones off MuJoCo's at the last solve
     first = slot_start  # slot s holds plates first[s] .. first[s + 1] - 1
     h, u = force, table[DIRECTION:DIRECTION + 6]  # [G; r x G], [d; r x d]
     magnitude = work[MAGNITUDE]
@@ -1229,7 +1252,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     chain_work = space.chain_work
     system, rhs, factored, solution = space.system, space.rhs, space.factored, space.solution
     iterations = 0
-    frozen = 0  # plates frozen this step
+    frozen = 0  # plates, joints, rows and cones frozen this step
     converged = False
     while iterations < MAX_ITERATIONS and not converged:
         iterations += 1
@@ -1254,15 +1277,29 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             add_matrix(space.constraint_matrix, system)
         if constrained:
             constraint_terms(constraints, system, rhs)
+        if cones:
+            cone_terms(constraints, system, rhs)
         _checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
-        converged = True
-        if frictional:
+        # the cones' Newton step first, the others keeping their sets; then the sets
+        cone_pass = False
+        if cones:
+            cones_off = cone_errors(constraints, qvel, solution, timestep)
+            cone_pass = cones_off > 0 and cone_steps < CONE_ITERATIONS
+            if cone_pass:
+                cone_steps += 1
+                cone_step(constraints, point, solution, system, rhs, timestep)
+            else:
+                for i in range(nv):
+                    point[i] = solution[i]
+                cone_settled(constraints, timestep)
+        converged = not cone_pass
+        if frictional and not cone_pass:
             changed, cycles = friction_sets(friction, solution, v_reg)
             frozen += cycles
             converged = changed == 0
-        if constrained:
+        if constrained and not cone_pass:
             changed, cycles = constraint_sets(constraints, qvel, solution, timestep)
             frozen += cycles
             converged &= changed == 0
@@ -1273,6 +1310,8 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                 for i in range(top):  # (zero beyond the chain: a prefix vectorises)
                     acc += jac[r, i] * solution[i]
                 xi_new[r] = acc
+        if cone_pass:
+            continue
         for s in range(slots):  # the set each plate's end speed along d asks for
             x0, x1, x2 = xi_new[6 * s], xi_new[6 * s + 1], xi_new[6 * s + 2]
             x3, x4, x5 = xi_new[6 * s + 3], xi_new[6 * s + 4], xi_new[6 * s + 5]
@@ -1325,9 +1364,12 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         memory[out_plate[j]] = (step << MEMORY_SHIFT) | states[j]
     if frictional:
         friction_finish(friction, qvel, v_reg, solution, step)
+    handed_back = False
     if constrained:
-        constraint_forces(constraints, qvel, solution, timestep)
-    return iterations if converged and frozen == 0 else -iterations
+        handed_back = constraint_forces(constraints, qvel, solution, timestep) + cones_off > 0
+        if cones:
+            cone_reports(constraints)
+    return (iterations if converged and frozen == 0 else -iterations), handed_back
 
 
 @njit(cache=True, error_model='numpy')
@@ -1341,7 +1383,12 @@ def implicit_step(timestep, arrays):
     joints' friction and the rows' forces (J^T f) are added to qfrc_passive, which mj_step2
     applies. Arguments as in those functions (timestep: s); arrays: the table of an
     `ArrayTable` of `ImplicitArrays`, settings REST_SPEED, DAMPER, ACTUATORS. Adds the solves
-    to the SOLVES counter and counts the step in UNSETTLED where it did not settle."""
+    to the SOLVES counter, counts the step in UNSETTLED where it did not settle and in
+    HANDED_BACK where its rows are handed back to MuJoCo (then none of their forces is
+    added). The constraint force of the constraints left to MuJoCo is taken as mjData's
+    qfrc_constraint of the step before (`prepare_solve`), except after a step whose rows were
+    handed back, whose qfrc_constraint holds theirs too: then as the one that step took
+    (held_constraint)."""
     a = IMPLICIT
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     k, slots, step = counters[GATHERED], counters[SLOTS], counters[STEPS]
@@ -1360,6 +1407,8 @@ def implicit_step(timestep, arrays):
     qfrc_actuator = float_vector(arrays, a.qfrc_actuator)
     qfrc_applied = float_vector(arrays, a.qfrc_applied)
     qfrc_constraint = float_vector(arrays, a.qfrc_constraint)
+    after_hand_back = counters[HANDED_BACK_AT] > 0 and counters[HANDED_BACK_AT] == step - 1
+    lagged = float_vector(arrays, a.held_constraint) if after_hand_back else qfrc_constraint
     friction = (int_vector(arrays, a.friction_dofs), float_vector(arrays, a.friction_force),
                 int_vector(arrays, a.friction_memory), int8_matrix(arrays, a.friction_flags),
                 float_vector(arrays, a.friction_torque))
@@ -1403,22 +1452,30 @@ def implicit_step(timestep, arrays):
         rows = jac[:6 * slots + 1]
         prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_rootid,
                       body_dofnum, body_dofadr, body_parentid, dof_parentid, qfrc_passive,
-                      qfrc_actuator, qfrc_applied, qfrc_constraint, qfrc_bias, rows, space.chain,
+                      qfrc_actuator, qfrc_applied, lagged, qfrc_bias, rows, space.chain,
                       space.chain_count)
         implicit_damping(settings[DAMPER] != 0.0, settings[ACTUATORS] != 0.0, dof_damping,
                          trntype, trnid, gear, jnt_type, jnt_dofadr, dyntype, gaintype, gainprm,
                          biastype, biasprm, forcelimited, forcerange, ctrl, act, actadr,
                          actuator_force, damping)
         implicit_mass(mass, damping, timestep)
-        iterations = implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg,
-                                       rows, space, mass, dof_parentid, qvel, timestep, step,
-                                       memory, work, flags, xi_new, wrench, friction,
-                                       constraints)
+        point = float_vector(arrays, a.cone_point) if taken > 0 else qvel  # (unused: none)
+        iterations, handed_back = implicit_wrenches(
+            k, slots, slot_start, out_plate, table, force, v_reg, rows, space, mass,
+            dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench, friction,
+            constraints, point)
         counters[SOLVES] += abs(iterations)
         counters[UNSETTLED] += iterations < 0
+        if handed_back:
+            counters[HANDED_BACK] += 1
+            counters[HANDED_BACK_AT] = step
+            if not after_hand_back:
+                held = float_vector(arrays, a.held_constraint)
+                for i in range(held.shape[0]):
+                    held[i] = qfrc_constraint[i]
         for f in range(friction_dofs.shape[0]):  # (mj_step2 adds qfrc_passive as it stands)
             qfrc_passive[friction_dofs[f]] += friction_torque[f]
-        for r in range(taken):
+        for r in range(0 if handed_back else taken):
             force_r = constraint_rows[r, ROW_FORCE]
             for c in constraint_columns[r, :constraint_counts[r]]:
                 qfrc_passive[c] += constraint_jac[r, c] * force_r

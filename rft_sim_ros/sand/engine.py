@@ -45,7 +45,8 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
     gather = coupling.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
         kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces,
-                   constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces)
+                   constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
+                   constraint_rows.return_constraint_rows)
     else:
         kernels = (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
     return all(is_cached(kernel) for kernel in kernels)
@@ -98,10 +99,12 @@ class SandEngine:
     frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
     (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
     MuJoCo's friction constraint does not act a second time after the solve; and MuJoCo's
-    equality, limit and contact constraints (but elliptic cones): each step the rows MuJoCo
-    made for them in mj_step1 are taken into the solve (`constraint_rows`), their Jacobian
-    zeroed in mjData, so that mj_step2's solve adds no force of theirs but reports the
-    solve's in efc_force; their generalised force is in qfrc_passive, not qfrc_constraint.
+    equality, limit and contact constraints (pyramidal and elliptic cones): each step the
+    rows MuJoCo made for them in mj_step1 are taken into the solve (`constraint_rows`),
+    their Jacobian zeroed in mjData, so that mj_step2's solve adds no force of theirs but
+    reports the solve's in efc_force; their generalised force is in qfrc_passive, not
+    qfrc_constraint. A step whose rows the solve cannot settle hands them back to MuJoCo's
+    solve (restored in mjData; `handed_back_steps`).
     """
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
@@ -265,10 +268,16 @@ class SandEngine:
             for one_sided in (kind.mjCNSTR_LIMIT_JOINT, kind.mjCNSTR_LIMIT_TENDON,
                               kind.mjCNSTR_CONTACT_FRICTIONLESS, kind.mjCNSTR_CONTACT_PYRAMIDAL):
                 self._constraint_kinds[int(one_sided)] = constraint_rows.ONE_SIDED
+            self._constraint_kinds[int(kind.mjCNSTR_CONTACT_ELLIPTIC)] = constraint_rows.CONE
         self._sparse = bool(mujoco.mj_isSparse(model))
         self._dense_index = tuple(np.zeros(0, dtype=np.int32) for _ in range(3))
+        # contacts' mu, friction, dim, efc_address (read for elliptic cones only)
+        self._no_contacts = (np.zeros(0), np.zeros((0, 5)), np.zeros(0, dtype=np.int32),
+                             np.zeros(0, dtype=np.int32))
         self._rows_taken = False  # (the last step's: its counter must return to 0)
         self._constraint_room(model.nv, CONSTRAINT_ROOM)
+        self._held_constraint = np.zeros(model.nv)  # (`coupling.implicit_step`)
+        self._cone_point = np.zeros(model.nv)  # (`coupling.implicit_wrenches`)
 
     def _constraint_room(self, nv, rows):
         """Room for `rows` constraint rows of nv dofs (`constraint_rows`)."""
@@ -284,12 +293,36 @@ class SandEngine:
         loaded for mjData's arrays, on none of their rows."""
         d = self.data
         constraint_rows.take_constraint_rows(
-            self._constraint_kinds, d.efc_type[:0], d.efc_J[:0], d.efc_D[:0], d.efc_aref[:0],
-            d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0], self._sparse,
-            self._constraint_jac, self._constraint_columns, self._constraint_counts,
-            self._constraint_rows, self._constraint_efc)
+            self._constraint_kinds, d.efc_type[:0], d.efc_id[:0], d.efc_J[:0], d.efc_D[:0],
+            d.efc_aref[:0], d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0],
+            self._sparse, *self._no_contacts, self._constraint_jac, self._constraint_columns,
+            self._constraint_counts, self._constraint_rows, self._constraint_efc)
         constraint_rows.report_constraint_forces(self._constraint_rows, self._constraint_efc,
-                                                 0, d.efc_D[:0], d.efc_aref[:0])
+                                                 0, d.efc_aref[:0])
+        constraint_rows.return_constraint_rows(
+            self._constraint_jac, self._constraint_rows, self._constraint_efc, 0, d.efc_J[:0],
+            d.efc_aref[:0], d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0],
+            self._sparse, self.model.nv)
+
+    def _contacts(self):
+        """mjData's contacts' mu, friction, dim and efc_address as the cones' rows read them
+        (`constraint_rows.take_constraint_rows`): contiguous copies where the model has
+        elliptic cones (as it has now: mjModel's option may change) and there are contacts
+        (mjData's are strided views, another kernel signature), else empty."""
+        d = self.data
+        if not d.ncon or self._options.cone != mujoco.mjtCone.mjCONE_ELLIPTIC:
+            return self._no_contacts
+        contact = d.contact
+        return (np.ascontiguousarray(contact.mu), np.ascontiguousarray(contact.friction),
+                np.ascontiguousarray(contact.dim), np.ascontiguousarray(contact.efc_address))
+
+    def _jacobian_index(self):
+        """mjData's index arrays of a sparse constraint Jacobian (efc_J_rownnz, efc_J_rowadr,
+        efc_J_colind); empty ones for a dense Jacobian, which has none to read (three views
+        fewer, ~0.5 us)."""
+        d = self.data
+        return ((d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind) if self._sparse
+                else self._dense_index)
 
     def _take_constraint_rows(self):
         """This step's rows of the constraints the implicit law solves, taken from mjData
@@ -299,14 +332,14 @@ class SandEngine:
         d = self.data
         taken = 0
         if d.nefc:
-            # (a dense Jacobian has no index arrays to read: three views fewer, ~0.5 us)
-            index = ((d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind) if self._sparse
-                     else self._dense_index)
+            index = self._jacobian_index()
+            contacts = self._contacts()
             while True:
                 taken = constraint_rows.take_constraint_rows(
-                    self._constraint_kinds, d.efc_type, d.efc_J, d.efc_D, d.efc_aref, *index,
-                    self._sparse, self._constraint_jac, self._constraint_columns,
-                    self._constraint_counts, self._constraint_rows, self._constraint_efc)
+                    self._constraint_kinds, d.efc_type, d.efc_id, d.efc_J, d.efc_D,
+                    d.efc_aref, *index, self._sparse, *contacts, self._constraint_jac,
+                    self._constraint_columns, self._constraint_counts, self._constraint_rows,
+                    self._constraint_efc)
                 if taken >= 0:
                     break
                 self._constraint_room(self.model.nv, max(-taken, 2 * len(self._constraint_rows)))
@@ -365,6 +398,7 @@ class SandEngine:
             subtree_com=d.subtree_com, cdof=d.cdof, qvel=d.qvel, qfrc_passive=d.qfrc_passive,
             qfrc_actuator=d.qfrc_actuator, qfrc_applied=d.qfrc_applied,
             qfrc_constraint=d.qfrc_constraint, qfrc_bias=d.qfrc_bias,
+            held_constraint=self._held_constraint, cone_point=self._cone_point,
             friction_dofs=self._friction_dofs, friction_force=self._friction_force,
             friction_memory=self._friction_memory, friction_flags=self._friction_flags,
             friction_torque=self._friction_torque, constraint_jac=self._constraint_jac,
@@ -413,6 +447,12 @@ class SandEngine:
         """Steps so far in which a plate was frozen (anti-cycling) or the sets had not
         settled."""
         return int(self._counters[coupling.UNSETTLED])
+
+    @property
+    def handed_back_steps(self):
+        """Steps so far whose constraint rows the implicit solve could not settle and handed
+        back to MuJoCo's own solve (`coupling.implicit_wrenches`)."""
+        return int(self._counters[coupling.HANDED_BACK])
 
     @property
     def plates_total(self):
@@ -466,10 +506,14 @@ class SandEngine:
         taken = self._take_constraint_rows() if self.data.nefc or self._rows_taken else 0
         coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
         if taken:
-            d = self.data
-            constraint_rows.report_constraint_forces(self._constraint_rows,
-                                                     self._constraint_efc, taken, d.efc_D,
-                                                     d.efc_aref)
+            d, counters = self.data, self._counters
+            if counters[coupling.HANDED_BACK_AT] == counters[coupling.STEPS]:  # MuJoCo's
+                constraint_rows.return_constraint_rows(
+                    self._constraint_jac, self._constraint_rows, self._constraint_efc, taken,
+                    d.efc_J, d.efc_aref, *self._jacobian_index(), self._sparse, self.model.nv)
+            else:
+                constraint_rows.report_constraint_forces(self._constraint_rows,
+                                                         self._constraint_efc, taken, d.efc_aref)
 
     def _load_kernels(self):
         """Load every compiled kernel the engine runs from numba's cache (or compile it) now,

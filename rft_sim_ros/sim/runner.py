@@ -262,10 +262,12 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
                             for i, name in enumerate(sim.engine.body_names)},
         'plates_active_mean': active_sum / max(1, len(series)),
         'low_velocity': sim.engine.low_velocity.method,
-        # implicit treatment: solves per step, and steps in which a plate had to be frozen
-        # (anti-cycling) or the sets did not settle (see sim/coupling.py)
+        # implicit treatment: solves per step, steps in which a plate had to be frozen
+        # (anti-cycling) or the sets did not settle, and steps whose constraint rows were
+        # handed back to MuJoCo's solve (see sand/coupling.py)
         'implicit_solves_per_step': sim.engine.solves / max(1, sim.steps),
         'implicit_unsettled_steps': sim.engine.unsettled_steps,
+        'implicit_rows_handed_back_steps': sim.engine.handed_back_steps,
         'normalisation': scene.normalisation,
         'stable': stable,
         'interrupted': interrupted,

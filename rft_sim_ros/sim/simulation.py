@@ -145,13 +145,6 @@ class Simulation:
         self._ground_to_sand()
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-        elif (self.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
-              and scene.low_velocity['method'] == 'implicit'):
-            self.notices.append(
-                'rigid contacts with elliptic friction cones (MJCF <option cone="elliptic"/>) '
-                "stay MuJoCo's, solved after the sand's: a foot resting on a rigid obstacle "
-                'settles in more solves a step; with cone="pyramidal" the engine solves them '
-                'with the sand')
         self.data = mujoco.MjData(self.model)
         # initial pose: ros2_control initial values of the description, then the scene's
         self._initial_positions = {**(self.description.initial_positions or {}),
