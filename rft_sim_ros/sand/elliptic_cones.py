@@ -39,17 +39,23 @@ HALVINGS = 10
 ARMIJO = 1e-4
 
 
-@njit(cache=True)
-def cone_zone(rows, r, dim, column):
-    """The zone (TOP, BOTTOM, MIDDLE) of the cone whose dim rows start at row r, at the jar
-    in rows[:, column], as MuJoCo's mj_constraintUpdate decides it."""
+@njit(cache=True, inline='always')
+def _dual(rows, r, dim, column):
+    """(mu, N, T) of the cone whose dim rows start at row r, at the jar in rows[:, column]:
+    its regular dual space U = diag(mu, friction) jar, N = U_0, T = |U_1..|."""
     mu = rows[r, ROW_FRICTION]
-    normal = rows[r, column] * mu
     tangent = 0.0
     for a in range(1, dim):
         value = rows[r + a, column] * rows[r + a, ROW_FRICTION]
         tangent += value * value
-    tangent = np.sqrt(tangent)
+    return mu, rows[r, column] * mu, np.sqrt(tangent)
+
+
+@njit(cache=True)
+def cone_zone(rows, r, dim, column):
+    """The zone (TOP, BOTTOM, MIDDLE) of the cone whose dim rows start at row r, at the jar
+    in rows[:, column], as MuJoCo's mj_constraintUpdate decides it."""
+    mu, normal, tangent = _dual(rows, r, dim, column)
     if normal >= mu * tangent or (tangent <= 0.0 and normal >= 0.0):
         return TOP
     if mu * normal + tangent <= 0.0 or (tangent <= 0.0 and normal < 0.0):
@@ -73,13 +79,7 @@ def cone_force(rows, r, dim, zone, column, force, hessian):
             force[a] = -rows[r + a, ROW_D] * rows[r + a, column]
             hessian[a, a] = rows[r + a, ROW_D]
         return
-    mu = rows[r, ROW_FRICTION]
-    normal = rows[r, column] * mu
-    tangent = 0.0
-    for a in range(1, dim):
-        value = rows[r + a, column] * rows[r + a, ROW_FRICTION]
-        tangent += value * value
-    tangent = np.sqrt(tangent)
+    mu, normal, tangent = _dual(rows, r, dim, column)
     scaled = rows[r, ROW_D] / (mu * mu * (1.0 + mu * mu))
     force[0] = -scaled * (normal - mu * tangent) * mu
     hessian[0, 0] = 1.0
@@ -120,20 +120,32 @@ def _linearise(rows, r, dim, timestep, flags):
 
 
 @njit(cache=True)
-def cone_start(constraints, timestep):
-    """A step's start of its cones (after `constraint_rows.constraint_start`, which sets their
-    ROW_START): each linearised at its jar without a change of velocity, -aref. Returns the
-    cones."""
+def _linearise_all(constraints, column, timestep):
+    """Every cone linearised at the jar in rows[:, column] (into ROW_POINT; `_linearise`).
+    Returns the cones."""
     rows, flags, n = constraints[3], constraints[4], constraints[5]
     cones = 0
     for r in range(n):
-        dim = int(rows[r, ROW_DIM])
-        if rows[r, ROW_KIND] == CONE and dim > 0:
-            for a in range(r, r + dim):
-                rows[a, ROW_POINT] = -rows[a, ROW_AREF]
-            _linearise(rows, r, dim, timestep, flags)
-            cones += 1
+        dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
+        if dim == 0:
+            continue
+        for a in range(r, r + dim):
+            rows[a, ROW_POINT] = rows[a, column]
+        _linearise(rows, r, dim, timestep, flags)
+        cones += 1
     return cones
+
+
+@njit(cache=True)
+def cone_start(constraints, timestep):
+    """A step's start of its cones (after `constraint_rows.constraint_start`, which sets their
+    ROW_START): each linearised at its jar without a change of velocity, -aref (ROW_JAR).
+    Returns the cones."""
+    rows, n = constraints[3], constraints[5]
+    for r in range(n):
+        if rows[r, ROW_KIND] == CONE:
+            rows[r, ROW_JAR] = -rows[r, ROW_AREF]
+    return _linearise_all(constraints, ROW_JAR, timestep)
 
 
 @njit(cache=True)
@@ -211,7 +223,8 @@ def cone_step(constraints, point, solution, system, rhs, timestep):
     S v - b + dt J^T (f_lin(v) - f(v)): at v = point + alpha (solution - point),
     (1 - alpha) (S point - b) + dt J^T (f_lin - f). The cones are linearised again at that
     v, which becomes `point`. Returns alpha."""
-    jac, columns, counts, rows, flags, n = constraints
+    jac, columns, counts, rows, n = (constraints[0], constraints[1], constraints[2],
+                                      constraints[3], constraints[5])
     nv = point.shape[0]
     base, residual = np.empty(nv), np.empty(nv)
     force, hessian = np.empty(CONE_ROWS), np.empty((CONE_ROWS, CONE_ROWS))
@@ -243,13 +256,7 @@ def cone_step(constraints, point, solution, system, rhs, timestep):
         if squared <= (1.0 - 2.0 * ARMIJO * alpha) * start or halving == HALVINGS:
             break
         alpha *= 0.5
-    for r in range(n):
-        dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
-        if dim == 0:
-            continue
-        for a in range(r, r + dim):
-            rows[a, ROW_POINT] = rows[a, ROW_TRIAL]
-        _linearise(rows, r, dim, timestep, flags)
+    _linearise_all(constraints, ROW_TRIAL, timestep)
     for i in range(nv):
         point[i] += alpha * (solution[i] - point[i])
     return alpha
@@ -260,14 +267,7 @@ def cone_settled(constraints, timestep):
     """Where the cones' forces hold at the last solve's end velocities (`cone_errors`): each
     linearised there (ROW_POINT = ROW_JAR), for the solves the plates' and rows' sets may
     still ask for."""
-    rows, flags, n = constraints[3], constraints[4], constraints[5]
-    for r in range(n):
-        dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
-        if dim == 0:
-            continue
-        for a in range(r, r + dim):
-            rows[a, ROW_POINT] = rows[a, ROW_JAR]
-        _linearise(rows, r, dim, timestep, flags)
+    _linearise_all(constraints, ROW_JAR, timestep)
 
 
 @njit(cache=True)
