@@ -192,20 +192,22 @@ SLIDING = """
 </worldbody></mujoco>"""
 
 
-@pytest.mark.parametrize('cone, condim, impratio', [
-    ('pyramidal', 3, 1), ('elliptic', 3, 1), ('elliptic', 4, 1), ('elliptic', 6, 1),
-    ('elliptic', 3, 100), ('elliptic', 6, 100)])
-def test_sliding_and_rolling_contacts_in_the_air_are_mujocos(cone, condim, impratio):
+@pytest.mark.parametrize('cone, condim, impratio, jacobian', [
+    ('pyramidal', 3, 1, None), ('elliptic', 3, 1, None), ('elliptic', 4, 1, None),
+    ('elliptic', 6, 1, None), ('elliptic', 3, 100, None), ('elliptic', 6, 100, None),
+    ('elliptic', 3, 1, mujoco.mjtJacobian.mjJAC_SPARSE)])
+def test_sliding_and_rolling_contacts_in_the_air_are_mujocos(cone, condim, impratio,
+                                                             jacobian):
     """No sand: a box thrown spinning along a floor, a ball rolling with torsional and
     rolling friction and a puck sliding down a ramp, for both cones, every condim and a high
-    impratio (as vendor scenes set): the rows (an elliptic cone's solved by Newton's method
+    impratio (as vendor scenes set), with a dense or sparse Jacobian: the rows (an elliptic cone's solved by Newton's method
     on MuJoCo's own cone law) move the bodies as MuJoCo does, to its solver's tolerance,
     over 1.2 s of contacts that stick, slide, roll and separate. Steps whose rows the solve
     cannot settle (the active set's cycles among the pyramids' edges, a cone whose Newton
     iteration has not converged in CONE_ITERATIONS steps) are handed back to MuJoCo's solve,
     and these steps too are MuJoCo's."""
     xml = SLIDING.format(cone=cone, condim=condim, impratio=impratio)
-    own, own_data, model, data, engine = _own_and_engine(xml, 'hand')
+    own, own_data, model, data, engine = _own_and_engine(xml, 'hand', jacobian)
     for d in (own_data, data):
         d.qvel[0:6] = [1.0, 0.3, 0.0, 0.0, 0.0, 2.0]  # box
         d.qvel[6:9] = [-0.5, 0.8, 0.0]  # ball
