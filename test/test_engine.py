@@ -297,6 +297,33 @@ def test_ema_history_is_dropped_when_a_plate_leaves_the_sand():
     assert np.allclose(engine.body_wrenches, fresh.body_wrenches)
 
 
+@pytest.mark.parametrize('method', ['ema', 'implicit'])
+def test_after_forget_last_step_a_step_is_the_first_steps(method):
+    """A reset's state does not follow the last step: after `forget_last_step` the step
+    from it is what an engine's first step from it is, to the bit (neither the EMA's
+    history nor the solve's start sets of the steps before reach it)."""
+    def start(model, data):
+        mujoco.mj_resetData(model, data)
+        _random_state(model, data, 4)
+        data.qvel[2] = -0.05  # slowly into the sand: its history matters
+
+    runs = []
+    for history in (0, 30):
+        model, data, engine = _arm(low_velocity=LowVelocity(method=method))
+        start(model, data)
+        for _ in range(history):
+            engine.step()
+        start(model, data)
+        engine.forget_last_step()
+        solves = engine.solves
+        engine.step()
+        runs.append((engine.body_wrenches.copy(), data.qvel.copy(), engine.solves - solves))
+    (wrench, qvel, solves), (wrench_after, qvel_after, solves_after) = runs
+    assert np.abs(wrench).max() > 1.0  # in the sand
+    assert np.array_equal(wrench_after, wrench) and np.array_equal(qvel_after, qvel)
+    assert solves_after == solves
+
+
 def test_rk4_and_bad_low_velocity_settings_are_refused():
     model = mujoco.MjModel.from_xml_string(ARM)
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4

@@ -459,6 +459,16 @@ class SandEngine:
         """Number of plates on all sand bodies."""
         return len(self.areas)
 
+    def forget_last_step(self):
+        """For a state that does not follow the last step (a reset): the plates' and
+        frictional joints' sets in it (the solve's start), the EMA's history and a hand-back's
+        held constraint force are forgotten, so the next step starts as the first did. The
+        counters keep counting."""
+        self._plate_memory[:] = -1
+        self._friction_memory[:] = -1
+        self._ema_step[:] = -2
+        self._counters[coupling.HANDED_BACK_AT] = 0
+
     def step(self):
         """Advance the model one timestep with sand forces."""
         model, data = self.model, self.data

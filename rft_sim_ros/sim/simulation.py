@@ -210,11 +210,10 @@ class Simulation:
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
         self._check_every = max(1, int(round(
             1.0 / (CHECK_RATE * self._control_every * scene.timestep))))
-        self._ticks = 0
         self._ctrl = self.data.ctrl
         self._warning_numbers = self.data.warning.number  # a view of mjData's warning counts
         self._time_offset = 0.0
-        self.steps = 0
+        self.steps = 0  # engine steps since the start, resets included (the run's count)
         self._start()
 
     def _initial_pose(self):
@@ -250,8 +249,11 @@ class Simulation:
 
     def _start(self):
         """Initial state (keyframe, initial positions, scenario, spawn), fresh command
-        handler holding it, cleared divergence flags."""
+        handler holding it, cleared divergence flags, control and observation ticks counted
+        from here (a reset replays a fresh start's ticks)."""
         self.diverged = None
+        self._ticks = 0
+        self._since_start = 0  # engine steps since this (re)start: the ticks' phase
         self._warnings = self._warning_count()
         self._left_bed = False
         self._initial_pose()
@@ -325,15 +327,16 @@ class Simulation:
         scenario, engine_step, data = self.scenario, self.engine.step, self.data
         observe_every, control_every = scenario.observe_interval, self._control_every
         for _ in range(count):
-            if self.steps % control_every == 0:
+            if self._since_start % control_every == 0:
                 self._control_tick()
             before = data.time
             engine_step()
             self.steps += 1
+            self._since_start += 1
             if data.time <= before:  # MuJoCo reset a non-finite state
                 self._diverge(self._check() or 'MuJoCo reset an unstable state',
                               self._time_offset + before)
-            if self.steps % observe_every == 0:
+            if self._since_start % observe_every == 0:
                 scenario.observe(self)
 
     def _control_tick(self):
@@ -375,10 +378,12 @@ class Simulation:
         return None
 
     def reset(self):
-        """Back to the scene's initial state (deformable sand: its pristine surface); sim
-        time keeps counting forward."""
+        """Back to the scene's initial state (deformable sand: its pristine surface), the sand
+        engine's memory of the last step forgotten: the run that follows is a fresh start's;
+        sim time keeps counting forward."""
         self._time_offset += self.data.time
         mujoco.mj_resetData(self.model, self.data)
+        self.engine.forget_last_step()
         self.reset_terrain()
         self._start()
 
