@@ -18,6 +18,9 @@ GEOMS = """
   <body name="cone"><geom type="mesh" mesh="cone" euler="180 0 0"/></body>
   <body name="union"><geom type="sphere" size="0.02"/><geom type="sphere" pos="0.02 0 0" size="0.02"/></body>
   <body name="plane_body"><geom type="plane" size="1 1 0.1"/></body>
+  <body name="twin_boxes"><geom type="box" size="0.05 0.04 0.005"/><geom type="box" size="0.05 0.04 0.005"/></body>
+  <body name="twin_cones"><geom type="mesh" mesh="cone" euler="180 0 0"/><geom type="mesh" mesh="cone" euler="180 0 0"/></body>
+  <body name="near_twin_cones"><geom type="mesh" mesh="cone"/><geom type="mesh" mesh="cone" pos="1e-6 0 0"/></body>
 </worldbody></mujoco>"""
 
 AREAS = {'sphere': 4 * np.pi * 0.03 ** 2,
@@ -58,6 +61,22 @@ def test_overlapping_geoms_keep_only_the_outer_surface(model):
     assert np.all(np.minimum(to_first, to_second) > 0.02 - 5e-4)
     exact = 2 * 4 * np.pi * 0.02 ** 2 - 2 * 2 * np.pi * 0.02 * 0.01  # two spheres minus caps
     assert plates.total_area == pytest.approx(exact, rel=0.03)
+
+
+@pytest.mark.parametrize('twins, single', [('twin_boxes', 'box'), ('twin_cones', 'cone')])
+def test_a_geoms_twin_carries_no_plates(model, twins, single):
+    """A visual copy of a collision geom left colliding (a vendor's model) must neither
+    double the surface (boxes) nor hide it (meshes, simplified inside their twin's hull)."""
+    for count in (40, 2000):  # the cone's mesh decimated, then refined
+        plates = body_plates(model, model.body(twins).id, count=count, cache=False)
+        alone = body_plates(model, model.body(single).id, count=count, cache=False)
+        assert len(plates) == count
+        assert plates.total_area == pytest.approx(alone.total_area, rel=1e-12)
+
+
+def test_geoms_that_hide_one_another_are_refused_not_refined_forever(model):
+    with pytest.raises(ValueError, match="'near_twin_cones': its geoms leave no surface"):
+        body_plates(model, model.body('near_twin_cones').id, count=40, cache=False)
 
 
 @pytest.mark.parametrize('name', ['capsule', 'union', 'cone'])

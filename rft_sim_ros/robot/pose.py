@@ -16,7 +16,8 @@ Spawn (`robot.spawn`), for a robot whose root body has a free joint:
 """
 import mujoco
 
-from .sand_bodies import collision_geoms, geom_footprint, geom_lowest_z
+from ..sand.geoms import body_geoms
+from .sand_bodies import geom_footprint, geom_lowest_z
 
 #: spawn 'rest' is settled once the base is slower than this (m/s) for REST_HOLD_S (s).
 REST_SPEED = 1e-3
@@ -62,7 +63,7 @@ def set_initial_pose(model, data, keyframe=None, initial_positions=None):
 
 def lift_to(model, data, base, bodies, clearance, ground):
     """Move the free root of body `base` vertically, at rest, so that the geoms of `bodies`
-    (ids; collision geoms where a body has them, else all its geoms) clear the sand surface by
+    (ids; the geoms that carry their plates, `sand.geoms.body_geoms`) clear the sand surface by
     `clearance` m: the lowest point of each one's bounding box at least `clearance` above
     `ground(x0, x1, y0, y1)`, the surface's highest point over the box's horizontal extent
     (m; `Surface.highest`), and one of them exactly. Raises ValueError without a free root."""
@@ -73,8 +74,7 @@ def lift_to(model, data, base, bodies, clearance, ground):
     mujoco.mj_kinematics(model, data)
     lift = -float('inf')
     for body in bodies:
-        start, count = model.body_geomadr[body], model.body_geomnum[body]
-        for geom in collision_geoms(model, body) or range(start, start + max(count, 0)):
+        for geom in body_geoms(model, body):
             top = ground(*geom_footprint(model, data, geom))
             lift = max(lift, (top + clearance) - geom_lowest_z(model, data, geom))
     data.qpos[model.jnt_qposadr[joint] + 2] += lift

@@ -23,7 +23,7 @@ import re
 import mujoco
 import numpy as np
 
-from ..sand.geoms import is_collision_geom
+from ..sand.geoms import SAND_SURFACE_BIT, is_collision_geom
 
 #: auto keeps branches whose lowest point is within this fraction of the robot's height of
 #: the lowest point of all.
@@ -137,21 +137,18 @@ def _leg_name(name):
     return token if token[:1].isalpha() else f'leg_{token}'
 
 
-#: conaffinity bit given to the visual geoms of a named sand body that has no collision geom:
-#: no geom has it in contype (so nothing collides with them), but MuJoCo's discardvisual,
-#: which drops geoms with contype = conaffinity = 0, keeps them as the body's sand surface.
-SAND_SURFACE_BIT = 1 << 30
-
-
-def keep_sand_visuals(spec, patterns):
-    """Before compiling with discardvisual: mark the geoms of each sand body that `patterns`
-    (names/globs; not auto, which only looks at collision geoms) name and that has no
-    collision geom, so that its visual geoms stay and carry its plates."""
+def keep_sand_visuals(spec, patterns, visual=False):
+    """Before compiling with discardvisual: mark the visual geoms (contype = conaffinity = 0)
+    of the bodies that `patterns` (names/globs; not auto, which only looks at collision
+    geoms) name as their sand surface (`SAND_SURFACE_BIT`), so that they stay and carry the
+    plates (`sand.geoms.body_geoms`): those of a body with no collision geom, or with
+    `visual` (rft.plate_geoms: visual) those of every such body."""
     if list(patterns) == ['auto']:
         return
     bodies = [b for b in spec.bodies if b.name and any(
         fnmatch.fnmatchcase(b.name, p) for p in patterns)]
     for body in bodies:
-        if body.geoms and not any(g.contype or g.conaffinity for g in body.geoms):
-            for geom in body.geoms:
+        visuals = [g for g in body.geoms if not (g.contype or g.conaffinity)]
+        if visuals and (visual or len(visuals) == len(body.geoms)):
+            for geom in visuals:
                 geom.conaffinity = SAND_SURFACE_BIT

@@ -142,17 +142,49 @@ def inside_geom(model, geom_id, points_in_body):
     return np.zeros(len(points_in_body), dtype=bool)
 
 
+#: conaffinity bit that marks a geom as its body's sand surface: visual geoms that carry
+#: plates (`robot.sand_bodies.keep_sand_visuals`). No geom has it in contype, so nothing
+#: collides with them, but MuJoCo's discardvisual, which drops geoms with contype =
+#: conaffinity = 0, keeps them.
+SAND_SURFACE_BIT = 1 << 30
+
+
+def is_sand_surface_geom(model, geom_id):
+    """Whether geom `geom_id` is marked as its body's sand surface (SAND_SURFACE_BIT only)."""
+    return (model.geom_contype[geom_id] == 0
+            and model.geom_conaffinity[geom_id] == SAND_SURFACE_BIT)
+
+
 def is_collision_geom(model, geom_id):
     """Whether MuJoCo may collide geom `geom_id` (contype or conaffinity nonzero)."""
     return bool(model.geom_contype[geom_id] or model.geom_conaffinity[geom_id])
 
 
 def body_geoms(model, body_id):
-    """Ids of the geoms that carry the plates of body `body_id`: its collision geoms, or all
-    its geoms when it has none."""
+    """Ids of the geoms that carry the plates of body `body_id`: those marked as its sand
+    surface (`is_sand_surface_geom`), else its collision geoms, else all its geoms; a copy
+    of an earlier one (`same_geom`: a visual twin left
+    colliding, common in vendors' models) is left out, since twin surfaces would carry
+    plates twice, or, for meshes, hide each other (`body_triangles`)."""
     start, count = model.body_geomadr[body_id], model.body_geomnum[body_id]
     geoms = list(range(start, start + count)) if start >= 0 else []
-    return [g for g in geoms if is_collision_geom(model, g)] or geoms
+    geoms = ([g for g in geoms if is_sand_surface_geom(model, g)]
+             or [g for g in geoms if is_collision_geom(model, g)] or geoms)
+    kept = []
+    for g in geoms:
+        if not any(same_geom(model, g, other) for other in kept):
+            kept.append(g)
+    return kept
+
+
+def same_geom(model, a, b):
+    """Whether geoms a and b have the same surface: type, mesh, size and pose (to 1e-9 m)."""
+    qa, qb = model.geom_quat[a], model.geom_quat[b]
+    return bool(model.geom_type[a] == model.geom_type[b]
+                and model.geom_dataid[a] == model.geom_dataid[b]
+                and np.allclose(model.geom_size[a], model.geom_size[b], rtol=0, atol=1e-9)
+                and np.allclose(model.geom_pos[a], model.geom_pos[b], rtol=0, atol=1e-9)
+                and abs(abs(float(np.dot(qa, qb))) - 1.0) < 1e-12)
 
 
 def body_triangles(model, body_id, edge, meshes=None):
@@ -271,6 +303,10 @@ def _make_plates(model, body_id, count, density_per_mm2):
         meshes = simplified_meshes(model, body_id, count)
     coarsest = body_triangles(model, body_id, np.inf, meshes)
     area = Plates.from_triangles(coarsest).total_area
+    if not area > 0:
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body_id)
+        raise ValueError(f'body {name!r}: its geoms leave no surface outside one another '
+                         'to make RFT plates from (each lies inside another)')
     if density_per_mm2 is not None:
         count = max(1, int(round(density_per_mm2 * area * 1e6)))
         meshes = simplified_meshes(model, body_id, count)

@@ -47,6 +47,7 @@ class SceneConfig:
     zeta_map: dict    # sand.zeta_map.* (sand.zeta_map.zeta_map_from_settings) or None
     deformable: dict  # sand.deformable.* (sand.deformable.DeformableSand)
     sand_bodies: tuple
+    plate_geoms: str  # rft.plate_geoms: 'collision' or 'visual'
     plates_per_body: int
     plate_density_per_mm2: float
     plates_by_body: dict
@@ -267,6 +268,7 @@ def _validate(raw, path, locator):
         zeta_map=_subsection(values, 'sand.zeta_map', path, locator) or None,
         deformable=_subsection(values, 'sand.deformable', path, locator),
         sand_bodies=tuple(values['rft.bodies']),
+        plate_geoms=values['rft.plate_geoms'],
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
         plates_by_body=dict(values['rft.plates']),

@@ -282,6 +282,11 @@ KEYS = (
         "that touch sand: MuJoCo body names, glob patterns ('*_calf', '*foot*') or auto (one "
         'per kinematic branch: the body with its lowest collision geometry in the initial pose; '
         'rft_sim_ros/robot/sand_bodies.py). The bodies chosen are printed at start-up.', _names),
+    Key('rft.plate_geoms', "'collision' or 'visual'", '', 'collision', 'Which geoms of a sand '
+        'body carry its plates: the ones MuJoCo collides (a body without any: its visual '
+        'geoms), or its visual geoms, the shape as drawn (a model whose feet collide as a few '
+        'small spheres; a body without visual geoms keeps its collision geoms).',
+        _choice('collision', 'visual')),
     Key('rft.plates_per_body', 'integer >= 1', 'plates', 500, 'Plates on each sand body '
         '(ignored when rft.plate_density_per_mm2 is given).', _count),
     Key('rft.plate_density_per_mm2', 'number > 0', 'plates/mm^2', None, 'Plates per mm^2 '

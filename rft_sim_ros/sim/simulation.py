@@ -19,6 +19,7 @@ import numpy as np
 
 from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
+from ..robot.bearing import bearing
 from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
                           set_initial_pose)
@@ -32,6 +33,7 @@ from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
+from ..units import zeta_to_si
 
 #: Generalised speeds above this (m/s or rad/s) mean the simulation has blown up.
 RUNAWAY_SPEED = 1.0e3
@@ -122,9 +124,16 @@ class Simulation:
                 xacro_args=robot.get('xacro_args'), base=robot.get('base', 'floating'))
         except DescriptionError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
+        # initial pose: ros2_control initial values of the description, then the scene's
+        self._initial_positions = {**(self.description.initial_positions or {}),
+                                   **scene.initial_positions}
         spec = self.description.spec
         self.scenario.edit_model(spec)
-        keep_sand_visuals(spec, scene.sand_bodies)
+        visual = scene.plate_geoms == 'visual'
+        patterns = scene.sand_bodies
+        if visual and list(patterns) == ['auto']:  # their visuals are marked before compiling
+            patterns = self._auto_sand_bodies(spec)
+        keep_sand_visuals(spec, patterns, visual)
         spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
         interface_joints = add_joint_interfaces(spec, scene.servos)
         try:
@@ -146,9 +155,6 @@ class Simulation:
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
-        # initial pose: ros2_control initial values of the description, then the scene's
-        self._initial_positions = {**(self.description.initial_positions or {}),
-                                   **scene.initial_positions}
         self._initial_pose()
         # the body /odom follows: the scene's, else the first body under the world
         self.base_body = scene.base_body or self.model.body(min(1, self.model.nbody - 1)).name
@@ -158,8 +164,8 @@ class Simulation:
             raise scene.locator.error('base_body', f'{self.base_body!r} is not a body of '
                                       f'{scene.model_path.name}') from None
         try:
-            self.sand_bodies = tuple(resolve_sand_bodies(self.model, self.data,
-                                                         scene.sand_bodies, self._base_id))
+            self.sand_bodies = tuple(resolve_sand_bodies(self.model, self.data, patterns,
+                                                         self._base_id))
         except ValueError as error:
             raise scene.locator.error('rft.bodies', str(error)) from None
         if list(scene.sand_bodies) != list(self.sand_bodies):
@@ -172,9 +178,12 @@ class Simulation:
         plates = {}
         for body in self.sand_bodies:
             count = scene.plates_by_body.get(body, scene.plates_per_body)
-            plates[body] = body_plates(
-                self.model, self.model.body(body).id, count=count,
-                density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
+            try:
+                plates[body] = body_plates(
+                    self.model, self.model.body(body).id, count=count,
+                    density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
+            except ValueError as error:
+                raise scene.locator.error('rft.bodies', str(error)) from None
         try:
             self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
                                      surface_height=scene.surface_height, surface=surface,
@@ -191,6 +200,7 @@ class Simulation:
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
+        self._bearing_notice()
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
@@ -216,6 +226,23 @@ class Simulation:
         self.steps = 0  # engine steps since the start, resets included (the run's count)
         self._start()
 
+    def _auto_sand_bodies(self, spec):
+        """The body names auto picks, found on a compiled copy of `spec` (visual geoms
+        discarded) in the initial pose; ['auto'] where that copy fails, so that the model's
+        own compile and pose report the error."""
+        scene = self.scene
+        try:
+            probe = spec.copy()
+            probe.compiler.discardvisual = True
+            model = probe.compile()
+            data = mujoco.MjData(model)
+            set_initial_pose(model, data, scene.keyframe, self._initial_positions)
+            mujoco.mj_kinematics(model, data)
+            base = model.body(scene.base_body or model.body(min(1, model.nbody - 1)).name).id
+            return resolve_sand_bodies(model, data, ['auto'], base)
+        except (ValueError, KeyError):
+            return ['auto']
+
     def _initial_pose(self):
         """The keyframe and initial joint positions of the scene (robot/pose.py)."""
         try:
@@ -224,6 +251,30 @@ class Simulation:
             key = 'robot.keyframe' if 'keyframe' in str(error) else 'robot.initial_positions'
             raise self.scene.locator.error(key, str(error)) from None
         mujoco.mj_kinematics(self.model, self.data)
+
+    def _bearing_notice(self):
+        """A notice where the sand bodies cannot carry a free-floating robot on sand alone
+        (robot/bearing.py), in the initial pose, at the scene's zeta."""
+        model, engine = self.model, self.engine
+        root = model.body_rootid[self._base_id]
+        joint = model.body_jntadr[root]
+        if (self.scene.keep_floor or joint < 0
+                or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE):
+            return
+        starts = engine.plate_start
+        plates = [(engine.local_normal[a:b], engine.local_pos[a:b], engine.areas[a:b])
+                  for a, b in zip(starts[:-1], starts[1:])]
+        rotations = self.data.xmat[engine.body_ids].reshape(-1, 3, 3)
+        mass = float(model.body_subtreemass[root])
+        found = bearing(mass, model.opt.gravity, zeta_to_si(self.scene.zeta), rotations, plates)
+        if found.sinks:
+            self.notices.append(
+                f'sand bodies: their {found.area_m2 * 1e4:.3g} cm^2 facing down bear the '
+                f"robot's {mass:.3g} kg only about {found.depth_m * 100:.3g} cm deep (zeta A z "
+                f'= m g), deeper than they reach ({found.reach_m * 100:.3g} cm): the robot will '
+                'sink until bodies the sand does not hold meet it; name more sand bodies '
+                '(rft.bodies) or take their plates from their visual geoms '
+                '(rft.plate_geoms: visual)')
 
     def _set_legs(self, scene):
         """Legs: the scene's, or one per branch of the kinematic tree (robot/sand_bodies.py)."""

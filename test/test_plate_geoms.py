@@ -1,0 +1,96 @@
+"""Which geoms carry a sand body's plates (rft.plate_geoms), and the start-up notice when
+the sand bodies cannot bear the robot (robot/bearing.py). The robot: a 10 kg biped on two
+feet whose collision geoms are four 5 mm spheres each (made for rigid ground, as in many
+vendors' humanoids) under a visual sole, a 20 x 8 x 2 cm box."""
+import numpy as np
+import pytest
+
+from rft_sim_ros.robot.bearing import bearing
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation
+from rft_sim_ros.units import zeta_to_si
+
+SOLE = (0.10, 0.04, 0.01)  # half sizes, m
+SPHERE = 0.005  # m
+
+
+def _foot(name, y):
+    corners = ''.join(f'<geom type="sphere" size="{SPHERE}" pos="{x} {c} -0.005" mass="0.01"/>'
+                      for x in (-0.09, 0.09) for c in (-0.03, 0.03))
+    return f"""
+      <body name="{name}_leg" pos="0 {y} -0.05"><joint name="{name}_hip" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.02" mass="1"/>
+        <body name="{name}_foot" pos="0 0 -0.33"><joint name="{name}_ankle" axis="0 1 0"/>
+          <geom type="box" size="{' '.join(map(str, SOLE))}" contype="0" conaffinity="0"
+                density="0"/>
+          {corners}
+        </body>
+      </body>"""
+
+
+@pytest.fixture(scope='module')
+def biped(tmp_path_factory):
+    folder = tmp_path_factory.mktemp('biped')
+    (folder / 'biped.xml').write_text(f"""<mujoco><worldbody>
+    <body name="trunk" pos="0 0 0.5"><freejoint/>
+      <geom type="box" size="0.1 0.15 0.05" mass="7.92"/>
+      {_foot('left', 0.1)}{_foot('right', -0.1)}
+    </body></worldbody></mujoco>""")
+    return folder / 'biped.xml'
+
+
+def _sim(biped, **overrides):
+    return Simulation(load_scene(biped, {'rft.plates_per_body': 400, **overrides}))
+
+
+def _plate_area(sim):
+    return sim.engine.areas.sum()
+
+
+def test_collision_spheres_carry_the_plates_and_the_user_is_told_the_robot_will_sink(biped):
+    sim = _sim(biped)
+    assert sim.sand_bodies == ('left_foot', 'right_foot')
+    # (100 flat plates a sphere fall 7 % short of its area)
+    assert _plate_area(sim) == pytest.approx(2 * 4 * 4 * np.pi * SPHERE ** 2, rel=0.1)
+    [notice] = [n for n in sim.notices if 'bear' in n]
+    assert "robot's 10 kg" in notice and 'rft.plate_geoms: visual' in notice
+
+
+@pytest.mark.parametrize('bodies', ['auto', '*_foot'])
+def test_visual_plate_geoms_give_the_feet_their_drawn_soles(biped, bodies):
+    sim = _sim(biped, **{'rft.plate_geoms': 'visual', 'rft.bodies': bodies})
+    assert sim.sand_bodies == ('left_foot', 'right_foot')
+    box = 8 * (SOLE[0] * SOLE[1] + SOLE[0] * SOLE[2] + SOLE[1] * SOLE[2])
+    assert _plate_area(sim) == pytest.approx(2 * box, rel=1e-9)  # the spheres: inside it
+    assert not [n for n in sim.notices if 'bear' in n]
+    # spawn rest set its soles on the sand at rest and let go: the plastic law (zeta A z
+    # down, no spring back) stops them where the work of the weight equals that of the
+    # sand, m g z = zeta A z^2 / 2: at twice the static depth m g / (zeta A)
+    sole_bottom = sim.data.xpos[sim.engine.body_ids, 2] - SOLE[2]
+    static = 10 * 9.81 / (zeta_to_si(sim.scene.zeta) * 2 * 4 * SOLE[0] * SOLE[1])
+    assert -sole_bottom == pytest.approx([2 * static, 2 * static], rel=0.05)
+
+
+def test_a_robot_on_sand_bodies_that_reach_deep_enough_gets_no_notice(biped):
+    sim = _sim(biped, **{'rft.bodies': ['*_leg', '*_foot']})  # shins carry it
+    assert not [n for n in sim.notices if 'bear' in n]
+
+
+def test_bearing_of_a_horizontal_sole_is_zeta_a_z():
+    """A 20 x 8 x 2 cm box sole facing down, tilted 0 and 30 deg about x (projected area
+    cos 30 x; its sides facing down add theirs)."""
+    normals = np.array([[0, 0, -1.0], [0, 0, 1.0], [0, -1.0, 0], [0, 1.0, 0]])
+    centroids = np.array([[0, 0, -0.01], [0, 0, 0.01], [0, -0.04, 0], [0, 0.04, 0]])
+    areas = np.array([0.016, 0.016, 0.004, 0.004])
+    zeta = zeta_to_si(2.0)
+    flat = bearing(10.0, (0, 0, -9.81), zeta, [np.eye(3)], [(normals, centroids, areas)])
+    assert flat.area_m2 == pytest.approx(0.016)
+    assert flat.depth_m == pytest.approx(98.1 / (zeta * 0.016))
+    assert flat.reach_m == pytest.approx(0.02) and not flat.sinks
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    tilted = bearing(10.0, (0, 0, -9.81), zeta, [np.array([[1, 0, 0], [0, c, -s], [0, s, c]])],
+                     [(normals, centroids, areas)])
+    assert tilted.area_m2 == pytest.approx(0.016 * c + 0.004 * s)
+    none = bearing(10.0, (0, 0, -9.81), zeta, [np.eye(3)], [(normals[1:2], centroids[1:2],
+                                                            areas[1:2])])
+    assert none.depth_m == np.inf and none.sinks
