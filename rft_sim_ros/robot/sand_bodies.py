@@ -5,17 +5,21 @@ with fnmatch, case-sensitive) or `auto`:
 
 auto picks, in the initial pose, one body per kinematic branch: the branches are the
 subtrees that hang by a joint from the base body's rigid group (the base and the bodies
-welded to it, e.g. a URDF `base` link fixed to the trunk), plus that group itself; in each,
-the body whose collision geoms (contype or conaffinity nonzero) reach lowest (lowest point
-of the geoms' bounding boxes, world z) is that branch's candidate. The candidates kept are
-those whose lowest point lies within AUTO_TOLERANCE of the robot's height (base origin above
-the lowest collision point of all) from the lowest point of all: the feet of a standing
-robot, not a head or a tail held higher.
+welded to it, e.g. a URDF `base` link fixed to the trunk), plus that group itself, and a
+branch is split where it forks into two or more subtrees that reach the ground, at a body
+that does not (a humanoid's legs hang from a pelvis below its waist joint: two branches,
+where a foot's toes are one); in each, the body whose collision geoms (contype or
+conaffinity nonzero) reach lowest (lowest point of the geoms' bounding boxes, world z) is
+that branch's candidate. The ground band: within AUTO_TOLERANCE of the robot's height (base
+origin above the lowest collision point of all) from the lowest point of all. The
+candidates kept are those in it: the feet of a standing robot, not a head or a tail held
+higher.
 
 Legs (for the per-leg wrenches): unless the scene gives them, each branch that holds sand
-bodies is one leg, named after the branch's first body (the body that hangs from the base's
-group; the base's own name for the group), its sand bodies listed from the base outwards, so the last one (the
-deepest in the tree) is the leg's reference point.
+bodies is one leg (split where it forks into subtrees that hold sand bodies, at a body that
+is not one), named after the branch's first body (the body that hangs from the base's group
+or from the fork; the base's own name for the group), its sand bodies listed from the base
+outwards, so the last one (the deepest in the tree) is the leg's reference point.
 """
 import fnmatch
 import re
@@ -56,22 +60,34 @@ def _name(model, body):
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f'body{body}'
 
 
-def branches(model, base):
+def branches(model, base, ground=frozenset()):
     """{first body of the branch: [bodies of the branch]}: the base's rigid group (the base
     and the bodies welded to it without a joint, e.g. a URDF `base` link fixed to the trunk)
     is one branch, keyed by the base; each subtree hanging from that group by a joint is
-    another, keyed by its first body. Bodies in tree order (a parent before its children)."""
+    another, keyed by its first body, and so is each subtree hanging from a fork, jointed or
+    welded: a body not in `ground` (body ids) from which two or more subtrees holding bodies
+    of `ground` hang.
+    Bodies in tree order (a parent before its children)."""
     rigid = model.body_weldid[base]
+    parents = model.body_parentid
+    holds = np.zeros(model.nbody, dtype=bool)  # its subtree has a body of `ground`
+    held_children = np.zeros(model.nbody, dtype=int)
+    for body in range(model.nbody - 1, base, -1):  # children after their parents
+        holds[body] |= body in ground
+        if holds[body]:
+            holds[parents[body]] = True
+            held_children[parents[body]] += 1
     out = {base: [base]}
     root_of = {base: base}
     for body in range(base + 1, model.nbody):
-        parent = int(model.body_parentid[body])
+        parent = int(parents[body])
         if parent not in root_of:
             continue  # not below the base
-        if root_of[parent] == base and model.body_weldid[body] == rigid:
+        fork = holds[body] and held_children[parent] >= 2 and parent not in ground
+        if root_of[parent] == base and model.body_weldid[body] == rigid and not fork:
             root_of[body] = base  # welded to the base: part of its group
-        elif root_of[parent] == base:
-            root_of[body] = body  # hangs from the base's group by a joint: a new branch
+        elif root_of[parent] == base or fork:
+            root_of[body] = body  # hangs from the base's group by a joint, or from a fork
             out[body] = []
         else:
             root_of[body] = root_of[parent]
@@ -81,19 +97,24 @@ def branches(model, base):
 
 def auto_sand_bodies(model, data, base):
     """Body ids `auto` picks (module docstring), in the current pose (after mj_kinematics)."""
-    lowest = {}
-    for first, bodies in branches(model, base).items():
-        candidates = [(min(geom_lowest_z(model, data, g) for g in collision_geoms(model, b)), b)
-                      for b in bodies if collision_geoms(model, b)]
-        if candidates:
-            lowest[first] = min(candidates)
+    lowest = {}  # body: the lowest point of its collision geoms, for bodies below the base
+    for bodies in branches(model, base).values():
+        for b in bodies:
+            if collision_geoms(model, b):
+                lowest[b] = min(geom_lowest_z(model, data, g) for g in collision_geoms(model, b))
     if not lowest:
         raise ValueError(f'sand bodies auto: the robot has no collision geoms under '
                          f'{_name(model, base)!r} (contype/conaffinity 0 everywhere); name the '
                          'sand bodies instead')
-    bottom = min(z for z, _ in lowest.values())
-    height = max(data.xpos[base, 2] - bottom, 0.0)
-    return sorted(b for z, b in lowest.values() if z <= bottom + AUTO_TOLERANCE * height)
+    bottom = min(lowest.values())
+    band = bottom + AUTO_TOLERANCE * max(data.xpos[base, 2] - bottom, 0.0)
+    ground = frozenset(b for b, z in lowest.items() if z <= band)
+    picked = []
+    for bodies in branches(model, base, ground).values():
+        candidates = [(lowest[b], b) for b in bodies if b in lowest]
+        if candidates and min(candidates)[0] <= band:
+            picked.append(min(candidates)[1])
+    return sorted(picked)
 
 
 def match_bodies(names, patterns):
@@ -121,7 +142,7 @@ def legs_from_tree(model, sand_bodies, base):
     """{leg name: (sand body names, base outwards)} by branch (module docstring)."""
     ids = {model.body(name).id: name for name in sand_bodies}
     legs = {}
-    for first, bodies in branches(model, base).items():
+    for first, bodies in branches(model, base, frozenset(ids)).items():
         mine = [ids[b] for b in bodies if b in ids]
         if mine:
             legs[_leg_name(_name(model, first))] = tuple(mine)

@@ -1,0 +1,75 @@
+"""auto's sand bodies and the legs where a branch forks below the base: a humanoid whose
+legs hang from a pelvis below its waist joint has two feet and two legs, jointed or welded;
+a foot's toes in the ground band stay one branch (robot/sand_bodies.py)."""
+import mujoco
+import pytest
+
+from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree
+
+JOINT = '<joint type="hinge" axis="0 1 0"/>'
+
+
+def _leg(side, y, joints, toes):
+    joint = JOINT if joints else ''
+    foot = (f'<body name="toe_{side}_{k}" pos="0.08 {0.02 * k} 0">{joint}'
+            f'<geom type="sphere" size="0.02" pos="0 0 {-0.002 * (k + 2)}"/></body>'
+            for k in (-1, 1)) if toes else ()
+    return f"""
+        <body name="thigh_{side}" pos="0 {y} -0.05">{joint}
+          <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.05"/>
+          <body name="shin_{side}" pos="0 0 -0.4">{joint}
+            <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.04"/>
+            <body name="foot_{side}" pos="0 0 -0.45">{joint}
+              <geom type="box" size="0.1 0.04 0.02"/>{''.join(foot)}
+            </body>
+          </body>
+        </body>"""
+
+
+def _humanoid(joints=True, toes=False):
+    joint = JOINT if joints else ''
+    xml = f"""<mujoco><worldbody>
+      <body name="torso" pos="0 0 1.4"><freejoint/>
+        <geom type="capsule" fromto="0 -0.1 0 0 0.1 0" size="0.07"/>
+        <body name="arm_right" pos="0 -0.2 0">{joint}
+          <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.04"/></body>
+        <body name="arm_left" pos="0 0.2 0">{joint}
+          <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.04"/></body>
+        <body name="waist" pos="0 0 -0.25">{joint}
+          <geom type="capsule" fromto="0 -0.06 0 0 0.06 0" size="0.06"/>
+          <body name="pelvis" pos="0 0 -0.15">
+            <geom type="capsule" fromto="0 -0.07 0 0 0.07 0" size="0.09"/>
+            {_leg('right', -0.1, joints, toes)}{_leg('left', 0.1, joints, toes)}
+          </body>
+        </body>
+      </body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    return model, data
+
+
+def _names(model, ids):
+    return sorted(model.body(b).name for b in ids)
+
+
+@pytest.mark.parametrize('joints', [True, False], ids=['jointed', 'rigid'])
+def test_legs_below_a_waist_give_two_feet_and_two_legs(joints):
+    model, data = _humanoid(joints)
+    torso = model.body('torso').id
+    feet = auto_sand_bodies(model, data, torso)
+    assert _names(model, feet) == ['foot_left', 'foot_right']  # not the arms: above the band
+    legs = legs_from_tree(model, [model.body(b).name for b in feet], torso)
+    assert legs == {'thigh_right': ('foot_right',), 'thigh_left': ('foot_left',)}
+
+
+def test_a_foots_toes_in_the_ground_band_are_one_branch():
+    model, data = _humanoid(toes=True)
+    torso = model.body('torso').id
+    # each foot's lowest point is its lower toe (k = 1): one body per leg, not per toe
+    assert _names(model, auto_sand_bodies(model, data, torso)) == ['toe_left_1', 'toe_right_1']
+    # named toes are sand bodies of their own: the foot, not one of them, forks, so each toe
+    # is a leg
+    toes = ['toe_right_-1', 'toe_right_1']
+    assert legs_from_tree(model, toes, torso) == {'toe_right__1': ('toe_right_-1',),
+                                                   'toe_right_1': ('toe_right_1',)}
