@@ -23,7 +23,7 @@ from rft_sim_ros.study.cost import dearest_first, run_cost
 from rft_sim_ros.study.execute import RunTask, execute
 from rft_sim_ros.study.pool import map_unordered
 from rft_sim_ros.study.progress import StudyProgress
-from rft_sim_ros.study.table import read_csv
+from rft_sim_ros.study.table import read_csv, row
 
 #: A short plate drop: the plate hits the sand after ~0.14 s and is at rest by 0.4 s.
 DROP = {'scene': 'plate_drop', 'duration': 0.4, 'set': {'rft.plates_per_body': 100},
@@ -111,6 +111,23 @@ def test_the_dearest_runs_go_out_first(tmp_path):
     by_id = {run.run_id: run for run in study.runs}
     assert [by_id[r['run_id']].varied['timestep'] for r in started] == [0.0005, 0.001, 0.002]
     assert [row['timestep'] for row in result.rows] == [0.002, 0.001, 0.0005]  # listed order
+
+
+def test_a_metric_is_the_scenarios_else_every_scenes_else_the_summarys_own():
+    """A study of one's own robot file (no scenario metrics) tabulates the generic metrics
+    and the summary's numbers; a scenario's metric wins a shared name; lists and text are
+    not metrics."""
+    study = _study(metrics=['max_depth_m', 'base_displacement_m', 'real_time_factor',
+                            'base_displacement_xyz_m', 'scene'], vary={'zeta': [1.0]})
+    record = {'summary': {'scene': 'plate_drop', 'stable': True, 'real_time_factor': 12.5,
+                          'generic_metrics': {'base_displacement_m': 0.25, 'max_depth_m': 9.0,
+                                              'base_displacement_xyz_m': [0.25, 0.0, 0.0]},
+                          'metrics': {'max_depth_m': 0.02}},
+              'wall_time_s': 1.0, 'stable': True, 'reason': None}
+    cells = row(study, study.runs[0], record)
+    assert cells['max_depth_m'] == 0.02 and cells['base_displacement_m'] == 0.25
+    assert cells['real_time_factor'] == 12.5
+    assert cells['base_displacement_xyz_m'] is None and cells['scene'] is None
 
 
 @pytest.fixture(scope='module')

@@ -158,7 +158,10 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
                          plots=names_written)
     missing = [m for m in study.metrics if all(r[m] is None for r in rows if r['stable'])]
     if missing:
-        log(f'no stable run reported {missing}: check the metric names in the run summaries')
+        stable = next((r for r in records.values() if r['stable']), None)
+        known = sorted(table.summary_metrics(stable.get('summary'))) if stable else []
+        log(f'no stable run reported {missing}: check the metric names'
+            + (f' (a run reports: {", ".join(known)})' if known else ''))
     table.write_atomic(out / 'study.json', json.dumps({
         'scene': study.scene, 'runs': len(study.runs), 'ran': done, 'resumed': resumed,
         'failed': result.failed, 'wall_time_s': result.wall_s, 'backend': backend,

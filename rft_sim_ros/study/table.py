@@ -25,9 +25,21 @@ def columns(study):
     return ['run_id', 'repeat', *study.keys, *study.metrics, *TAIL]
 
 
+def summary_metrics(summary):
+    """{name: number} of the metrics a study can tabulate from a run's summary.json: the
+    summary's own numbers (real_time_factor, implicit_solves_per_step, plates_active_mean,
+    ...), then every scene's (`generic_metrics`: base_displacement_m, max_depth_m_<leg>,
+    ...), then the scenario's (`metrics`), a later one winning a name."""
+    summary = summary or {}
+    merged = {**summary, **(summary.get('generic_metrics') or {}),
+              **(summary.get('metrics') or {})}
+    return {name: value for name, value in merged.items()
+            if isinstance(value, (int, float)) and not isinstance(value, bool)}
+
+
 def row(study, run, record):
     """The table row ({column: value}) of `run` (a spec.Run) from its record (execute)."""
-    metrics = (record.get('summary') or {}).get('metrics') or {}
+    metrics = summary_metrics(record.get('summary'))
     return {'run_id': run.run_id, 'repeat': run.repeat,
             **{key: run.varied.get(key) for key in study.keys},
             **{name: metrics.get(name) for name in study.metrics},
