@@ -176,3 +176,29 @@ def test_xacro_error_and_missing_file_are_one_line(tmp_path):
         load_description(tmp_path / 'missing.urdf')
     with pytest.raises(DescriptionError, match='base must be one of'):
         load_description(XACRO, base='welded')
+
+
+def _link(name, inertia):
+    values = ' '.join(f'{k}="{v}"' for k, v in zip(('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'),
+                                                   inertia))
+    return (f'<link name="{name}"><inertial><mass value="0.2"/><inertia {values}/></inertial>'
+            '<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>')
+
+
+def test_inertias_no_rigid_body_has_become_isotropic_with_their_trace():
+    """As vendors' URDFs have them (ANYmal C's hatch: every entry 0.001; its cameras:
+    A + B < C): RViz takes them, MuJoCo refuses to compile them."""
+    links = {'base': (0.02, 0, 0, 0.03, 0, 0.04), 'hatch': (0.001,) * 6,
+             'camera': (0.001, 0, 0, 0.001, 0, 0.003)}
+    joints = ''.join(f'<joint name="to_{n}" type="revolute"><parent link="base"/>'
+                     f'<child link="{n}"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" '
+                     'effort="1" velocity="1"/></joint>' for n in ('hatch', 'camera'))
+    text = (f'<robot name="r">{"".join(_link(n, i) for n, i in links.items())}{joints}'
+            '</robot>')
+    logged = []
+    model = load_description(text, log=logged.append).spec.compile()
+    [notice] = [n for n in logged if 'inertia' in n]
+    assert 'links hatch, camera:' in notice
+    assert model.body('hatch').inertia == pytest.approx([0.001] * 3)   # trace 0.003 / 3
+    assert model.body('camera').inertia == pytest.approx([0.005 / 3] * 3)
+    assert sorted(model.body('base').inertia) == pytest.approx([0.02, 0.03, 0.04])

@@ -13,6 +13,10 @@ become non-colliding group-1 geoms). Before that, `prepare_urdf`:
   initial values from <ros2_control> (`<param name="initial_value">` of a joint's position
   state or command interface);
 - reads each joint's <limit effort velocity> (N m or N; rad/s or m/s);
+- replaces an <inertia> no rigid body can have (principal moments not all positive, or
+  violating A + B >= C; URDF tools accept them, MuJoCo refuses to compile them, e.g. a
+  placeholder with every entry 0.001) by the isotropic one of the same trace: principal
+  moments set to their mean, as MuJoCo's balanceinertia does (one notice names the links);
 - sets MuJoCo's compiler for URDF: links joined by fixed joints stay bodies of their own
   (fusestatic off, so every link name can be named as a sand body), a link without
   <inertial> is massless as in URDF (inertiafromgeom off), visuals are kept, mesh paths are
@@ -22,6 +26,8 @@ import hashlib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from .meshes import converted_stl, mujoco_reads
 
@@ -73,6 +79,12 @@ def prepare_urdf(root, where, base_dir, resolver):
                                 'sand engine simulate the robot; ros2_control initial values '
                                 'and joint limits were read)')
     _prepare_meshes(root, where, base_dir, resolver, prepared)
+    balanced = balance_inertias(root)
+    if balanced:
+        prepared.notices.append(
+            f'{where}: link{"s" if len(balanced) > 1 else ""} {", ".join(balanced)}: an '
+            'inertia no rigid body has (principal moments not positive, or A + B < C; MuJoCo '
+            'refuses it), replaced by the isotropic one of the same trace')
     _set_compiler(root)
     prepared.text = ET.tostring(root, encoding='unicode')
     return prepared
@@ -164,6 +176,31 @@ def _prepare_meshes(root, where, base_dir, resolver, prepared):
         prepared.notices.append(
             f'{where}: dropped {len(dropped)} visual mesh(es) MuJoCo cannot read (visuals do '
             f'not affect physics): {", ".join(sorted(set(dropped)))}')
+
+
+def balance_inertias(root):
+    """Replace, in <robot> `root`, each link's <inertial><inertia> whose principal moments
+    are not all positive or violate the triangle inequality A + B >= C (MuJoCo's tests,
+    user_objects.cc) by the isotropic inertia of the same trace (its principal moments'
+    mean, as MuJoCo's balanceinertia); an inertia of trace <= 0 is left for MuJoCo to name.
+    Returns the names of the links changed."""
+    names = []
+    keys = ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz')
+    for link in root.iter('link'):
+        inertia = link.find('inertial/inertia')
+        if inertia is None:
+            continue
+        try:
+            xx, xy, xz, yy, yz, zz = (float(inertia.get(k, 0.0)) for k in keys)
+        except ValueError:
+            continue  # MuJoCo's importer names a malformed value
+        moments = np.linalg.eigvalsh([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        mean = float(moments.sum()) / 3.0
+        if mean > 0 and (moments[0] <= 0 or moments[0] + moments[1] < moments[2]):
+            for key in keys:
+                inertia.set(key, repr(mean) if key in ('ixx', 'iyy', 'izz') else '0')
+            names.append(link.get('name'))
+    return names
 
 
 def _set_compiler(root):
