@@ -1,6 +1,7 @@
 """auto's sand bodies and the legs where a branch forks below the base: a humanoid whose
-legs hang from a pelvis below its waist joint has two feet and two legs, jointed or welded;
-a foot's toes in the ground band stay one branch (robot/sand_bodies.py)."""
+legs hang by hip joints from a pelvis below its waist joint has two feet and two legs; a
+shin's welded lower link beside its foot, and a foot's toes in the ground band, stay in
+their leg (robot/sand_bodies.py)."""
 import mujoco
 import pytest
 
@@ -9,14 +10,17 @@ from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree
 JOINT = '<joint type="hinge" axis="0 1 0"/>'
 
 
-def _leg(side, y, joints, toes):
-    joint = JOINT if joints else ''
+def _leg(side, y, toes, spur):
+    joint = JOINT
     foot = (f'<body name="toe_{side}_{k}" pos="0.08 {0.02 * k} 0">{joint}'
             f'<geom type="sphere" size="0.02" pos="0 0 {-0.002 * (k + 2)}"/></body>'
             for k in (-1, 1)) if toes else ()
+    # welded to the thigh, whose own geoms end above the ground band, and low
+    spur_body = (f'<body name="spur_{side}" pos="0.1 0 -0.8">'
+                 '<geom type="sphere" size="0.01"/></body>' if spur else '')
     return f"""
         <body name="thigh_{side}" pos="0 {y} -0.05">{joint}
-          <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.05"/>
+          <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.05"/>{spur_body}
           <body name="shin_{side}" pos="0 0 -0.4">{joint}
             <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.04"/>
             <body name="foot_{side}" pos="0 0 -0.45">{joint}
@@ -26,8 +30,8 @@ def _leg(side, y, joints, toes):
         </body>"""
 
 
-def _humanoid(joints=True, toes=False):
-    joint = JOINT if joints else ''
+def _humanoid(toes=False, spur=False):
+    joint = JOINT
     xml = f"""<mujoco><worldbody>
       <body name="torso" pos="0 0 1.4"><freejoint/>
         <geom type="capsule" fromto="0 -0.1 0 0 0.1 0" size="0.07"/>
@@ -39,7 +43,7 @@ def _humanoid(joints=True, toes=False):
           <geom type="capsule" fromto="0 -0.06 0 0 0.06 0" size="0.06"/>
           <body name="pelvis" pos="0 0 -0.15">
             <geom type="capsule" fromto="0 -0.07 0 0 0.07 0" size="0.09"/>
-            {_leg('right', -0.1, joints, toes)}{_leg('left', 0.1, joints, toes)}
+            {_leg('right', -0.1, toes, spur)}{_leg('left', 0.1, toes, spur)}
           </body>
         </body>
       </body></worldbody></mujoco>"""
@@ -53,9 +57,9 @@ def _names(model, ids):
     return sorted(model.body(b).name for b in ids)
 
 
-@pytest.mark.parametrize('joints', [True, False], ids=['jointed', 'rigid'])
-def test_legs_below_a_waist_give_two_feet_and_two_legs(joints):
-    model, data = _humanoid(joints)
+@pytest.mark.parametrize('spur', [False, True], ids=['feet', 'feet_and_spurs'])
+def test_legs_below_a_waist_give_two_feet_and_two_legs(spur):
+    model, data = _humanoid(spur=spur)
     torso = model.body('torso').id
     feet = auto_sand_bodies(model, data, torso)
     assert _names(model, feet) == ['foot_left', 'foot_right']  # not the arms: above the band

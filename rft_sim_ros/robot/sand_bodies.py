@@ -6,9 +6,9 @@ with fnmatch, case-sensitive) or `auto`:
 auto picks, in the initial pose, one body per kinematic branch: the branches are the
 subtrees that hang by a joint from the base body's rigid group (the base and the bodies
 welded to it, e.g. a URDF `base` link fixed to the trunk), plus that group itself, and a
-branch is split where it forks into two or more subtrees that reach the ground, at a body
+branch is split where two or more limbs that reach the ground hang by joints from a body
 that does not (a humanoid's legs hang from a pelvis below its waist joint: two branches,
-where a foot's toes are one); in each, the body whose collision geoms (contype or
+where a foot's toes are one, and a shin's welded lower link stays with it); in each, the body whose collision geoms (contype or
 conaffinity nonzero) reach lowest (lowest point of the geoms' bounding boxes, world z) is
 that branch's candidate. The ground band: within AUTO_TOLERANCE of the robot's height (base
 origin above the lowest collision point of all) from the lowest point of all. The
@@ -16,8 +16,8 @@ candidates kept are those in it: the feet of a standing robot, not a head or a t
 higher.
 
 Legs (for the per-leg wrenches): unless the scene gives them, each branch that holds sand
-bodies is one leg (split where it forks into subtrees that hold sand bodies, at a body that
-is not one), named after the branch's first body (the body that hangs from the base's group
+bodies is one leg (split where two or more limbs that hold sand bodies hang by joints from a
+body that is not one), named after the branch's first body (the body that hangs from the base's group
 or from the fork; the base's own name for the group), its sand bodies listed from the base
 outwards, so the last one (the deepest in the tree) is the leg's reference point.
 """
@@ -64,26 +64,28 @@ def branches(model, base, ground=frozenset()):
     """{first body of the branch: [bodies of the branch]}: the base's rigid group (the base
     and the bodies welded to it without a joint, e.g. a URDF `base` link fixed to the trunk)
     is one branch, keyed by the base; each subtree hanging from that group by a joint is
-    another, keyed by its first body, and so is each subtree hanging from a fork, jointed or
-    welded: a body not in `ground` (body ids) from which two or more subtrees holding bodies
-    of `ground` hang.
+    another, keyed by its first body, and so is each limb hanging from a fork: a body not in
+    `ground` (body ids) from which two or more subtrees holding bodies of `ground` hang by
+    joints (welded parts, like a shin's lower link beside its foot, stay with their parent).
     Bodies in tree order (a parent before its children)."""
     rigid = model.body_weldid[base]
     parents = model.body_parentid
     holds = np.zeros(model.nbody, dtype=bool)  # its subtree has a body of `ground`
-    held_children = np.zeros(model.nbody, dtype=int)
+    jointed = model.body_jntnum > 0  # hangs from its parent by a joint
+    held_limbs = np.zeros(model.nbody, dtype=int)  # jointed children that hold some
     for body in range(model.nbody - 1, base, -1):  # children after their parents
         holds[body] |= body in ground
         if holds[body]:
             holds[parents[body]] = True
-            held_children[parents[body]] += 1
+            held_limbs[parents[body]] += jointed[body]
     out = {base: [base]}
     root_of = {base: base}
     for body in range(base + 1, model.nbody):
         parent = int(parents[body])
         if parent not in root_of:
             continue  # not below the base
-        fork = holds[body] and held_children[parent] >= 2 and parent not in ground
+        fork = (holds[body] and jointed[body] and held_limbs[parent] >= 2
+                and parent not in ground)
         if root_of[parent] == base and model.body_weldid[body] == rigid and not fork:
             root_of[body] = base  # welded to the base: part of its group
         elif root_of[parent] == base or fork:
