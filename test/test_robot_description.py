@@ -178,6 +178,24 @@ def test_xacro_error_and_missing_file_are_one_line(tmp_path):
         load_description(XACRO, base='welded')
 
 
+BODY = ('<inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" '
+        'izz="0.01"/></inertial>')
+
+
+@pytest.mark.parametrize('use', [f'<link name="$(arg part)">{BODY}</link>',
+                                 f'<xacro:if value="$(arg part)"><link name="a">{BODY}</link>'
+                                 '</xacro:if>'])
+def test_an_undefined_xacro_argument_says_how_to_give_it(tmp_path, use):
+    """As a ROS 1 launch file passes it (Unitree's aliengo: `$(arg DEBUG)` in xacro:if)."""
+    (tmp_path / 'r.urdf.xacro').write_text(
+        f'<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">{use}</robot>')
+    with pytest.raises(DescriptionError, match=r'undefined xacro argument part: give it with '
+                                               r'--xacro-arg part=VALUE'):
+        load_description(tmp_path / 'r.urdf.xacro')
+    description = load_description(tmp_path / 'r.urdf.xacro', xacro_args={'part': 'true'})
+    assert description.kind == 'urdf'
+
+
 def _link(name, inertia):
     values = ' '.join(f'{k}="{v}"' for k, v in zip(('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'),
                                                    inertia))

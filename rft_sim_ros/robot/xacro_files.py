@@ -46,7 +46,13 @@ def expand_xacro(path, resolver, args=None):
 
 
 def _message(error):
+    """One line for xacro's `error`; an undefined $(arg NAME), raised as it is or wrapped in
+    a XacroException (xacro:if, xacro:unless), says how to give it."""
+    missing = error if isinstance(error, substitution_args.ArgException) else getattr(
+        error, 'exc', None)
+    if isinstance(missing, substitution_args.ArgException):
+        name = str(missing).strip()
+        return (f'undefined xacro argument {name}: give it with --xacro-arg {name}=VALUE '
+                '(robot.xacro_args in a scene)')
     text = str(error).strip() or type(error).__name__
-    if isinstance(error, substitution_args.ArgException):
-        return f'undefined xacro argument {text}: give it with --xacro-arg {text}=VALUE'
     return ' '.join(text.split())
