@@ -77,20 +77,27 @@ def test_a_robot_on_sand_bodies_that_reach_deep_enough_gets_no_notice(biped):
 
 
 def test_bearing_of_a_horizontal_sole_is_zeta_a_z():
-    """A 20 x 8 x 2 cm box sole facing down, tilted 0 and 30 deg about x (projected area
-    cos 30 x; its sides facing down add theirs)."""
+    """A 20 x 8 x 2 cm box sole facing down, level and tilted 30 deg about x (projected
+    area cos 30 x; its side facing down adds its own), its shin's lowest point 5 cm above
+    its lowest plate."""
     normals = np.array([[0, 0, -1.0], [0, 0, 1.0], [0, -1.0, 0], [0, 1.0, 0]])
     centroids = np.array([[0, 0, -0.01], [0, 0, 0.01], [0, -0.04, 0], [0, 0.04, 0]])
     areas = np.array([0.016, 0.016, 0.004, 0.004])
-    zeta = zeta_to_si(2.0)
-    flat = bearing(10.0, (0, 0, -9.81), zeta, [np.eye(3)], [(normals, centroids, areas)])
+    sole, zeta, gravity = (normals, centroids, areas), zeta_to_si(2.0), (0, 0, -9.81)
+    flat = bearing(10.0, gravity, zeta, [(np.array([0, 0, 0.3]), np.eye(3))], [sole],
+                   others_lowest=0.34)
     assert flat.area_m2 == pytest.approx(0.016)
     assert flat.depth_m == pytest.approx(98.1 / (zeta * 0.016))
-    assert flat.reach_m == pytest.approx(0.02) and not flat.sinks
+    assert flat.clearance_m == pytest.approx(0.05) and not flat.sinks
+    heavy = bearing(1000.0, gravity, zeta, [(np.array([0, 0, 0.3]), np.eye(3))], [sole],
+                    others_lowest=0.34)
+    assert heavy.depth_m > 0.05 and heavy.sinks
+    alone = bearing(1000.0, gravity, zeta, [(np.zeros(3), np.eye(3))], [sole])
+    assert not alone.sinks  # a body alone (a plate dropped): nothing else to pass through
     c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
-    tilted = bearing(10.0, (0, 0, -9.81), zeta, [np.array([[1, 0, 0], [0, c, -s], [0, s, c]])],
-                     [(normals, centroids, areas)])
+    tilted = bearing(10.0, gravity, zeta, [(np.zeros(3), np.array([[1, 0, 0], [0, c, -s],
+                                                                   [0, s, c]]))], [sole])
     assert tilted.area_m2 == pytest.approx(0.016 * c + 0.004 * s)
-    none = bearing(10.0, (0, 0, -9.81), zeta, [np.eye(3)], [(normals[1:2], centroids[1:2],
-                                                            areas[1:2])])
-    assert none.depth_m == np.inf and none.sinks
+    upward = bearing(10.0, gravity, zeta, [(np.zeros(3), np.eye(3))],
+                     [(normals[1:2], centroids[1:2], areas[1:2])], others_lowest=1.0)
+    assert upward.depth_m == np.inf and upward.sinks

@@ -23,7 +23,8 @@ from ..robot.bearing import bearing
 from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
                           set_initial_pose)
-from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
+from ..robot.sand_bodies import (geom_lowest_z, keep_sand_visuals, legs_from_tree,
+                                 resolve_sand_bodies)
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
@@ -254,9 +255,10 @@ class Simulation:
         mujoco.mj_kinematics(self.model, self.data)
 
     def _bearing_notice(self):
-        """A notice where the sand bodies cannot carry a free-floating robot on sand alone
-        (robot/bearing.py), in the initial pose, at the scene's zeta."""
-        model, engine = self.model, self.engine
+        """A notice where a free-floating robot on sand alone bears its weight only with
+        bodies in the sand that are not sand bodies (robot/bearing.py), in the initial pose,
+        at the scene's zeta."""
+        model, data, engine = self.model, self.data, self.engine
         root = model.body_rootid[self._base_id]
         joint = model.body_jntadr[root]
         if (self.scene.keep_floor or joint < 0
@@ -265,17 +267,22 @@ class Simulation:
         starts = engine.plate_start
         plates = [(engine.local_normal[a:b], engine.local_pos[a:b], engine.areas[a:b])
                   for a, b in zip(starts[:-1], starts[1:])]
-        rotations = self.data.xmat[engine.body_ids].reshape(-1, 3, 3)
+        poses = [(data.xpos[b], data.xmat[b].reshape(3, 3)) for b in engine.body_ids]
+        others = [g for g in range(model.ngeom) if model.body_rootid[model.geom_bodyid[g]]
+                  == root and model.geom_bodyid[g] not in engine.body_ids]
+        others_lowest = min((geom_lowest_z(model, data, g) for g in others),
+                            default=float('inf'))
         mass = float(model.body_subtreemass[root])
-        found = bearing(mass, model.opt.gravity, zeta_to_si(self.scene.zeta), rotations, plates)
+        found = bearing(mass, model.opt.gravity, zeta_to_si(self.scene.zeta), poses, plates,
+                        others_lowest)
         if found.sinks:
             self.notices.append(
                 f'sand bodies: their {found.area_m2 * 1e4:.3g} cm^2 facing down bear the '
                 f"robot's {mass:.3g} kg only about {found.depth_m * 100:.3g} cm deep (zeta A z "
-                f'= m g), deeper than they reach ({found.reach_m * 100:.3g} cm): the robot will '
-                'sink until bodies the sand does not hold meet it; name more sand bodies '
-                '(rft.bodies) or take their plates from their visual geoms '
-                '(rft.plate_geoms: visual)')
+                f'= m g), deeper than its other bodies clear them '
+                f'({found.clearance_m * 100:.3g} cm): those will pass through the sand, which '
+                'does not hold them; name more sand bodies (rft.bodies) or take their plates '
+                'from their visual geoms (rft.plate_geoms: visual)')
 
     def _set_legs(self, scene):
         """Legs: the scene's, or one per branch of the kinematic tree (robot/sand_bodies.py)."""
