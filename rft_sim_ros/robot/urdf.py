@@ -174,8 +174,9 @@ def _prepare_meshes(root, where, base_dir, resolver, prepared):
             f'(MuJoCo reads STL, OBJ and MSH): {", ".join(str(p) for p in converted)}')
     if dropped:
         prepared.notices.append(
-            f'{where}: dropped {len(dropped)} visual mesh(es) MuJoCo cannot read (visuals do '
-            f'not affect physics): {", ".join(sorted(set(dropped)))}')
+            f'{where}: dropped {len(dropped)} visual mesh(es) MuJoCo cannot read (MuJoCo does '
+            'not collide visuals; with rft.plate_geoms: visual their bodies keep their '
+            f'collision geoms): {", ".join(sorted(set(dropped)))}')
 
 
 def balance_inertias(root):
