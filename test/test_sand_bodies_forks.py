@@ -6,48 +6,53 @@ import mujoco
 import pytest
 
 from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation
 
-JOINT = '<joint type="hinge" axis="0 1 0"/>'
+def _joint(name):
+    return f'<joint name="{name}" type="hinge" axis="0 1 0"/>'
 
 
 def _leg(side, y, toes, spur):
-    joint = JOINT
-    foot = (f'<body name="toe_{side}_{k}" pos="0.08 {0.02 * k} 0">{joint}'
+    foot = (f'<body name="toe_{side}_{k}" pos="0.08 {0.02 * k} 0">{_joint(f"toe_{side}_{k}")}'
             f'<geom type="sphere" size="0.02" pos="0 0 {-0.002 * (k + 2)}"/></body>'
             for k in (-1, 1)) if toes else ()
     # welded to the thigh, whose own geoms end above the ground band, and low
     spur_body = (f'<body name="spur_{side}" pos="0.1 0 -0.8">'
                  '<geom type="sphere" size="0.01"/></body>' if spur else '')
     return f"""
-        <body name="thigh_{side}" pos="0 {y} -0.05">{joint}
+        <body name="thigh_{side}" pos="0 {y} -0.05">{_joint(f'hip_{side}')}
           <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.05"/>{spur_body}
-          <body name="shin_{side}" pos="0 0 -0.4">{joint}
+          <body name="shin_{side}" pos="0 0 -0.4">{_joint(f'knee_{side}')}
             <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.04"/>
-            <body name="foot_{side}" pos="0 0 -0.45">{joint}
+            <body name="foot_{side}" pos="0 0 -0.45">{_joint(f'ankle_{side}')}
               <geom type="box" size="0.1 0.04 0.02"/>{''.join(foot)}
             </body>
           </body>
         </body>"""
 
 
-def _humanoid(toes=False, spur=False):
-    joint = JOINT
-    xml = f"""<mujoco><worldbody>
+def _robot_body(toes=False, spur=False):
+    return f"""
       <body name="torso" pos="0 0 1.4"><freejoint/>
         <geom type="capsule" fromto="0 -0.1 0 0 0.1 0" size="0.07"/>
-        <body name="arm_right" pos="0 -0.2 0">{joint}
+        <body name="arm_right" pos="0 -0.2 0">{_joint('shoulder_right')}
           <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.04"/></body>
-        <body name="arm_left" pos="0 0.2 0">{joint}
+        <body name="arm_left" pos="0 0.2 0">{_joint('shoulder_left')}
           <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.04"/></body>
-        <body name="waist" pos="0 0 -0.25">{joint}
+        <body name="waist" pos="0 0 -0.25">{_joint('waist')}
           <geom type="capsule" fromto="0 -0.06 0 0 0.06 0" size="0.06"/>
           <body name="pelvis" pos="0 0 -0.15">
             <geom type="capsule" fromto="0 -0.07 0 0 0.07 0" size="0.09"/>
             {_leg('right', -0.1, toes, spur)}{_leg('left', 0.1, toes, spur)}
           </body>
         </body>
-      </body></worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
+      </body>"""
+
+
+def _humanoid(toes=False, spur=False):
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><worldbody>{_robot_body(toes, spur)}</worldbody></mujoco>')
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     return model, data
@@ -77,3 +82,20 @@ def test_a_foots_toes_in_the_ground_band_are_one_branch():
     toes = ['toe_right_-1', 'toe_right_1']
     assert legs_from_tree(model, toes, torso) == {'toe_right__1': ('toe_right_-1',),
                                                    'toe_right_1': ('toe_right_1',)}
+
+
+def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
+    """A loose crate beside the robot, with no sand body of its own, falls through the sand:
+    the user is told, and told how to change it (naming a sand body of it silences it)."""
+    crate = ('<body name="crate" pos="1 0 0.2"><freejoint/>'
+             '<geom type="box" size="0.1 0.1 0.1" mass="1"/></body>')
+    path = tmp_path / 'robot_and_crate.xml'
+    path.write_text(f'<mujoco><worldbody>{_robot_body()}{crate}</worldbody></mujoco>')
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    [notice] = [n for n in sim.notices if 'free bodies' in n]
+    assert 'hold: crate;' in notice and 'rft.bodies' in notice
+    both = Simulation(load_scene(path, {'rft.plates_per_body': 50,
+                                        'rft.bodies': ['foot_*', 'crate']}))
+    assert not [n for n in both.notices if 'free bodies' in n]
+    kept = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'sand.keep_floor': True}))
+    assert not [n for n in kept.notices if 'free bodies' in n]

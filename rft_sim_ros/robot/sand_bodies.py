@@ -8,18 +8,22 @@ subtrees that hang by a joint from the base body's rigid group (the base and the
 welded to it, e.g. a URDF `base` link fixed to the trunk), plus that group itself, and a
 branch is split where two or more limbs that reach the ground hang by joints from a body
 that does not (a humanoid's legs hang from a pelvis below its waist joint: two branches,
-where a foot's toes are one, and a shin's welded lower link stays with it); in each, the body whose collision geoms (contype or
-conaffinity nonzero) reach lowest (lowest point of the geoms' bounding boxes, world z) is
-that branch's candidate. The ground band: within AUTO_TOLERANCE of the robot's height (base
-origin above the lowest collision point of all) from the lowest point of all. The
-candidates kept are those in it: the feet of a standing robot, not a head or a tail held
-higher.
+where a foot's toes are one, and a shin's welded lower link stays with it); in each, the
+body whose collision geoms (contype or conaffinity nonzero) reach lowest (lowest point of
+the geoms' bounding boxes, world z) is that branch's candidate. The ground band: within
+AUTO_TOLERANCE of the robot's height (base origin above the lowest collision point of all)
+from the lowest point of all. The candidates kept are those in it: the feet of a standing
+robot, not a head or a tail held higher.
 
 Legs (for the per-leg wrenches): unless the scene gives them, each branch that holds sand
-bodies is one leg (split where two or more limbs that hold sand bodies hang by joints from a
-body that is not one), named after the branch's first body (the body that hangs from the base's group
-or from the fork; the base's own name for the group), its sand bodies listed from the base
-outwards, so the last one (the deepest in the tree) is the leg's reference point.
+bodies is one leg (split where two or more limbs that hold sand bodies hang by joints from
+a body that is not one), named after the branch's first body (the body that hangs from the
+base's group or from the fork; the base's own name for the group), its sand bodies listed
+from the base outwards, so the last one (the deepest in the tree) is the leg's reference
+point.
+
+Free-floating trees other than the robot's that hold no sand body (another robot, a loose
+crate) are named at start-up (`unheld_free_trees`): the sand does not hold them.
 """
 import fnmatch
 import re
@@ -117,6 +121,22 @@ def auto_sand_bodies(model, data, base):
         if candidates and min(candidates)[0] <= band:
             picked.append(min(candidates)[1])
     return sorted(picked)
+
+
+def unheld_free_trees(model, sand_bodies):
+    """Names of the root bodies of free-floating trees (a free joint on the root) that have
+    collision geoms and no body in `sand_bodies` (ids): the sand does not hold them (another
+    robot, a loose crate)."""
+    roots = model.body_rootid
+    held = {int(roots[b]) for b in sand_bodies}
+    colliding = {int(roots[model.geom_bodyid[g]]) for g in range(model.ngeom)
+                 if is_collision_geom(model, g)}
+    free = []
+    for root in sorted(colliding - held - {0}):
+        joint = model.body_jntadr[root]
+        if joint >= 0 and int(model.jnt_type[joint]) == mujoco.mjtJoint.mjJNT_FREE:
+            free.append(_name(model, root))
+    return free
 
 
 def match_bodies(names, patterns):

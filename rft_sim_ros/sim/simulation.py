@@ -24,7 +24,7 @@ from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servo
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
                           set_initial_pose)
 from ..robot.sand_bodies import (geom_lowest_z, keep_sand_visuals, legs_from_tree,
-                                 resolve_sand_bodies)
+                                 resolve_sand_bodies, unheld_free_trees)
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
@@ -173,6 +173,14 @@ class Simulation:
         if list(scene.sand_bodies) != list(self.sand_bodies):
             self.notices.append(f'sand bodies ({", ".join(scene.sand_bodies)}): '
                                 f'{", ".join(self.sand_bodies)}')
+        unheld = unheld_free_trees(self.model, [self.model.body(b).id
+                                                for b in self.sand_bodies])
+        if unheld and not scene.keep_floor:
+            shown = ', '.join(unheld[:5]) + (f' and {len(unheld) - 5} more'
+                                             if len(unheld) > 5 else '')
+            self.notices.append(f'free bodies without a sand body, which the sand does not '
+                                f'hold: {shown}; they fall through its surface unless other '
+                                'rigid ground holds them (name their bodies in rft.bodies)')
         for body in scene.plates_by_body:
             if body not in self.sand_bodies:
                 raise scene.locator.error('rft.plates', f'{body!r} is not a sand body '
