@@ -1,7 +1,8 @@
 """auto's sand bodies and the legs where a branch forks below the base: a humanoid whose
 legs hang by hip joints from a pelvis below its waist joint has two feet and two legs; a
 shin's welded lower link beside its foot, and a foot's toes in the ground band, stay in
-their leg (robot/sand_bodies.py)."""
+their leg; a free body beside the robot with no sand body is named at start-up
+(robot/sand_bodies.py)."""
 import mujoco
 import pytest
 
