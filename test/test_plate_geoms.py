@@ -1,5 +1,6 @@
-"""Which geoms carry a sand body's plates (rft.plate_geoms), and the start-up notice when
-the sand bodies cannot bear the robot (robot/bearing.py). The robot: a 10 kg biped on two
+"""Which geoms carry a sand body's plates (rft.plate_geoms), and the start-up notices of
+what the sand will not do for a robot: bear it on sand bodies too small (robot/bearing.py),
+run MuJoCo's noslip iterations on the constraints it solves. The robot: a 10 kg biped on two
 feet whose collision geoms are four 5 mm spheres each (made for rigid ground, as in many
 vendors' humanoids) under a visual sole, a 20 x 8 x 2 cm box."""
 import numpy as np
@@ -101,3 +102,13 @@ def test_bearing_of_a_horizontal_sole_is_zeta_a_z():
     upward = bearing(10.0, gravity, zeta, [(np.zeros(3), np.eye(3))],
                      [(normals[1:2], centroids[1:2], areas[1:2])], others_lowest=1.0)
     assert upward.depth_m == np.inf and upward.sinks
+
+
+def test_noslip_iterations_the_sand_solve_does_not_run_are_said(biped, tmp_path):
+    path = tmp_path / 'noslip.xml'
+    path.write_text(biped.read_text().replace('<mujoco>',
+                                              '<mujoco><option noslip_iterations="3"/>'))
+    said = [n for n in _sim(path).notices if 'noslip' in n]
+    assert len(said) == 1 and '(3)' in said[0]
+    explicit = _sim(path, **{'rft.low_velocity.method': 'ema'})
+    assert not [n for n in explicit.notices if 'noslip' in n]

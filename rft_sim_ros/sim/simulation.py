@@ -211,6 +211,12 @@ class Simulation:
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
         self._bearing_notice()
+        noslip = int(self.model.opt.noslip_iterations)
+        if noslip and scene.low_velocity['method'] == 'implicit':
+            self.notices.append(
+                f"MuJoCo's noslip iterations ({noslip}) do not act on the constraints the "
+                'sand solve takes (rigid contacts, limits, equalities; docs/robots.md); '
+                'rft.low_velocity.method ema or none leaves them to MuJoCo')
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
