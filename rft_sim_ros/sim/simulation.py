@@ -19,12 +19,10 @@ import numpy as np
 
 from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
-from ..robot.bearing import bearing
 from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
                           set_initial_pose)
-from ..robot.sand_bodies import (geom_lowest_z, keep_sand_visuals, legs_from_tree,
-                                 resolve_sand_bodies, unheld_free_trees)
+from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
@@ -32,9 +30,9 @@ from ..sand.surface import SURFACE_KINDS, hfield_geom, hfield_label, surface_fro
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
+from .caveats import caveats
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
-from ..units import zeta_to_si
 
 #: Generalised speeds above this (m/s or rad/s) mean the simulation has blown up.
 RUNAWAY_SPEED = 1.0e3
@@ -173,14 +171,6 @@ class Simulation:
         if list(scene.sand_bodies) != list(self.sand_bodies):
             self.notices.append(f'sand bodies ({", ".join(scene.sand_bodies)}): '
                                 f'{", ".join(self.sand_bodies)}')
-        unheld = unheld_free_trees(self.model, [self.model.body(b).id
-                                                for b in self.sand_bodies])
-        if unheld and not scene.keep_floor:
-            shown = ', '.join(unheld[:5]) + (f' and {len(unheld) - 5} more'
-                                             if len(unheld) > 5 else '')
-            self.notices.append(f'free bodies without a sand body, which the sand does not '
-                                f'hold: {shown}; they fall through its surface unless other '
-                                'rigid ground holds them (name their bodies in rft.bodies)')
         for body in scene.plates_by_body:
             if body not in self.sand_bodies:
                 raise scene.locator.error('rft.plates', f'{body!r} is not a sand body '
@@ -210,13 +200,7 @@ class Simulation:
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
-        self._bearing_notice()
-        noslip = int(self.model.opt.noslip_iterations)
-        if noslip and scene.low_velocity['method'] == 'implicit':
-            self.notices.append(
-                f"MuJoCo's noslip iterations ({noslip}) do not act on the constraints the "
-                'sand solve takes (rigid contacts, limits, equalities; docs/robots.md); '
-                'rft.low_velocity.method ema or none leaves them to MuJoCo')
+        self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
@@ -267,36 +251,6 @@ class Simulation:
             key = 'robot.keyframe' if 'keyframe' in str(error) else 'robot.initial_positions'
             raise self.scene.locator.error(key, str(error)) from None
         mujoco.mj_kinematics(self.model, self.data)
-
-    def _bearing_notice(self):
-        """A notice where a free-floating robot on sand alone bears its weight only with
-        bodies in the sand that are not sand bodies (robot/bearing.py), in the initial pose,
-        at the scene's zeta."""
-        model, data, engine = self.model, self.data, self.engine
-        root = model.body_rootid[self._base_id]
-        joint = model.body_jntadr[root]
-        if (self.scene.keep_floor or joint < 0
-                or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE):
-            return
-        starts = engine.plate_start
-        plates = [(engine.local_normal[a:b], engine.local_pos[a:b], engine.areas[a:b])
-                  for a, b in zip(starts[:-1], starts[1:])]
-        poses = [(data.xpos[b], data.xmat[b].reshape(3, 3)) for b in engine.body_ids]
-        others = [g for g in range(model.ngeom) if model.body_rootid[model.geom_bodyid[g]]
-                  == root and model.geom_bodyid[g] not in engine.body_ids]
-        others_lowest = min((geom_lowest_z(model, data, g) for g in others),
-                            default=float('inf'))
-        mass = float(model.body_subtreemass[root])
-        found = bearing(mass, model.opt.gravity, zeta_to_si(self.scene.zeta), poses, plates,
-                        others_lowest)
-        if found.sinks:
-            self.notices.append(
-                f'sand bodies: their {found.area_m2 * 1e4:.3g} cm^2 facing down bear the '
-                f"robot's {mass:.3g} kg only about {found.depth_m * 100:.3g} cm deep (zeta A z "
-                f'= m g), deeper than its other bodies clear them '
-                f'({found.clearance_m * 100:.3g} cm): those will pass through the sand, which '
-                'does not hold them; name more sand bodies (rft.bodies) or take their plates '
-                'from their visual geoms (rft.plate_geoms: visual)')
 
     def _set_legs(self, scene):
         """Legs: the scene's, or one per branch of the kinematic tree (robot/sand_bodies.py)."""

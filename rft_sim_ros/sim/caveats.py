@@ -1,0 +1,60 @@
+"""What start-up tells the user the sand will not do for their model, each as one notice
+with the key that changes it: bear the robot on sand bodies too small for its weight
+(robot/bearing.py), hold free bodies that have no sand body (another robot, a loose crate),
+run MuJoCo's noslip iterations on the constraints the sand solve takes."""
+import mujoco
+
+from ..robot.bearing import bearing
+from ..robot.sand_bodies import geom_lowest_z, unheld_free_trees
+from ..units import zeta_to_si
+
+#: Free trees named in the notice before "and N more".
+SHOWN_TREES = 5
+
+
+def caveats(model, data, engine, scene, base):
+    """Notices (str) for a model in its initial pose (`data`, after mj_kinematics) with its
+    SandEngine `engine`, its SceneConfig `scene` and its base body id `base`."""
+    notices = []
+    if not scene.keep_floor:  # (else the floor holds the robot and any other body)
+        notices += _bearing_notice(model, data, engine, scene.zeta, base)
+        unheld = unheld_free_trees(model, engine.body_ids)
+        if unheld:
+            shown = ', '.join(unheld[:SHOWN_TREES]) + (
+                f' and {len(unheld) - SHOWN_TREES} more' if len(unheld) > SHOWN_TREES else '')
+            notices.append(f'free bodies without a sand body, which the sand does not hold: '
+                           f'{shown}; they fall through its surface unless other rigid ground '
+                           'holds them (name their bodies in rft.bodies)')
+    noslip = int(model.opt.noslip_iterations)
+    if noslip and scene.low_velocity['method'] == 'implicit':
+        notices.append(f"MuJoCo's noslip iterations ({noslip}) do not act on the constraints "
+                       'the sand solve takes (rigid contacts, limits, equalities; '
+                       'docs/robots.md); rft.low_velocity.method ema or none leaves them to '
+                       'MuJoCo')
+    return notices
+
+
+def _bearing_notice(model, data, engine, zeta, base):
+    """[notice] where a free-floating robot bears its weight only with bodies in the sand
+    that are not sand bodies (robot/bearing.py), at zeta (N/cm^3); else []."""
+    root = model.body_rootid[base]
+    joint = model.body_jntadr[root]
+    if joint < 0 or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE:
+        return []
+    starts = engine.plate_start
+    plates = [(engine.local_normal[a:b], engine.local_pos[a:b], engine.areas[a:b])
+              for a, b in zip(starts[:-1], starts[1:])]
+    poses = [(data.xpos[b], data.xmat[b].reshape(3, 3)) for b in engine.body_ids]
+    others = [g for g in range(model.ngeom) if model.body_rootid[model.geom_bodyid[g]] == root
+              and model.geom_bodyid[g] not in engine.body_ids]
+    others_lowest = min((geom_lowest_z(model, data, g) for g in others), default=float('inf'))
+    mass = float(model.body_subtreemass[root])
+    found = bearing(mass, model.opt.gravity, zeta_to_si(zeta), poses, plates, others_lowest)
+    if not found.sinks:
+        return []
+    return [f'sand bodies: their {found.area_m2 * 1e4:.3g} cm^2 facing down bear the robot\'s '
+            f'{mass:.3g} kg only about {found.depth_m * 100:.3g} cm deep (zeta A z = m g), '
+            f'deeper than its other bodies clear them ({found.clearance_m * 100:.3g} cm): those '
+            'will pass through the sand, which does not hold them; name more sand bodies '
+            '(rft.bodies) or take their plates from their visual geoms '
+            '(rft.plate_geoms: visual)']
