@@ -39,8 +39,8 @@ def four_legs(friction=0.0, knee='', servos=('hip', 'knee'), world='', extra='',
     3.75. friction: every joint's frictionloss; knee: attributes of the knee joints (e.g. a
     range); servos: the joints with position servos; world: MJCF in the worldbody after the
     body (whose dofs stay first); extra: MJCF after the worldbody (tendons, equalities);
-    cone, impratio: MuJoCo's friction cone and impratio; override: MuJoCo's solref/solimp override on, at the
-    knees' own values."""
+    cone, impratio: MuJoCo's friction cone and impratio; override: MuJoCo's solref/solimp
+    override on, at the knees' own values."""
     legs = ''.join(LEG.format(i=i, x=x, y=y, knee=knee) for i, (x, y) in enumerate(CORNERS))
     actuators = ''.join(f'<position joint="{j}{i}"/>' for i in range(4) for j in servos)
     model = mujoco.MjModel.from_xml_string(STANDING.format(

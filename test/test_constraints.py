@@ -200,12 +200,12 @@ def test_sliding_and_rolling_contacts_in_the_air_are_mujocos(cone, condim, impra
                                                              jacobian):
     """No sand: a box thrown spinning along a floor, a ball rolling with torsional and
     rolling friction and a puck sliding down a ramp, for both cones, every condim and a high
-    impratio (as vendor scenes set), with a dense or sparse Jacobian: the rows (an elliptic cone's solved by Newton's method
-    on MuJoCo's own cone law) move the bodies as MuJoCo does, to its solver's tolerance,
-    over 1.2 s of contacts that stick, slide, roll and separate. Steps whose rows the solve
-    cannot settle (the active set's cycles among the pyramids' edges, a cone whose Newton
-    iteration has not converged in CONE_ITERATIONS steps) are handed back to MuJoCo's solve,
-    and these steps too are MuJoCo's."""
+    impratio (as vendor scenes set), with a dense or sparse Jacobian: the rows (an elliptic
+    cone's solved by Newton's method on MuJoCo's own cone law) move the bodies as MuJoCo
+    does, to its solver's tolerance, over 1.2 s of contacts that stick, slide, roll and
+    separate. Steps whose rows the solve cannot settle (the active set's cycles among the
+    pyramids' edges, a cone whose Newton iteration has not converged in CONE_ITERATIONS
+    steps) are handed back to MuJoCo's solve, and these steps too are MuJoCo's."""
     xml = SLIDING.format(cone=cone, condim=condim, impratio=impratio)
     own, own_data, model, data, engine = _own_and_engine(xml, 'hand', jacobian)
     for d in (own_data, data):

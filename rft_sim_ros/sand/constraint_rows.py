@@ -232,7 +232,7 @@ def constraint_forces(constraints, qvel, solution, timestep):
     rows, flags, n = constraints[3], constraints[4], constraints[5]
     wrong = 0
     for r in range(n):
-        if rows[r, ROW_KIND] == CONE:  # (`elliptic_cones.cone_forces`)
+        if rows[r, ROW_KIND] == CONE:  # (`elliptic_cones.cone_errors`)
             continue
         force = _constraint_force(constraints, r, qvel, solution, timestep)
         if rows[r, ROW_KIND] == ONE_SIDED:

@@ -1174,8 +1174,9 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     velocities (a row or cone frozen, or the iteration ended first:
     `constraint_rows.constraint_forces`), the step applies none of them and MuJoCo's own
     solve in mj_step2 solves them, exactly, with the sand's wrenches as this solve left them
-    (the engine restores their rows, `constraint_rows.return_constraint_rows`). A joint that would return to a set is
-    frozen likewise (a damper F / max(|qvel|, v_reg) through its speed at the step's start).
+    (the engine restores their rows, `constraint_rows.return_constraint_rows`). A joint that
+    would return to a set is frozen likewise (a damper F / max(|qvel|, v_reg) through its
+    speed at the step's start).
 
     Each plate enters its slot's accumulators with coefficients set by its set: moving ->
     wrench h = [G; r x G]; resting -> along response h u^T / v_reg (u = [d; r x d]); all but

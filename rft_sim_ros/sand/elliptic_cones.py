@@ -40,6 +40,12 @@ ARMIJO = 1e-4
 
 
 @njit(cache=True, inline='always')
+def _cone_dim(rows, r):
+    """The rows of the cone that starts at row r (its condim), 0 where none starts there."""
+    return int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
+
+
+@njit(cache=True, inline='always')
 def _dual(rows, r, dim, column):
     """(mu, N, T) of the cone whose dim rows start at row r, at the jar in rows[:, column]:
     its regular dual space U = diag(mu, friction) jar, N = U_0, T = |U_1..|."""
@@ -126,7 +132,7 @@ def _linearise_all(constraints, column, timestep):
     rows, flags, n = constraints[3], constraints[4], constraints[5]
     cones = 0
     for r in range(n):
-        dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
+        dim = _cone_dim(rows, r)
         if dim == 0:
             continue
         for a in range(r, r + dim):
@@ -155,7 +161,7 @@ def cone_terms(constraints, system, rhs):
     jac, columns, counts, rows, n = (constraints[0], constraints[1], constraints[2],
                                       constraints[3], constraints[5])
     for r in range(n):
-        dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
+        dim = _cone_dim(rows, r)
         for a in range(r, r + dim):
             row_a, used_a = jac[a], columns[a, :counts[a]]
             push = rows[a, ROW_PUSH]
@@ -172,6 +178,16 @@ def cone_terms(constraints, system, rhs):
                         target[c] += scaled * row_b[c]
 
 
+@njit(cache=True, inline='always')
+def _linear_force(rows, r, dim, a, column):
+    """Row r + a's force by the cone's linearisation (`_linearise`) at the jar in
+    rows[:, column]: ROW_LINEAR - H jar."""
+    linear = rows[r + a, ROW_LINEAR]
+    for b in range(dim):
+        linear -= rows[r + a, ROW_HESSIAN + b] * rows[r + b, column]
+    return linear
+
+
 @njit(cache=True)
 def _error(rows, r, dim, column, force, hessian):
     """Squared difference (N^2) of the cone's linearised force and MuJoCo's at the jar in
@@ -180,11 +196,8 @@ def _error(rows, r, dim, column, force, hessian):
     cone_force(rows, r, dim, cone_zone(rows, r, dim, column), column, force, hessian)
     error = size = 0.0
     for a in range(dim):
-        linear = rows[r + a, ROW_LINEAR]
-        for b in range(dim):
-            linear -= rows[r + a, ROW_HESSIAN + b] * rows[r + b, column]
         size += force[a] ** 2
-        force[a] = linear - force[a]
+        force[a] = _linear_force(rows, r, dim, a, column) - force[a]
         error += force[a] ** 2
     return error, size
 
@@ -198,16 +211,13 @@ def cone_errors(constraints, qvel, solution, timestep):
     force, hessian = np.empty(CONE_ROWS), np.empty((CONE_ROWS, CONE_ROWS))
     wrong = 0
     for r in range(n):
-        dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
+        dim = _cone_dim(rows, r)
         if dim == 0:
             continue
         for a in range(r, r + dim):
             rows[a, ROW_JAR] = row_jar(constraints, a, qvel, solution, timestep)
-        for a in range(r, r + dim):
-            linear = rows[a, ROW_LINEAR]
-            for b in range(dim):
-                linear -= rows[a, ROW_HESSIAN + b] * rows[r + b, ROW_JAR]
-            rows[a, ROW_FORCE] = linear
+        for a in range(dim):
+            rows[r + a, ROW_FORCE] = _linear_force(rows, r, dim, a, ROW_JAR)
         error, size = _error(rows, r, dim, ROW_JAR, force, hessian)
         wrong += error > CONE_TOLERANCE ** 2 * size
     return wrong
@@ -240,7 +250,7 @@ def cone_step(constraints, point, solution, system, rhs, timestep):
         for i in range(nv):
             residual[i] = (1.0 - alpha) * base[i]
         for r in range(n):
-            dim = int(rows[r, ROW_DIM]) if rows[r, ROW_KIND] == CONE else 0
+            dim = _cone_dim(rows, r)
             if dim == 0:
                 continue
             for a in range(r, r + dim):
