@@ -7,7 +7,7 @@ import pytest
 
 from rft_sim_ros import cli
 from rft_sim_ros.scenes import schema
-from rft_sim_ros.scenes.config import SceneError, bundled_scenes, load_scene
+from rft_sim_ros.scenes.config import SceneError, bundled_scenes, load_scene, parse_assignment
 from rft_sim_ros.sim.runner import run_scene
 from rft_sim_ros.sim.simulation import Simulation
 
@@ -90,6 +90,21 @@ def test_syntax_errors_and_overrides_say_where(tmp_path):
         load_scene(write(tmp_path, 'name: x\nmodel: plate.xml\nrft: {a: b\n  c d]\n'))
     with pytest.raises(SceneError, match=r'scene.yaml: --set timestep: must be > 0'):
         load_scene(write(tmp_path, MINIMAL), {'timestep': -1})
+
+
+def test_a_colon_without_a_space_is_named_not_read_as_a_key(tmp_path):
+    """YAML reads `{factor:0.3}` as the key 'factor:0.3' without a value; the error says so,
+    in a scene file and in --set, instead of a validator's 'got {...}' later."""
+    with pytest.raises(SceneError, match=r"--set sand.zeta_map.regions: 'factor:0.3' was read "
+                       r'as a key without a value: YAML needs a space after the colon '
+                       r'\(factor: 0.3\)'):
+        parse_assignment('sand.zeta_map.regions=[{x: [0, 1], y: [0, 1], factor:0.3}]')
+    path = write(tmp_path, MINIMAL + 'sand: {zeta_map: {regions: [{x: [0, 1], y: [0, 1], '
+                 'factor:0.3}]}}\n')
+    with pytest.raises(SceneError, match=f"{path}: 'factor:0.3' was read as a key"):
+        load_scene(path)
+    assert parse_assignment('sand.zeta_map.regions=[{x: [0, 1], y: [0, 1], factor: 0.3}]')[1] \
+        == [{'x': [0, 1], 'y': [0, 1], 'factor': 0.3}]
 
 
 def test_scenes_command_prints_effective_values_and_set_keys(capsys):

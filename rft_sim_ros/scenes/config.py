@@ -118,6 +118,7 @@ def load_scene(name_or_path, overrides=None):
     raw, lines = load_with_lines(text, path)
     if not isinstance(raw, dict):
         raise SceneError(f'{path}: a scene file must hold a mapping')
+    _refuse_glued_keys(raw, str(path))
     raw = apply_overrides(raw, overrides)
     return _validate(raw, path, Locator(path, lines, overridden=overrides))
 
@@ -150,7 +151,24 @@ def parse_assignment(text):
             parsed = float(parsed)
         except ValueError:
             pass
+    _refuse_glued_keys(parsed, f'--set {key.strip()}')
     return key.strip(), parsed
+
+
+def _refuse_glued_keys(value, where):
+    """Raise SceneError where a mapping in `value` has a key like 'factor:0.3' without a
+    value: YAML reads `{x: 1, factor:0.3}` so, a colon with no space after it being part of
+    the key, and the error a validator would give later does not say why."""
+    if isinstance(value, dict):
+        for name, item in value.items():
+            if item is None and isinstance(name, str) and ':' in name.strip(':'):
+                key, _, rest = name.partition(':')
+                raise SceneError(f'{where}: {name!r} was read as a key without a value: '
+                                 f'YAML needs a space after the colon ({key}: {rest})')
+            _refuse_glued_keys(item, where)
+    elif isinstance(value, list):
+        for item in value:
+            _refuse_glued_keys(item, where)
 
 
 def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
