@@ -28,7 +28,7 @@ def columns(study):
 def summary_metrics(summary):
     """{name: number} of the metrics a study can tabulate from a run's summary.json: the
     summary's own numbers (real_time_factor, implicit_solves_per_step, plates_active_mean,
-    ...), then every scene's (`generic_metrics`: base_displacement_m, max_depth_m_<leg>,
+    ...), then every scene's (`generic_metrics`: base_displacement_m, max_depth_m_<body>,
     ...), then the scenario's (`metrics`), a later one winning a name."""
     summary = summary or {}
     merged = {**summary, **(summary.get('generic_metrics') or {}),
