@@ -16,6 +16,7 @@ from rft_sim_ros.cli import main
 from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
 from rft_sim_ros.sand import geoms
 from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.sim.runner import run_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 CALVES = ('FL_calf', 'FR_calf', 'RL_calf', 'RR_calf')
@@ -228,6 +229,23 @@ def test_a_xacro_urdf_robot_gets_its_limits_initial_values_and_feet(tmp_path):
     sim.step(1000)
     assert np.linalg.norm(sim.data.xpos[base] - start) < 2e-3  # settled by spawn rest
     assert sim.data.qpos[hip] == pytest.approx(0.4, abs=0.02)
+
+
+def test_a_runs_solve_counts_leave_spawn_rests_settling_out(tmp_path):
+    """summary.json's implicit counts are the run's: the steps spawn rest took to settle
+    (reported as spawn_settle_steps) are not in them, nor in the solves per step."""
+    package = Path(__file__).parent / 'robots' / 'sandbot_description'
+    scene = load_scene(package / 'urdf' / 'sandbot.urdf.xacro', {
+        'robot.package_paths': {'sandbot_description': str(package)},
+        'robot.spawn': 'rest', 'rft.plates_per_body': 100})
+    summary = run_scene(scene, duration=0.2, progress=False, plots=False)
+    fresh = Simulation(scene)
+    solves, unsettled = fresh.engine.solves, fresh.engine.unsettled_steps
+    assert fresh.settle_steps == summary['spawn_settle_steps'] > 100 and solves > 100
+    fresh.step(summary['steps'])
+    assert summary['implicit_solves_per_step'] * summary['steps'] == pytest.approx(
+        fresh.engine.solves - solves, abs=1e-6)
+    assert summary['implicit_unsettled_steps'] == fresh.engine.unsettled_steps - unsettled
 
 
 FLOORBOT = """

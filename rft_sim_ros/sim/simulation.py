@@ -224,6 +224,8 @@ class Simulation:
         self._warning_numbers = self.data.warning.number  # a view of mjData's warning counts
         self._time_offset = 0.0
         self.steps = 0  # engine steps since the start, resets included (the run's count)
+        self.settle_steps = 0  # engine steps spawn rest took to settle, resets included
+        self._settle_counts = np.zeros(3, dtype=np.int64)  # their `_engine_counts`
         self._start()
 
     def _auto_sand_bodies(self, spec):
@@ -308,8 +310,10 @@ class Simulation:
         if self.commands is not None:
             self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
         still, hold = 0, max(1, int(round(REST_HOLD_S / self.timestep)))
+        before = self._engine_counts()
         for _ in range(int(round(SETTLE_LIMIT_S / self.timestep))):
             self.engine.step()
+            self.settle_steps += 1
             velocity = self.data.qvel[self.model.body_dofadr[self._base_id]:][:3]
             speed = float(np.linalg.norm(velocity))
             if not np.isfinite(speed) or speed > RUNAWAY_SPEED:
@@ -321,7 +325,18 @@ class Simulation:
         else:
             self.notices.append(f'spawn rest: still moving after {SETTLE_LIMIT_S:g} s '
                                 f'(base speed {speed:.2g} m/s); starting anyway')
+        self._settle_counts += self._engine_counts() - before
         self.data.time = 0.0
+
+    def _engine_counts(self):
+        e = self.engine
+        return np.array([e.solves, e.unsettled_steps, e.handed_back_steps], dtype=np.int64)
+
+    def implicit_counts(self):
+        """The implicit solve's counts over the steps the run took (`step`, resets
+        included), spawn rest's settling left out: (solves, steps that did not settle, steps
+        whose constraint rows were handed back to MuJoCo), as `SandEngine` counts them."""
+        return tuple(int(n) for n in self._engine_counts() - self._settle_counts)
 
     @property
     def timestep(self):
