@@ -183,6 +183,36 @@ def test_plates_in_the_sand_outside_the_bed_are_counted_and_warned_about_once(tm
         f'warning: {notice}' for notice in summary['notices']]
 
 
+BOX_AWAY = """
+<mujoco model="box_away">
+  <worldbody>
+    <body name="box" pos="3.004 -1.996 0.3">
+      <freejoint/>
+      <geom type="box" size="0.05 0.05 0.02" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_the_bed_lies_under_the_robot_unless_the_scene_places_it(tmp_path):
+    """A robot file whose body stands at (3.004, -1.996): the bed is centred under it (to
+    whole cells) and it leaves its footprint there; `center` given, the bed is there."""
+    model = tmp_path / 'box_away.xml'
+    model.write_text(BOX_AWAY)
+    bed = {'sand.deformable.enabled': True, 'rft.plates_per_body': 200}
+    sim = Simulation(load_scene(model, bed))
+    sand = sim.engine.surface
+    assert sand.center == pytest.approx((3.0, -2.0), abs=1e-12)
+    sim.step(200)
+    assert not sand.plates_outside
+    assert (sand.stamp >= 0).sum() > 100  # the nodes of its footprint, marked in the bed
+    placed = Simulation(load_scene(model, {**bed, 'sand.deformable.center': [0.0, 0.0]}))
+    assert placed.engine.surface.center == (0.0, 0.0)
+    placed.step(50)
+    assert 'outside the deformable bed' in placed.terrain_warning()
+
+
 @pytest.mark.slow
 def test_terrain_study_runs_and_reports(tmp_path):
     from rft_sim_ros.validation.terrain import run_terrain

@@ -274,8 +274,10 @@ KEYS = (
         'steeper slopes avalanche.', lambda v: _number(v, positive=True, maximum=89.9)),
     Key('sand.deformable.size', '[x, y] > 0', 'm', [2.0, 2.0], 'Extent of the deformable bed '
         '(outside it the surface stays as it is).', lambda v: _pair(v, positive=True)),
-    Key('sand.deformable.center', '[x, y]', 'm', [0.0, 0.0], "World (x, y) of the bed's "
-        'centre.', _pair),
+    Key('sand.deformable.center', '[x, y] or null', 'm', None, "World (x, y) of the bed's "
+        'centre; null: under the base body in the initial pose (its x, y to the nearest whole '
+        'cell), so that a robot placed anywhere starts on the bed.',
+        lambda v: None if v is None else _pair(v)),
     Key('rft', 'mapping', '', {}, 'Which bodies feel sand and how they are discretised.',
         _section),
     Key('rft.bodies', "'auto', a name or glob, or a list of them", '', 'auto', 'The bodies '

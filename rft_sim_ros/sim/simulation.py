@@ -145,10 +145,6 @@ class Simulation:
             surface = surface_from_settings(scene.surface, scene.surface_height, self.model)
             self.notices.extend(surface.notices)
             zeta_map = zeta_map_from_settings(scene.zeta_map)
-            bed = scene.deformable
-            if bed.get('enabled'):
-                surface = DeformableSand(surface, bed['size'], bed['cell'], bed['repose_deg'],
-                                         bed['center'])
         except ValueError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
         self._ground_to_sand()
@@ -163,6 +159,8 @@ class Simulation:
         except KeyError:
             raise scene.locator.error('base_body', f'{self.base_body!r} is not a body of '
                                       f'{scene.model_path.name}') from None
+        if scene.deformable.get('enabled'):
+            surface = self._bed(surface, scene.deformable)
         try:
             self.sand_bodies = tuple(resolve_sand_bodies(self.model, self.data, patterns,
                                                          self._base_id))
@@ -244,6 +242,19 @@ class Simulation:
             return resolve_sand_bodies(model, data, ['auto'], base)
         except (ValueError, KeyError):
             return ['auto']
+
+    def _bed(self, surface, bed):
+        """The deformable bed (scene key sand.deformable) over `surface`, centred where the
+        scene says, else under the base body in the initial pose, its x, y rounded to whole
+        cells (a robot at the origin: the bed centred there)."""
+        center = bed.get('center')
+        if center is None:
+            center = bed['cell'] * np.round(self.data.xpos[self._base_id, :2] / bed['cell'])
+        try:
+            return DeformableSand(surface, bed['size'], bed['cell'], bed['repose_deg'],
+                                  tuple(float(c) for c in center))
+        except ValueError as error:
+            raise SceneError(f'scene {self.scene.name}: {error}') from None
 
     def _initial_pose(self):
         """The keyframe and initial joint positions of the scene (robot/pose.py)."""
