@@ -1,7 +1,8 @@
 """auto's sand bodies and the legs where a branch forks below the base: a humanoid whose
 legs hang by hip joints from a pelvis below its waist joint has two feet and two legs; a
 shin's welded lower link beside its foot, and a foot's toes in the ground band, stay in
-their leg; a free body beside the robot with no sand body is named at start-up
+their leg; every body touching the ground (toes beside their sole, a snake's links) is a
+sand body; a free body beside the robot with no sand body is named at start-up
 (robot/sand_bodies.py)."""
 import mujoco
 import pytest
@@ -73,16 +74,48 @@ def test_legs_below_a_waist_give_two_feet_and_two_legs(spur):
     assert legs == {'thigh_right': ('foot_right',), 'thigh_left': ('foot_left',)}
 
 
-def test_a_foots_toes_in_the_ground_band_are_one_branch():
+def test_a_foots_toes_touching_the_ground_are_sand_bodies_of_its_leg():
     model, data = _humanoid(toes=True)
     torso = model.body('torso').id
-    # each foot's lowest point is its lower toe (k = 1): one body per leg, not per toe
-    assert _names(model, auto_sand_bodies(model, data, torso)) == ['toe_left_1', 'toe_right_1']
+    # the sole and both toes reach within 6 mm of the lowest point (the lower toe), within
+    # AUTO_CONTACT of the robot's 1.4 m: all touch the ground, all in the foot's leg
+    feet = auto_sand_bodies(model, data, torso)
+    assert _names(model, feet) == ['foot_left', 'foot_right', 'toe_left_-1', 'toe_left_1',
+                                   'toe_right_-1', 'toe_right_1']
+    legs = legs_from_tree(model, [model.body(b).name for b in feet], torso)
+    assert legs == {'thigh_right': ('foot_right', 'toe_right_-1', 'toe_right_1'),
+                    'thigh_left': ('foot_left', 'toe_left_-1', 'toe_left_1')}
     # named toes are sand bodies of their own: the foot, not one of them, forks, so each toe
     # is a leg
     toes = ['toe_right_-1', 'toe_right_1']
     assert legs_from_tree(model, toes, torso) == {'toe_right__1': ('toe_right_-1',),
                                                    'toe_right_1': ('toe_right_1',)}
+
+
+def _snake(links=8):
+    """A chain of capsules lying flat, each hanging from the one before by a hinge."""
+    body = ''
+    for i in reversed(range(links)):
+        joint = f'<joint name="j{i}" axis="0 0 1" range="-60 60"/>' if i else '<freejoint/>'
+        body = (f'<body name="link{i}" pos="{"0 0 0.02" if i == 0 else "0.1 0 0"}">{joint}'
+                '<geom type="capsule" fromto="0 0 0 0.1 0 0" size="0.02" mass="0.1"/>'
+                f'{body}</body>')
+    servos = ''.join(f'<position joint="j{i}" kp="5"/>' for i in range(1, links))
+    return f'<mujoco><worldbody>{body}</worldbody><actuator>{servos}</actuator></mujoco>'
+
+
+def test_a_snake_lying_in_the_sand_is_held_by_every_link(tmp_path):
+    """Its links hang from each other in one branch, all on the ground: auto picks each (one
+    per branch left all but two to fall through the sand, and spawn rest never settled)."""
+    path = tmp_path / 'snake.xml'
+    path.write_text(_snake())
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 100}))
+    assert sorted(sim.sand_bodies) == [f'link{i}' for i in range(8)]
+    assert not [n for n in sim.notices if 'still moving' in n or 'bear the robot' in n]
+    start = sim.data.qpos[:3].copy()
+    sim.step(500)
+    assert abs(sim.data.qvel).max() < 1e-3
+    assert abs(sim.data.qpos[:3] - start).max() < 1e-4
 
 
 def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):

@@ -13,7 +13,10 @@ body whose collision geoms (contype or conaffinity nonzero) reach lowest (lowest
 the geoms' bounding boxes, world z) is that branch's candidate. The ground band: within
 AUTO_TOLERANCE of the robot's height (base origin above the lowest collision point of all)
 from the lowest point of all. The candidates kept are those in it: the feet of a standing
-robot, not a head or a tail held higher.
+robot, not a head or a tail held higher. Besides them, every body that touches the ground
+(its lowest point within AUTO_CONTACT of the robot's height of the lowest point of all) is
+picked: the links of a snake lying in the sand, which hang from each other in one branch,
+or toes flat beside their foot.
 
 Legs (for the per-leg wrenches): unless the scene gives them, each branch that holds sand
 bodies is one leg (split where two or more limbs that hold sand bodies hang by joints from
@@ -36,6 +39,9 @@ from ..sand.geoms import SAND_SURFACE_BIT, is_collision_geom
 #: auto keeps branches whose lowest point is within this fraction of the robot's height of
 #: the lowest point of all.
 AUTO_TOLERANCE = 0.25
+#: auto also keeps every body whose lowest point is within this fraction of the robot's
+#: height of the lowest point of all (it touches the ground).
+AUTO_CONTACT = 0.01
 
 
 def collision_geoms(model, body):
@@ -113,13 +119,14 @@ def auto_sand_bodies(model, data, base):
                          f'{_name(model, base)!r} (contype/conaffinity 0 everywhere); name the '
                          'sand bodies instead')
     bottom = min(lowest.values())
-    band = bottom + AUTO_TOLERANCE * max(data.xpos[base, 2] - bottom, 0.0)
+    height = max(data.xpos[base, 2] - bottom, 0.0)
+    band = bottom + AUTO_TOLERANCE * height
     ground = frozenset(b for b, z in lowest.items() if z <= band)
-    picked = []
+    picked = {b for b, z in lowest.items() if z <= bottom + AUTO_CONTACT * height}
     for bodies in branches(model, base, ground).values():
         candidates = [(lowest[b], b) for b in bodies if b in lowest]
         if candidates and min(candidates)[0] <= band:
-            picked.append(min(candidates)[1])
+            picked.add(min(candidates)[1])
     return sorted(picked)
 
 

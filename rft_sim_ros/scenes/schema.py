@@ -282,7 +282,8 @@ KEYS = (
         _section),
     Key('rft.bodies', "'auto', a name or glob, or a list of them", '', 'auto', 'The bodies '
         "that touch sand: MuJoCo body names, glob patterns ('*_calf', '*foot*') or auto (one "
-        'per kinematic branch: the body with its lowest collision geometry in the initial pose; '
+        'per kinematic branch: the body with its lowest collision geometry in the initial pose, '
+        'and every body touching the ground; '
         'rft_sim_ros/robot/sand_bodies.py). The bodies chosen are printed at start-up.', _names),
     Key('rft.plate_geoms', "'collision' or 'visual'", '', 'collision', 'Which geoms of a sand '
         'body carry its plates: the ones MuJoCo collides (a body without any: its visual '
