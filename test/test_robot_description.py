@@ -205,18 +205,22 @@ def _link(name, inertia):
 
 def test_inertias_no_rigid_body_has_become_isotropic_with_their_trace():
     """As vendors' URDFs have them (ANYmal C's hatch: every entry 0.001; its cameras:
-    A + B < C): RViz takes them, MuJoCo refuses to compile them."""
+    A + B < C; Unitree B2's lidar: 1.7e-27 kg m^2): RViz takes them, MuJoCo refuses to
+    compile them."""
     links = {'base': (0.02, 0, 0, 0.03, 0, 0.04), 'hatch': (0.001,) * 6,
-             'camera': (0.001, 0, 0, 0.001, 0, 0.003)}
+             'camera': (0.001, 0, 0, 0.001, 0, 0.003),
+             'lidar': (1.68e-27, -3.2e-45, 7.68e-44, 1.68e-27, -9.26e-47, 1.68e-27)}
     joints = ''.join(f'<joint name="to_{n}" type="revolute"><parent link="base"/>'
                      f'<child link="{n}"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" '
-                     'effort="1" velocity="1"/></joint>' for n in ('hatch', 'camera'))
+                     'effort="1" velocity="1"/></joint>' for n in ('hatch', 'camera', 'lidar'))
     text = (f'<robot name="r">{"".join(_link(n, i) for n, i in links.items())}{joints}'
             '</robot>')
     logged = []
     model = load_description(text, log=logged.append).spec.compile()
     [notice] = [n for n in logged if 'inertia' in n]
-    assert 'links hatch, camera:' in notice
+    assert 'links hatch, camera, lidar:' in notice
+    # a placeholder's (Unitree's B2 lidar link), far below the least MuJoCo takes
+    assert model.body('lidar').inertia == pytest.approx([1e-12] * 3, rel=1e-9)
     assert model.body('hatch').inertia == pytest.approx([0.001] * 3)   # trace 0.003 / 3
     assert model.body('camera').inertia == pytest.approx([0.005 / 3] * 3)
     assert sorted(model.body('base').inertia) == pytest.approx([0.02, 0.03, 0.04])

@@ -83,8 +83,10 @@ def prepare_urdf(root, where, base_dir, resolver):
     if balanced:
         prepared.notices.append(
             f'{where}: link{"s" if len(balanced) > 1 else ""} {", ".join(balanced)}: an '
-            'inertia no rigid body has (principal moments not positive, or A + B < C; MuJoCo '
-            'refuses it), replaced by the isotropic one of the same trace')
+            'inertia no rigid body has (principal moments not positive, or A + B < C) or a '
+            f'principal moment below {LEAST_MOMENT:g} kg m^2 (MuJoCo refuses the first and '
+            'moments below 1e-14), replaced by the isotropic one of the same trace, '
+            f'{LEAST_MOMENT:g} kg m^2 at least')
     _set_compiler(root)
     prepared.text = ET.tostring(root, encoding='unicode')
     return prepared
@@ -179,12 +181,18 @@ def _prepare_meshes(root, where, base_dir, resolver, prepared):
             f'collision geoms): {", ".join(sorted(set(dropped)))}')
 
 
+#: kg m^2: the least principal moment a replaced inertia gets, above the least MuJoCo takes
+#: in a full inertia (mjEPS, 1e-14: user_util.cc); a link's placeholder inertia (Unitree's B2
+#: lidar link: 1.7e-27 with 4e-15 kg) is far below it.
+LEAST_MOMENT = 1e-12
+
+
 def balance_inertias(root):
     """Replace, in <robot> `root`, each link's <inertial><inertia> whose principal moments
-    are not all positive or violate the triangle inequality A + B >= C (MuJoCo's tests,
-    user_objects.cc) by the isotropic inertia of the same trace (its principal moments'
-    mean, as MuJoCo's balanceinertia); an inertia of trace <= 0 is left for MuJoCo to name.
-    Returns the names of the links changed."""
+    are not all above MuJoCo's floor or violate the triangle inequality A + B >= C (MuJoCo's
+    tests, user_objects.cc, user_util.cc) by the isotropic inertia of the same trace (its
+    principal moments' mean, as MuJoCo's balanceinertia), LEAST_MOMENT at least; an inertia
+    of trace <= 0 is left for MuJoCo to name. Returns the names of the links changed."""
     names = []
     keys = ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz')
     for link in root.iter('link'):
@@ -197,9 +205,10 @@ def balance_inertias(root):
             continue  # MuJoCo's importer names a malformed value
         moments = np.linalg.eigvalsh([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
         mean = float(moments.sum()) / 3.0
-        if mean > 0 and (moments[0] <= 0 or moments[0] + moments[1] < moments[2]):
+        if mean > 0 and (moments[0] < LEAST_MOMENT or moments[0] + moments[1] < moments[2]):
+            moment = repr(max(mean, LEAST_MOMENT))
             for key in keys:
-                inertia.set(key, repr(mean) if key in ('ixx', 'iyy', 'izz') else '0')
+                inertia.set(key, moment if key in ('ixx', 'iyy', 'izz') else '0')
             names.append(link.get('name'))
     return names
 
