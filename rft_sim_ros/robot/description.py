@@ -3,9 +3,10 @@
 
 The kind is told by the root element (<mujoco> or <robot>), so a URDF saved as .xml works
 too; xacro files are expanded first (`xacro_files`). A URDF's root link gets a free joint
-named FLOATING_JOINT (`base='floating'`, the default) or stays welded to the world
-(`base='fixed'`); a root link joined only by a fixed joint to the real trunk is fine (it is
-a massless body carrying the trunk). MJCF is used as written (`base` applies to URDF only).
+named FLOATING_JOINT (`base='floating'`, the default; a root link hung from a `world` link
+by a `floating` joint keeps that joint, which MuJoCo makes free) or stays welded to the
+world (`base='fixed'`, that joint dropped); a root link joined only by a fixed joint to the
+real trunk is fine (it is a massless body carrying the trunk). MJCF is used as written (`base` applies to URDF only).
 Notices (dropped visuals, ignored tags, converted meshes) are logged once through `log`.
 """
 import logging
@@ -112,8 +113,13 @@ def _from_urdf(root, where, base_dir, resolver, base):
     if len(roots) != 1:
         raise DescriptionError(f'{where}: a URDF robot has one root link, found '
                                f'{[b.name for b in roots]}')
-    if base == 'floating':
+    # a root link hung from a `world` link by a `floating` joint has its free joint already
+    free = [joint for joint in roots[0].joints if joint.type == mujoco.mjtJoint.mjJNT_FREE]
+    if base == 'floating' and not free:
         roots[0].add_freejoint(name=FLOATING_JOINT)
+    if base == 'fixed':
+        for joint in free:
+            spec.delete(joint)
     _check_compiles(spec, where)
     return RobotDescription(spec=spec, kind='urdf', effort_limits=prepared.effort_limits,
                             velocity_limits=prepared.velocity_limits,
