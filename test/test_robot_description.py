@@ -121,6 +121,22 @@ def test_a_root_hung_from_world_by_a_floating_joint_keeps_that_free_joint(tmp_pa
     sim.step(10)
 
 
+def test_joints_outside_their_range_start_at_its_nearest_end(tmp_path):
+    """A URDF whose zero pose lies outside a knee's range (Unitree's Aliengo: calf range
+    -2.78 .. -0.65 rad): the joint starts at -0.65, said at start-up, and its servo holds it
+    there instead of fighting the limit."""
+    path = tmp_path / 'knee.urdf'
+    path.write_text(WORLD_FLOATING.replace('lower="-1" upper="1"', 'lower="-2.7" upper="-0.6"'))
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'model'}))
+    [notice] = [n for n in sim.notices if 'outside' in n]
+    assert notice.startswith('joint hinge started outside its range (hinge at 0, range -2.7 ..')
+    hinge = sim.model.jnt_qposadr[sim.model.joint('hinge').id]
+    assert sim.data.qpos[hinge] == -0.6
+    assert sim.commands.sample(0.0).positions[0] == -0.6
+    sim.reset()
+    assert sim.data.qpos[hinge] == -0.6 and len(sim.notices) == len(set(sim.notices))
+
+
 def test_xacro_args_are_passed():
     description = load_description(XACRO, package_paths=PATHS, xacro_args={'hip_effort': 30},
                                    log=lambda notice: None)

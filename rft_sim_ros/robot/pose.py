@@ -15,6 +15,7 @@ Spawn (`robot.spawn`), for a robot whose root body has a free joint:
               run's clock then starts at 0 from that state.
 """
 import mujoco
+import numpy as np
 
 from ..sand.geoms import body_geoms
 from .sand_bodies import geom_footprint, geom_lowest_z
@@ -42,7 +43,10 @@ def parse_spawn(text):
 
 def set_initial_pose(model, data, keyframe=None, initial_positions=None):
     """Put `keyframe` (name) and then `initial_positions` ({joint: rad or m}) into data.qpos
-    (and the keyframe's qvel, act, ctrl, mocap); raises ValueError naming what is unknown."""
+    (and the keyframe's qvel, act, ctrl, mocap), then move each hinge or slide joint outside
+    its range to the range's nearest end (`into_ranges`: a URDF's zero pose may lie outside
+    a knee's range, and a servo holding it there fights the limit for ever). Returns what
+    `into_ranges` moved; raises ValueError naming what is unknown."""
     if keyframe:
         key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
         if key < 0:
@@ -59,6 +63,24 @@ def set_initial_pose(model, data, keyframe=None, initial_positions=None):
                                                            mujoco.mjtJoint.mjJNT_SLIDE):
             raise ValueError(f'initial position for {joint!r}: not a hinge or slide joint')
         data.qpos[model.jnt_qposadr[j]] = value
+    return into_ranges(model, data)
+
+
+def into_ranges(model, data):
+    """Move each limited hinge or slide joint whose data.qpos lies outside its range to the
+    range's nearest end. Returns [(joint name, position it had, range low, range high)]
+    (rad or m) of those moved."""
+    moved = []
+    for j in np.flatnonzero(model.jnt_limited):
+        if mujoco.mjtJoint(int(model.jnt_type[j])) not in (mujoco.mjtJoint.mjJNT_HINGE,
+                                                           mujoco.mjtJoint.mjJNT_SLIDE):
+            continue
+        low, high = model.jnt_range[j]
+        adr = model.jnt_qposadr[j]
+        if not low <= data.qpos[adr] <= high:
+            moved.append((model.joint(j).name, float(data.qpos[adr]), float(low), float(high)))
+            data.qpos[adr] = min(max(data.qpos[adr], low), high)
+    return moved
 
 
 def lift_to(model, data, base, bodies, clearance, ground):

@@ -151,7 +151,7 @@ class Simulation:
         if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
         self.data = mujoco.MjData(self.model)
-        self._initial_pose()
+        self._say_moved_into_ranges(self._initial_pose())
         # the body /odom follows: the scene's, else the first body under the world
         self.base_body = scene.base_body or self.model.body(min(1, self.model.nbody - 1)).name
         try:
@@ -257,13 +257,27 @@ class Simulation:
             raise SceneError(f'scene {self.scene.name}: {error}') from None
 
     def _initial_pose(self):
-        """The keyframe and initial joint positions of the scene (robot/pose.py)."""
+        """The keyframe and initial joint positions of the scene (robot/pose.py); joints
+        outside their range start at its nearest end. Returns those (`into_ranges`)."""
         try:
-            set_initial_pose(self.model, self.data, self.scene.keyframe, self._initial_positions)
+            moved = set_initial_pose(self.model, self.data, self.scene.keyframe,
+                                     self._initial_positions)
         except ValueError as error:
             key = 'robot.keyframe' if 'keyframe' in str(error) else 'robot.initial_positions'
             raise self.scene.locator.error(key, str(error)) from None
         mujoco.mj_kinematics(self.model, self.data)
+        return moved
+
+    def _say_moved_into_ranges(self, moved):
+        """The start-up notice of the joints `_initial_pose` moved into their ranges."""
+        if moved:
+            name, value, low, high = moved[0]
+            self.notices.append(
+                f'joint{"s" if len(moved) > 1 else ""} {", ".join(m[0] for m in moved)} '
+                f'started outside {"their ranges" if len(moved) > 1 else "its range"} '
+                f'({name} at {value:.4g}, range {low:.4g} .. {high:.4g}): each starts at its '
+                "range's nearest end, which its servo holds (robot.initial_positions or "
+                'robot.keyframe give another start)')
 
     def _set_legs(self, scene):
         """Legs: the scene's, or one per branch of the kinematic tree (robot/sand_bodies.py)."""
