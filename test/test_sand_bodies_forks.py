@@ -8,7 +8,7 @@ import mujoco
 import pytest
 
 from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree
-from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 def _joint(name):
@@ -116,6 +116,23 @@ def test_a_snake_lying_in_the_sand_is_held_by_every_link(tmp_path):
     sim.step(500)
     assert abs(sim.data.qvel).max() < 1e-3
     assert abs(sim.data.qpos[:3] - start).max() < 1e-4
+
+
+def test_a_glob_takes_the_bodies_with_geoms_not_the_world_nor_empty_frames(tmp_path):
+    """'*' makes the whole robot sand bodies (a robot that falls lands in the sand), not the
+    world body (its floor) nor a frame without geoms, which a name still refuses."""
+    frame = '<body name="imu_frame" pos="0 0 0.05"/>'
+    robot = _robot_body().replace('<freejoint/>', '<freejoint/>' + frame, 1)
+    path = tmp_path / 'robot.xml'
+    path.write_text(f'<mujoco><worldbody><geom name="floor" type="plane" size="5 5 0.1"/>'
+                    f'{robot}</worldbody></mujoco>')
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 20, 'rft.bodies': ['*']}))
+    shaped = [sim.model.body(b).name for b in range(1, sim.model.nbody)
+              if sim.model.body_geomnum[b] > 0]
+    assert list(sim.sand_bodies) == shaped and 'imu_frame' not in shaped
+    with pytest.raises(SceneError, match="body 'imu_frame' has no geoms"):
+        Simulation(load_scene(path, {'rft.plates_per_body': 20,
+                                     'rft.bodies': ['foot_*', 'imu_frame']}))
 
 
 def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):

@@ -146,15 +146,21 @@ def unheld_free_trees(model, sand_bodies):
     return free
 
 
-def match_bodies(names, patterns):
+def match_bodies(names, patterns, shaped=None):
     """Body names that match `patterns` (names or fnmatch globs): in the patterns' order, a
-    glob's matches in model order; raises ValueError naming a pattern that matches nothing."""
+    glob's matches in model order, of the bodies in `shaped` (names of the bodies with geoms;
+    None: all), so that '*' takes the whole robot but not the world or a frame without
+    geoms; a name is taken as it is. Raises ValueError naming a pattern that matches
+    nothing."""
     chosen = []
     for pattern in patterns:
-        hits = [n for n in names if fnmatch.fnmatchcase(n, pattern)]
+        glob = any(c in pattern for c in '*?[')
+        hits = [n for n in names if fnmatch.fnmatchcase(n, pattern)
+                and (shaped is None or not glob or n in shaped)]
         if not hits:
-            raise ValueError(f'sand body {pattern!r} matches no body of the model (bodies: '
-                             f'{", ".join(n for n in names if n)})')
+            raise ValueError(f'sand body {pattern!r} matches no body of the model'
+                             f'{" with geoms" if glob and shaped is not None else ""} '
+                             f'(bodies: {", ".join(n for n in names if n)})')
         chosen += [n for n in hits if n not in chosen]
     return chosen
 
@@ -164,7 +170,8 @@ def resolve_sand_bodies(model, data, patterns, base):
     if list(patterns) == ['auto']:
         return [_name(model, b) for b in auto_sand_bodies(model, data, base)]
     names = [_name(model, b) for b in range(model.nbody)]
-    return match_bodies(names, patterns)
+    shaped = {names[b] for b in range(1, model.nbody) if model.body_geomnum[b] > 0}
+    return match_bodies(names, patterns, shaped)
 
 
 def legs_from_tree(model, sand_bodies, base):
