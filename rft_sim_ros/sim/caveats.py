@@ -56,5 +56,5 @@ def _bearing_notice(model, data, engine, zeta, base):
             f'{mass:.3g} kg only about {found.depth_m * 100:.3g} cm deep (zeta A z = m g), '
             f'deeper than its other bodies clear them ({found.clearance_m * 100:.3g} cm): those '
             'will pass through the sand, which does not hold them; name more sand bodies '
-            '(rft.bodies) or take their plates from their visual geoms '
+            "(rft.bodies; '*' takes every body) or take their plates from their visual geoms "
             '(rft.plate_geoms: visual)']
