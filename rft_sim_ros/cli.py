@@ -349,7 +349,8 @@ def build_parser():
     run.add_argument('--base', choices=('floating', 'fixed'),
                      help='URDF root link: free (default) or welded to the world')
     run.add_argument('--keyframe', metavar='NAME',
-                     help="initial pose: the model's keyframe NAME (robot.keyframe)")
+                     help="initial pose: the model's keyframe NAME (robot.keyframe; "
+                          "default: its 'home' keyframe where it has one)")
     run.add_argument('--spawn', metavar='rest|drop:HEIGHT|model',
                      help='where the robot starts (robot.spawn): settled on the sand, its '
                           'sand bodies HEIGHT m above it, or as the model puts it')

@@ -55,6 +55,20 @@ def test_auto_picks_the_lowest_body_of_each_leg_and_names_legs_by_branch(tmp_pat
     assert 'trunk' in folded.sand_bodies
 
 
+def test_the_models_home_keyframe_is_the_initial_pose_unless_the_scene_names_one(tmp_path,
+                                                                                 robot):
+    """Vendors name their standing pose `home` (Unitree's Go2 stood up from it, and fell
+    over backwards from its zero pose): it is the default, said at start-up; '' is none."""
+    sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 50}'))
+    assert sim.notices[0].startswith("initial pose: the model's keyframe 'home'")
+    thigh = sim.model.jnt_qposadr[sim.model.joint('FL_thigh_joint').id]
+    assert sim.data.qpos[thigh] == HOME_THIGH
+    bare = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 50}',
+                            robot="{keyframe: ''}"))
+    assert bare.data.qpos[thigh] == bare.model.qpos0[thigh] != HOME_THIGH
+    assert not [n for n in bare.notices if 'initial pose' in n]
+
+
 def test_globs_choose_bodies_and_legs_follow_the_tree(tmp_path, robot):
     sim = Simulation(scene(tmp_path, robot, rft="{bodies: ['*_thigh', '*_calf'], "
                                                 "plates_per_body: 100}"))

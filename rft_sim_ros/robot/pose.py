@@ -41,6 +41,20 @@ def parse_spawn(text):
     return 'drop', value
 
 
+#: The keyframe the initial pose starts from when the scene names none: the standing pose of
+#: vendors' and MuJoCo Menagerie's models (Unitree's Go2, B2, H1 name theirs so).
+HOME_KEYFRAME = 'home'
+
+
+def initial_keyframe(model, keyframe=None):
+    """The keyframe the initial pose starts from: `keyframe` (robot.keyframe) where given ('':
+    none, the model's qpos0), else the model's HOME_KEYFRAME where it has one, else None."""
+    if keyframe is not None:
+        return keyframe or None
+    home = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, HOME_KEYFRAME) >= 0
+    return HOME_KEYFRAME if home else None
+
+
 def set_initial_pose(model, data, keyframe=None, initial_positions=None):
     """Put `keyframe` (name) and then `initial_positions` ({joint: rad or m}) into data.qpos
     (and the keyframe's qvel, act, ctrl, mocap), then move each hinge or slide joint outside

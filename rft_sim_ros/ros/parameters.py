@@ -45,7 +45,8 @@ PARAMETERS = (
     ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.bodies): 'A,B*' names or glob "
                                "patterns, or 'auto'", False),
     ParameterSpec(KEYFRAME, "initial pose: the model's keyframe of this name (robot.keyframe), "
-                            'held until commands arrive', False),
+                            "held until commands arrive (unset: its 'home' keyframe where it "
+                            'has one)', False),
     ParameterSpec(SCENE_OVERRIDES, "scene values as 'key=value' strings (as rft-sim run --set)",
                   False),
     ParameterSpec(ZETA, "sand stiffness, N/cm^3, 0 < zeta <= 100 (default: the scene's); "

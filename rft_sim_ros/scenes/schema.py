@@ -341,7 +341,8 @@ KEYS = (
     Key('robot.xacro_args', 'mapping name -> value', '', {}, 'xacro arguments ($(arg NAME)).',
         _text_mapping),
     Key('robot.keyframe', 'text or null', '', None, 'Named keyframe of the model for the '
-        'initial pose (held until commands arrive).', _optional_text),
+        "initial pose (held until commands arrive); null: the model's 'home' keyframe where "
+        "it has one (vendors' standing pose), else its qpos0; '': its qpos0.", _optional_text),
     Key('robot.initial_positions', 'mapping joint -> number', 'rad or m', {}, 'Joint '
         'positions of the initial pose, applied after the keyframe.', _mapping_of(_finite)),
     Key('robot.spawn', "'model', 'rest' or 'drop:HEIGHT'", 'm', 'model', 'Where the robot '

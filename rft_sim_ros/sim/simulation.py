@@ -20,8 +20,8 @@ import numpy as np
 from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
 from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
-from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, lift_to, parse_spawn,
-                          set_initial_pose)
+from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, initial_keyframe,
+                          lift_to, parse_spawn, set_initial_pose)
 from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
@@ -141,6 +141,10 @@ class Simulation:
         except Exception as error:
             raise SceneError(f'scene {scene.name}: model does not compile: {error}') from None
         self.model.opt.timestep = scene.timestep
+        self._keyframe = initial_keyframe(self.model, scene.keyframe)
+        if self._keyframe and scene.keyframe is None:
+            self.notices.append(f"initial pose: the model's keyframe {self._keyframe!r} "
+                                "(robot.keyframe names another; '' the model's qpos0)")
         try:
             surface = surface_from_settings(scene.surface, scene.surface_height, self.model)
             self.notices.extend(surface.notices)
@@ -236,7 +240,8 @@ class Simulation:
             probe.compiler.discardvisual = True
             model = probe.compile()
             data = mujoco.MjData(model)
-            set_initial_pose(model, data, scene.keyframe, self._initial_positions)
+            set_initial_pose(model, data, initial_keyframe(model, scene.keyframe),
+                             self._initial_positions)
             mujoco.mj_kinematics(model, data)
             base = model.body(scene.base_body or model.body(min(1, model.nbody - 1)).name).id
             return resolve_sand_bodies(model, data, ['auto'], base)
@@ -260,7 +265,7 @@ class Simulation:
         """The keyframe and initial joint positions of the scene (robot/pose.py); joints
         outside their range start at its nearest end. Returns those (`into_ranges`)."""
         try:
-            moved = set_initial_pose(self.model, self.data, self.scene.keyframe,
+            moved = set_initial_pose(self.model, self.data, self._keyframe,
                                      self._initial_positions)
         except ValueError as error:
             key = 'robot.keyframe' if 'keyframe' in str(error) else 'robot.initial_positions'
