@@ -57,6 +57,17 @@ def test_collision_spheres_carry_the_plates_and_the_user_is_told_the_robot_will_
     assert "robot's 10 kg" in notice and 'rft.plate_geoms: visual' in notice
 
 
+def test_more_plates_than_asked_are_said(biped):
+    """Four spheres tessellate into more than 10 plates at the coarsest: the count cannot be
+    met, and start-up says how many each body carries (none for a count that is met)."""
+    sim = _sim(biped, **{'rft.plates_per_body': 10})
+    coarsest = [len(sim.engine.areas) // 2] * 2
+    assert coarsest[0] > 10
+    assert f'plates: left_foot {coarsest[0]}, right_foot {coarsest[1]}, more than asked' in \
+        '\n'.join(sim.notices)
+    assert not [n for n in _sim(biped).notices if n.startswith('plates:')]
+
+
 @pytest.mark.parametrize('bodies', ['auto', '*_foot'])
 def test_visual_plate_geoms_give_the_feet_their_drawn_soles(biped, bodies):
     sim = _sim(biped, **{'rft.plate_geoms': 'visual', 'rft.bodies': bodies})

@@ -186,6 +186,13 @@ class Simulation:
                     density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
             except ValueError as error:
                 raise scene.locator.error('rft.bodies', str(error)) from None
+        asked = {body: scene.plates_by_body.get(body, scene.plates_per_body)
+                 for body in self.sand_bodies}
+        over = [f'{body} {len(plates[body].areas)}' for body, count in asked.items()
+                if count is not None and len(plates[body].areas) > count]
+        if over:
+            self.notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
+                                'tessellate (a mesh decimates) no coarser')
         try:
             self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
                                      surface_height=scene.surface_height, surface=surface,
