@@ -83,7 +83,7 @@ class SimRuntime:
         self._terrain = terrain
         self._clock = clock
         self._error = error
-        self._warn_once = warn  # lines the simulation itself says once (terrain_warning)
+        self._warn_once = warn  # lines the simulation itself says once (run_warnings)
         self._warn = ThrottledLog(warn, warn_period_s, clock=clock)
         self._budget = float(tick_budget_s)
         self._pacer = Pacer(real_time_factor)
@@ -163,9 +163,8 @@ class SimRuntime:
         update = self._terrain.update(self.sim.time) if self._terrain is not None else None
         if update is not None:
             self._sink.write_terrain(update)
-        left_bed = self.sim.terrain_warning()
-        if left_bed:
-            self._warn_once(left_bed)
+        for line in self.sim.run_warnings():
+            self._warn_once(line)
 
     def _diagnostics(self, now):
         status = self.status()

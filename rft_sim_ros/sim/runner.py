@@ -214,11 +214,10 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
                     recorder.record(state)
                 recording += time.perf_counter() - recording_started
                 bar.update(done)
-                left_bed = sim.terrain_warning()
-                if left_bed:
-                    sim.notices.append(left_bed)
+                for line in sim.run_warnings():
+                    sim.notices.append(line)
                     if log is not None:
-                        log(f'warning: {left_bed}')
+                        log(f'warning: {line}')
             _run_due(actions, done, sim, changes)
     except SimulationDiverged as error:
         reason = f'diverged {error}'

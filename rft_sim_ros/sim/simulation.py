@@ -31,6 +31,7 @@ from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
 from .caveats import caveats
+from .sand_entry import SandEntryWatch
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
 
@@ -38,6 +39,8 @@ from ..rft.force_law import DynamicTerm
 RUNAWAY_SPEED = 1.0e3
 #: Hz of sim time at which the state is checked for a runaway speed and MuJoCo's warnings.
 CHECK_RATE = 100.0
+#: s of sim time between the looks for bodies without plates in the sand (`sand_entry`).
+ENTRY_CHECK_S = 0.1
 
 _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
                                   mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -210,6 +213,7 @@ class Simulation:
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
         self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
+        self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
@@ -321,7 +325,8 @@ class Simulation:
         self._ticks = 0
         self._since_start = 0  # engine steps since this (re)start: the ticks' phase
         self._warnings = self._warning_count()
-        self._left_bed = False
+        self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
+        self._next_entry_check = 0.0  # sim time, s
         self._initial_pose()
         self.scenario.initialize(self)
         kind, height = self._spawn
@@ -499,9 +504,13 @@ class Simulation:
                 "sand's surface")
         model.geom_contype[ground] = model.geom_conaffinity[ground] = 0
 
-    def terrain_warning(self):
-        """Once a run (and after each reset): why part of the robot leaves no footprints, the
-        first time its plates are found in the sand outside the deformable bed; else None."""
+    def run_warnings(self):
+        """What a run says once (and again after each reset), the first time it happens:
+        plates in the sand outside the deformable bed, a body without plates reaching into
+        the sand (`sand_entry`). A list of lines, mostly empty; called at the publish rate."""
+        return [line for line in (self._left_bed_warning(), self._entry_warning()) if line]
+
+    def _left_bed_warning(self):
         sand = self.engine.surface
         if self._left_bed or not self.engine.deformable or not sand.plates_outside:
             return None
@@ -510,6 +519,19 @@ class Simulation:
         return (f'by t = {self.time:.2f} s plates were in the sand outside the deformable bed '
                 f'(x {x0:.3g} .. {x0 + sx:.3g} m, y {y0:.3g} .. {y0 + sy:.3g} m): they leave no '
                 'footprints there; enlarge sand.deformable.size or move sand.deformable.center')
+
+    def _entry_warning(self):
+        if self._entered or self.data.time < self._next_entry_check:
+            return None
+        self._next_entry_check = self.data.time + ENTRY_CHECK_S
+        found = self._entry_watch.deepest(self.data, self.engine.surface)
+        if found is None:
+            return None
+        self._entered = True
+        body, depth = found
+        return (f'by t = {self.time:.2f} s body {body} reached {depth * 100:.3g} cm into the '
+                'sand: it carries no plates, so the sand does not act on it and it passes '
+                "through; name it a sand body (rft.bodies; '*' takes every body)")
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean

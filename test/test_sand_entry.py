@@ -1,0 +1,43 @@
+"""A body that carries no plates reaching into the sand is said once a run (sim/sand_entry.py):
+the sand does not act on it, so it passes through."""
+import pytest
+
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.runner import run_scene
+from rft_sim_ros.sim.sand_entry import ENTRY_DEPTH
+
+# a 1 kg plate on the sand carrying a 2 cm ball on a stalk, its lowest point `reach` m below
+# the plate's underside
+ROBOT = """<mujoco><worldbody>
+  <body name="plate" pos="0 0 0.01"><freejoint/>
+    <geom type="box" size="0.1 0.1 0.01" mass="1"/>
+    <body name="probe" pos="0 0 {z}">
+      <geom type="sphere" size="0.02" mass="0.01"/>
+    </body>
+  </body>
+</worldbody></mujoco>"""
+
+
+def _run(tmp_path, reach, bodies):
+    path = tmp_path / 'robot.xml'
+    path.write_text(ROBOT.format(z=-0.01 - reach + 0.02))
+    lines = []
+    summary = run_scene(load_scene(path, {'rft.bodies': bodies, 'robot.spawn': 'model',
+                                          'rft.plates_per_body': 100}),
+                        duration=0.05, progress=False, plots=False, log=lines.append)
+    return [line for line in lines if 'into the sand' in line], summary
+
+
+@pytest.mark.parametrize('reach', [0.03, 0.1])
+def test_a_body_without_plates_in_the_sand_is_said_once(tmp_path, reach):
+    said, summary = _run(tmp_path, reach, ['plate'])
+    assert len(said) == 1 and 'body probe reached' in said[0]
+    depth_cm = float(said[0].split('reached ')[1].split(' cm')[0])
+    assert depth_cm == pytest.approx(100 * reach, abs=0.5)  # (the plate sinks a little)
+    assert said[0].endswith("name it a sand body (rft.bodies; '*' takes every body)")
+    assert said[0][len('warning: '):] in summary['notices']
+
+
+def test_nothing_is_said_of_a_body_within_the_margin_or_with_plates(tmp_path):
+    assert _run(tmp_path, ENTRY_DEPTH / 2, ['plate'])[0] == []
+    assert _run(tmp_path, 0.1, ['plate', 'probe'])[0] == []
