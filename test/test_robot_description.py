@@ -137,6 +137,32 @@ def test_joints_outside_their_range_start_at_its_nearest_end(tmp_path):
     assert sim.data.qpos[hinge] == -0.6 and len(sim.notices) == len(set(sim.notices))
 
 
+def test_a_mimic_joint_follows_its_joint_and_takes_no_commands(tmp_path):
+    """A URDF <mimic> (MuJoCo's importer makes it a joint equality): the follower gets no
+    position or effort interface, as in ros2_control, and follows the joint it mimics;
+    commanded with a servo of its own, the two fought the equality."""
+    mimic = WORLD_FLOATING.replace('</robot>', """
+  <joint name="twin" type="revolute"><parent link="base"/><child link="leg2"/>
+    <origin xyz="0 0.1 -0.1"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="5" velocity="5"/><mimic joint="hinge" multiplier="-1"/>
+  </joint>
+  <link name="leg2"><inertial><mass value="0.2"/><inertia ixx="0.001" iyy="0.001"
+    izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+</robot>""")
+    path = tmp_path / 'mimic.urdf'
+    path.write_text(mimic)
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'model',
+                                       'sand.surface_height': -1.0}))  # (in the air)
+    assert sim.servo_joint_names == ('hinge',) and sim.joint_names == ('hinge', 'twin')
+    assert sim.commands.set_positions([0.4], now=sim.time).accepted
+    sim.model.opt.gravity[:] = 0.0
+    sim.step(2000)
+    hinge, twin = (sim.data.qpos[sim.model.jnt_qposadr[sim.model.joint(n).id]]
+                   for n in ('hinge', 'twin'))
+    assert hinge == pytest.approx(0.4, abs=0.01) and twin == pytest.approx(-hinge, abs=0.01)
+
+
 def test_xacro_args_are_passed():
     description = load_description(XACRO, package_paths=PATHS, xacro_args={'hip_effort': 30},
                                    log=lambda notice: None)

@@ -20,8 +20,10 @@ else the description's limit (URDF `<limit effort>`), else none.
 One mode at a time, as ros2_control switches controllers: a position command puts every
 joint in position mode (PD/position actuators on, motors at 0), an effort command puts them
 in effort mode (position actuators' gains off). A joint whose `servos` entry is `passive`,
-or that is driven by another actuator kind (velocity, integrated velocity, tendon...), gets
-no interfaces.
+that is driven by another actuator kind (velocity, integrated velocity, tendon...), or that
+an active joint equality sets from another joint or a constant (a URDF `<mimic>` joint,
+which MuJoCo's importer makes one; MJCF `<equality><joint joint1=...>`) gets no interfaces:
+it follows, as a ros2_control mimic joint does, instead of a servo fighting the equality.
 """
 import fnmatch
 import math
@@ -104,9 +106,12 @@ def add_joint_interfaces(spec, servos):
     for actuator in spec.actuators:
         if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT:
             by_joint.setdefault(actuator.target, []).append(actuator)
+    followers = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT
+                 and e.active}
     joints, added_pd = [], False
     for joint in spec.joints:
-        if joint.type not in _MOVABLE or servo_settings(servos, joint.name) == PASSIVE:
+        if (joint.type not in _MOVABLE or joint.name in followers
+                or servo_settings(servos, joint.name) == PASSIVE):
             continue
         actuators = by_joint.get(joint.name, [])
         position = [a for a in actuators if _is_position_servo(
