@@ -163,6 +163,28 @@ def test_a_mimic_joint_follows_its_joint_and_takes_no_commands(tmp_path):
     assert hinge == pytest.approx(0.4, abs=0.01) and twin == pytest.approx(-hinge, abs=0.01)
 
 
+def test_an_mjcf_without_names_runs_its_bodies_called_by_id(tmp_path):
+    """MuJoCo's own examples leave bodies and joints unnamed (slider_crank.xml, cards.xml):
+    bodies get body<id> (sand bodies and legs name them), an unnamed joint no interfaces
+    (no command could name it), a fixed base no spawn; each said at start-up."""
+    path = tmp_path / 'anon.xml'
+    path.write_text('''<mujoco><worldbody>
+      <body pos="0 0 0.3"><joint type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.03"/>
+        <body name="body3" pos="0 0 -0.3"/>
+        <body pos="0.1 0 -0.3"><geom type="sphere" size="0.03"/></body>
+      </body></worldbody></mujoco>''')
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    assert [sim.model.body(b).name for b in range(1, 4)] == ['body1', 'body3', 'body3_']
+    assert sim.sand_bodies == ('body1', 'body3_') and sim.base_body == 'body1'
+    assert sim.joint_names == () and sim.servo_joint_names == ()
+    said = '\n'.join(sim.notices)
+    assert '2 bodies without a name, called by their id: body1, body3_' in said
+    assert '1 hinge or slide joint(s) without a name: no command interfaces' in said
+    assert 'robot.spawn rest: body body1 is fixed to the world' in said
+    sim.step(10)
+
+
 def test_xacro_args_are_passed():
     description = load_description(XACRO, package_paths=PATHS, xacro_args={'hip_effort': 30},
                                    log=lambda notice: None)

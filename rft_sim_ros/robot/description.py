@@ -130,6 +130,7 @@ def _from_urdf(root, where, base_dir, resolver, base):
 def _from_mjcf(text, path, where):
     spec = _spec(lambda: (mujoco.MjSpec.from_file(str(path)) if path is not None
                           else mujoco.MjSpec.from_string(text)), where)
+    notices = _name_bodies(spec, where)
     # effort limits read from the spec, not a compiled model: compiling here would also
     # process every visual mesh (seconds for a vendor model), which the simulation discards
     effort = {}
@@ -139,7 +140,27 @@ def _from_mjcf(text, path, where):
             and spec.compiler.autolimits and any(joint.actfrcrange))
         if limited and joint.name:
             effort[joint.name] = float(max(abs(joint.actfrcrange)))
-    return RobotDescription(spec=spec, kind='mjcf', effort_limits=effort)
+    return RobotDescription(spec=spec, kind='mjcf', effort_limits=effort, notices=notices)
+
+
+def _name_bodies(spec, where):
+    """Name each body of `spec` that has none body<id> (its compiled id; body<id>_ where that
+    name is taken), so that sand bodies, legs and errors can name it. Returns the notices."""
+    taken = {body.name for body in spec.bodies}
+    named = []
+    for i, body in enumerate(spec.bodies):  # (in compiled id order)
+        if not body.name:
+            name = f'body{i}'
+            while name in taken:
+                name += '_'
+            body.name = name
+            taken.add(name)
+            named.append(name)
+    if not named:
+        return []
+    return [f'{where}: {len(named)} bod{"ies" if len(named) > 1 else "y"} without a name, '
+            f'called by {"their" if len(named) > 1 else "its"} id: '
+            f'{", ".join(named[:5])}{" ..." if len(named) > 5 else ""}']
 
 
 def _spec(parse, where):

@@ -20,7 +20,8 @@ else the description's limit (URDF `<limit effort>`), else none.
 One mode at a time, as ros2_control switches controllers: a position command puts every
 joint in position mode (PD/position actuators on, motors at 0), an effort command puts them
 in effort mode (position actuators' gains off). A joint whose `servos` entry is `passive`,
-that is driven by another actuator kind (velocity, integrated velocity, tendon...), or that
+that is driven by another actuator kind (velocity, integrated velocity, tendon...), that has
+no name (no command could name it; /joint_states leaves it out too), or that
 an active joint equality sets from another joint or a constant (a URDF `<mimic>` joint,
 which MuJoCo's importer makes one; MJCF `<equality><joint joint1=...>`) gets no interfaces:
 it follows, as a ros2_control mimic joint does, instead of a servo fighting the equality.
@@ -117,10 +118,8 @@ def add_joint_interfaces(spec, servos):
         position = [a for a in actuators if _is_position_servo(
             a.gaintype, a.biastype, a.dyntype, a.gainprm, a.biasprm)]
         motors = [a for a in actuators if _is_motor(a.gaintype, a.biastype, a.dyntype)]
-        if len(position) + len(motors) < len(actuators):
-            continue  # driven by another actuator kind: left as it is
-        if not joint.name:
-            raise ValueError('a movable joint has no name: name it to command it')
+        if len(position) + len(motors) < len(actuators) or not joint.name:
+            continue  # driven by another actuator kind, or no name to command it by
         if not position:
             _add_actuator(spec, _PD_PREFIX + joint.name, joint.name).set_to_position(
                 kp=1.0, kv=0.0)  # gains set on the compiled model (JointInterfaces)

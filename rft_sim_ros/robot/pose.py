@@ -97,15 +97,22 @@ def into_ranges(model, data):
     return moved
 
 
+def free_root_joint(model, base):
+    """Id of the free joint on the root of body `base`'s tree, or None (a base fixed to the
+    world)."""
+    joint = model.body_jntadr[model.body_rootid[base]]
+    free = joint >= 0 and int(model.jnt_type[joint]) == mujoco.mjtJoint.mjJNT_FREE
+    return int(joint) if free else None
+
+
 def lift_to(model, data, base, bodies, clearance, ground):
     """Move the free root of body `base` vertically, at rest, so that the geoms of `bodies`
     (ids; the geoms that carry their plates, `sand.geoms.body_geoms`) clear the sand surface by
     `clearance` m: the lowest point of each one's bounding box at least `clearance` above
     `ground(x0, x1, y0, y1)`, the surface's highest point over the box's horizontal extent
     (m; `Surface.highest`), and one of them exactly. Raises ValueError without a free root."""
-    root = model.body_rootid[base]
-    joint = model.body_jntadr[root]
-    if joint < 0 or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE:
+    joint = free_root_joint(model, base)
+    if joint is None:
         raise ValueError('spawn needs a floating base (a free joint on the root body)')
     mujoco.mj_kinematics(model, data)
     lift = -float('inf')

@@ -20,8 +20,8 @@ import numpy as np
 from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
 from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
-from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, initial_keyframe,
-                          lift_to, parse_spawn, set_initial_pose)
+from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, free_root_joint,
+                          initial_keyframe, lift_to, parse_spawn, set_initial_pose)
 from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
@@ -160,12 +160,8 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self._say_moved_into_ranges(self._initial_pose())
         # the body /odom follows: the scene's, else the first body under the world
-        self.base_body = scene.base_body or self.model.body(min(1, self.model.nbody - 1)).name
-        try:
-            self._base_id = self.model.body(self.base_body).id
-        except KeyError:
-            raise scene.locator.error('base_body', f'{self.base_body!r} is not a body of '
-                                      f'{scene.model_path.name}') from None
+        self._base_id = self._base(self.model)
+        self.base_body = self.model.body(self._base_id).name or f'body{self._base_id}'
         if scene.deformable.get('enabled'):
             surface = self._bed(surface, scene.deformable)
         try:
@@ -205,9 +201,14 @@ class Simulation:
                                      low_velocity=LowVelocity(**scene.low_velocity))
         except (TypeError, ValueError) as error:
             raise SceneError(f'scene {scene.name}: rft: {error}') from None
-        self._joints = [j for j in range(self.model.njnt)
-                        if mujoco.mjtJoint(int(self.model.jnt_type[j]))
-                        in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
+        movable = [j for j in range(self.model.njnt)
+                   if mujoco.mjtJoint(int(self.model.jnt_type[j]))
+                   in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
+        self._joints = [j for j in movable if self.model.joint(j).name]  # (/joint_states')
+        if len(self._joints) < len(movable):
+            self.notices.append(f'{len(movable) - len(self._joints)} hinge or slide joint(s) '
+                                'without a name: no command interfaces, not in /joint_states '
+                                '(name them in the model to command them)')
         self.joint_names = tuple(self.model.joint(j).name for j in self._joints)
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
@@ -229,6 +230,11 @@ class Simulation:
             self._spawn = parse_spawn(scene.spawn)
         except ValueError as error:
             raise scene.locator.error('robot.spawn', str(error)) from None
+        if self._spawn[0] != 'model' and free_root_joint(self.model, self._base_id) is None:
+            self.notices.append(f'robot.spawn {scene.spawn}: body {self.base_body} is fixed to '
+                                'the world (no free joint at its root), so it starts where the '
+                                'model puts it')
+            self._spawn = ('model', None)
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
         self._check_every = max(1, int(round(
@@ -254,8 +260,7 @@ class Simulation:
             set_initial_pose(model, data, initial_keyframe(model, scene.keyframe),
                              self._initial_positions)
             mujoco.mj_kinematics(model, data)
-            base = model.body(scene.base_body or model.body(min(1, model.nbody - 1)).name).id
-            return resolve_sand_bodies(model, data, ['auto'], base)
+            return resolve_sand_bodies(model, data, ['auto'], self._base(model))
         except (ValueError, KeyError):
             return ['auto']
 
@@ -271,6 +276,17 @@ class Simulation:
                                   tuple(float(c) for c in center))
         except ValueError as error:
             raise SceneError(f'scene {self.scene.name}: {error}') from None
+
+    def _base(self, model):
+        """Id of the body /odom follows in `model`: the scene's base_body, else the first body
+        under the world (named or not)."""
+        if not self.scene.base_body:
+            return min(1, model.nbody - 1)
+        try:
+            return model.body(self.scene.base_body).id
+        except KeyError:
+            raise self.scene.locator.error('base_body', f'{self.scene.base_body!r} is not a '
+                                           f'body of {self.scene.model_path.name}') from None
 
     def _initial_pose(self):
         """The keyframe and initial joint positions of the scene (robot/pose.py); joints
