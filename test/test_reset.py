@@ -27,3 +27,27 @@ def test_a_reset_between_control_ticks_replays_a_fresh_start(method):
     assert np.abs(fresh.data.qvel).max() > 1e-3  # a walk, not a robot at rest
     np.testing.assert_allclose(reset.data.qpos, fresh.data.qpos, rtol=0, atol=1e-9)
     np.testing.assert_allclose(reset.data.qvel, fresh.data.qvel, rtol=0, atol=1e-7)
+
+
+STILT = """<mujoco><worldbody>
+  <body name="trunk" pos="0 0 1"><freejoint/>
+    <geom type="box" size="0.1 0.1 0.1" pos="0.05 0 0" mass="5"/>
+    <body name="stilt" pos="0 0 -0.1"><joint name="hip" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.8" size="0.01" mass="0.1"/>
+      <body name="foot" pos="0 0 -0.82"><geom type="sphere" size="0.02" mass="0.05"/></body>
+    </body>
+  </body></worldbody></mujoco>"""
+
+
+def test_a_robot_that_cannot_stand_is_told_to_start_without_settling(tmp_path):
+    """A trunk on one stilt topples while spawn rest settles it (only its foot is in the
+    sand): start-up says so once, resets included, and names the spawn that starts it at
+    rest on the sand at once."""
+    path = tmp_path / 'stilt.xml'
+    path.write_text(STILT)
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    sim.reset()
+    [notice] = [n for n in sim.notices if 'still moving' in n]
+    assert 'robot.spawn drop:0 starts it at rest on the sand' in notice
+    dropped = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'drop:0'}))
+    assert dropped.settle_steps == 0 and not [n for n in dropped.notices if 'still moving' in n]

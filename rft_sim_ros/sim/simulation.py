@@ -381,8 +381,12 @@ class Simulation:
             if still >= hold:
                 break
         else:
-            self.notices.append(f'spawn rest: still moving after {SETTLE_LIMIT_S:g} s '
-                                f'(base speed {speed:.2g} m/s); starting anyway')
+            notice = (f'spawn rest: still moving after {SETTLE_LIMIT_S:g} s (base speed '
+                      f'{speed:.2g} m/s); starting anyway. A robot that cannot stand without '
+                      'its controller (a humanoid) falls while it settles: robot.spawn drop:0 '
+                      'starts it at rest on the sand, the clock running at once')
+            if notice not in self.notices:  # (a reset settles again)
+                self.notices.append(notice)
         self._settle_counts += self._engine_counts() - before
         self.data.time = 0.0
 
