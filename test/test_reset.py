@@ -39,15 +39,22 @@ STILT = """<mujoco><worldbody>
   </body></worldbody></mujoco>"""
 
 
-def test_a_robot_that_cannot_stand_is_told_to_start_without_settling(tmp_path):
+def test_a_robot_that_cannot_stand_starts_as_drop_0_would_have_started_it(tmp_path):
     """A trunk on one stilt topples while spawn rest settles it (only its foot is in the
-    sand): start-up says so once, resets included, and names the spawn that starts it at
-    rest on the sand at once."""
+    sand, so the trunk would start fallen into it): it starts from the state before the
+    settling instead, exactly as spawn drop:0 starts it, and start-up says so once, resets
+    included."""
     path = tmp_path / 'stilt.xml'
     path.write_text(STILT)
     sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    dropped = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'drop:0'}))
+    assert sim.settle_steps > 1000 and dropped.settle_steps == 0
+    assert not [n for n in dropped.notices if 'still moving' in n]
+    np.testing.assert_array_equal(sim.data.qpos, dropped.data.qpos)
+    assert not sim.data.qvel.any() and sim.data.time == 0.0
+    sim.step(100)
+    dropped.step(100)
+    np.testing.assert_allclose(sim.data.qpos, dropped.data.qpos, rtol=0, atol=1e-12)
     sim.reset()
     [notice] = [n for n in sim.notices if 'still moving' in n]
-    assert 'robot.spawn drop:0 starts it at rest on the sand' in notice
-    dropped = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'drop:0'}))
-    assert dropped.settle_steps == 0 and not [n for n in dropped.notices if 'still moving' in n]
+    assert 'it starts as spawn drop:0 starts it instead' in notice

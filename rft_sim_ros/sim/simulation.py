@@ -364,9 +364,14 @@ class Simulation:
 
     def _settle(self):
         """Spawn 'rest': step, the joints holding their targets, until the base is at rest
-        (robot/pose.py), then start the clock at 0 from there."""
+        (robot/pose.py), then start the clock at 0 from there. A robot still moving after
+        SETTLE_LIMIT_S (one that cannot stand without its controller) starts instead from
+        the state before, at rest on the sand, as spawn drop:0 would."""
         if self.commands is not None:
             self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
+        kind = mujoco.mjtState.mjSTATE_INTEGRATION
+        lowered = np.empty(mujoco.mj_stateSize(self.model, kind))
+        mujoco.mj_getState(self.model, self.data, lowered, kind)
         still, hold = 0, max(1, int(round(REST_HOLD_S / self.timestep)))
         before = self._engine_counts()
         for _ in range(int(round(SETTLE_LIMIT_S / self.timestep))):
@@ -382,11 +387,15 @@ class Simulation:
                 break
         else:
             notice = (f'spawn rest: still moving after {SETTLE_LIMIT_S:g} s (base speed '
-                      f'{speed:.2g} m/s); starting anyway. A robot that cannot stand without '
-                      'its controller (a humanoid) falls while it settles: robot.spawn drop:0 '
-                      'starts it at rest on the sand, the clock running at once')
+                      f'{speed:.2g} m/s), as a robot that cannot stand without its controller '
+                      '(a humanoid) falls: it starts as spawn drop:0 starts it instead, at rest '
+                      'on the sand, the clock running at once')
             if notice not in self.notices:  # (a reset settles again)
                 self.notices.append(notice)
+            mujoco.mj_setState(self.model, self.data, lowered, kind)
+            mujoco.mj_forward(self.model, self.data)
+            self.engine.forget_last_step()
+            self.reset_terrain()
         self._settle_counts += self._engine_counts() - before
         self.data.time = 0.0
 
