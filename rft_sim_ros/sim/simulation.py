@@ -176,22 +176,7 @@ class Simulation:
             if body not in self.sand_bodies:
                 raise scene.locator.error('rft.plates', f'{body!r} is not a sand body '
                                           f'({", ".join(self.sand_bodies)})')
-        plates = {}
-        for body in self.sand_bodies:
-            count = scene.plates_by_body.get(body, scene.plates_per_body)
-            try:
-                plates[body] = body_plates(
-                    self.model, self.model.body(body).id, count=count,
-                    density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
-            except ValueError as error:
-                raise scene.locator.error('rft.bodies', str(error)) from None
-        asked = {body: scene.plates_by_body.get(body, scene.plates_per_body)
-                 for body in self.sand_bodies}
-        over = [f'{body} {len(plates[body].areas)}' for body, count in asked.items()
-                if count is not None and len(plates[body].areas) > count]
-        if over:
-            self.notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
-                                'tessellate (a mesh decimates) no coarser')
+        plates = self._plates(scene)
         try:
             self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
                                      surface_height=scene.surface_height, surface=surface,
@@ -201,14 +186,7 @@ class Simulation:
                                      low_velocity=LowVelocity(**scene.low_velocity))
         except (TypeError, ValueError) as error:
             raise SceneError(f'scene {scene.name}: rft: {error}') from None
-        movable = [j for j in range(self.model.njnt)
-                   if mujoco.mjtJoint(int(self.model.jnt_type[j]))
-                   in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
-        self._joints = [j for j in movable if self.model.joint(j).name]  # (/joint_states')
-        if len(self._joints) < len(movable):
-            self.notices.append(f'{len(movable) - len(self._joints)} hinge or slide joint(s) '
-                                'without a name: no command interfaces, not in /joint_states '
-                                '(name them in the model to command them)')
+        self._joints = self._named_joints()  # (those /joint_states reports)
         self.joint_names = tuple(self.model.joint(j).name for j in self._joints)
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
@@ -263,6 +241,39 @@ class Simulation:
             return resolve_sand_bodies(model, data, ['auto'], self._base(model))
         except (ValueError, KeyError):
             return ['auto']
+
+    def _plates(self, scene):
+        """{sand body: Plates} as the scene asks (a count or a density per body); a body
+        whose geoms make more plates than its count even at their coarsest is named in a
+        notice."""
+        plates, over = {}, []
+        for body in self.sand_bodies:
+            count = scene.plates_by_body.get(body, scene.plates_per_body)
+            try:
+                plates[body] = body_plates(
+                    self.model, self.model.body(body).id, count=count,
+                    density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
+            except ValueError as error:
+                raise scene.locator.error('rft.bodies', str(error)) from None
+            if count is not None and len(plates[body].areas) > count:
+                over.append(f'{body} {len(plates[body].areas)}')
+        if over:
+            self.notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
+                                'tessellate (a mesh decimates) no coarser')
+        return plates
+
+    def _named_joints(self):
+        """Ids of the hinge and slide joints that have a name; how many have none is said in
+        a notice (they get no interfaces either: `add_joint_interfaces`)."""
+        movable = [j for j in range(self.model.njnt)
+                   if mujoco.mjtJoint(int(self.model.jnt_type[j]))
+                   in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
+        named = [j for j in movable if self.model.joint(j).name]
+        if len(named) < len(movable):
+            self.notices.append(f'{len(movable) - len(named)} hinge or slide joint(s) without '
+                                'a name: no command interfaces, not in /joint_states (name '
+                                'them in the model to command them)')
+        return named
 
     def _bed(self, surface, bed):
         """The deformable bed (scene key sand.deformable) over `surface`, centred where the
