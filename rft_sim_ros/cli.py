@@ -347,7 +347,8 @@ def build_parser():
     run.add_argument('--sand-bodies', metavar='PATTERN[,PATTERN...]|auto',
                      help='bodies that touch sand (rft.bodies): names, glob patterns or auto')
     run.add_argument('--base', choices=('floating', 'fixed'),
-                     help='URDF root link: free (default) or welded to the world')
+                     help='URDF root link: free or welded to the world (default: as the '
+                          'URDF says: welded where a fixed joint hangs it from a world link)')
     run.add_argument('--keyframe', metavar='NAME',
                      help="initial pose: the model's keyframe NAME (robot.keyframe; "
                           "default: its 'home' keyframe where it has one)")

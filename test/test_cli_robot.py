@@ -22,7 +22,8 @@ def test_robot_file_scene_defaults():
     assert scene.model_path == XACRO.resolve()
     assert (scene.timestep, scene.zeta) == (0.001, 3.75)
     assert scene.duration == BY_PATH['duration'].default
-    assert scene.plates_per_body == ROBOT_PLATES and scene.robot['base'] == 'floating'
+    assert scene.plates_per_body == ROBOT_PLATES and scene.robot['base'] is None  # (as the
+    assert scene.spawn == 'rest'                                                # URDF says)
 
 
 def test_robot_file_runs_in_sand_with_the_plates_asked(tmp_path):

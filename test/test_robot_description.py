@@ -185,6 +185,23 @@ def test_an_mjcf_without_names_runs_its_bodies_called_by_id(tmp_path):
     sim.step(10)
 
 
+def test_a_root_fixed_to_a_world_link_stays_welded_unless_the_base_is_set(tmp_path):
+    """An arm's URDF mounts its base on a `world` link by a fixed joint: by default (base
+    None: as the URDF says) it stays welded there, `floating` frees it; a URDF without a
+    world link floats by default (the sandbot)."""
+    arm = WORLD_FLOATING.replace('type="floating"', 'type="fixed"')
+    path = tmp_path / 'arm.urdf'
+    path.write_text(arm)
+    assert load_description(path, log=lambda notice: None).spec.compile().nq == 1
+    assert load_description(path, base='floating',
+                            log=lambda notice: None).spec.compile().nq == 7 + 1
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    assert sim.model.nq == 1
+    assert [n for n in sim.notices if n.startswith('robot.spawn rest: body base is fixed')]
+    sandbot = load_description(XACRO, package_paths=PATHS, log=lambda notice: None)
+    assert sandbot.spec.compile().joint(FLOATING_JOINT).type == mujoco.mjtJoint.mjJNT_FREE
+
+
 def test_xacro_args_are_passed():
     description = load_description(XACRO, package_paths=PATHS, xacro_args={'hip_effort': 30},
                                    log=lambda notice: None)
@@ -272,7 +289,7 @@ def test_xacro_error_and_missing_file_are_one_line(tmp_path):
         load_description(tmp_path / 'bad.urdf.xacro')
     with pytest.raises(DescriptionError, match='not found'):
         load_description(tmp_path / 'missing.urdf')
-    with pytest.raises(DescriptionError, match='base must be one of'):
+    with pytest.raises(DescriptionError, match="base must be 'floating', 'fixed' or None"):
         load_description(XACRO, base='welded')
 
 

@@ -3,10 +3,13 @@
 
 The kind is told by the root element (<mujoco> or <robot>), so a URDF saved as .xml works
 too; xacro files are expanded first (`xacro_files`). A URDF's root link gets a free joint
-named FLOATING_JOINT (`base='floating'`, the default; a root link hung from a `world` link
-by a `floating` joint keeps that joint, which MuJoCo makes free) or stays welded to the
-world (`base='fixed'`, that joint dropped); a root link joined only by a fixed joint to the
-real trunk is fine (it is a massless body carrying the trunk). MJCF is used as written (`base` applies to URDF only).
+named FLOATING_JOINT (`base='floating'`; a root link hung from a `world` link by a
+`floating` joint keeps that joint, which MuJoCo makes free) or stays welded to the world
+(`base='fixed'`, that joint dropped); `base=None` (the default) does as the URDF says: a
+root link hung from a `world` link by a `fixed` joint (an arm on its mount) stays welded,
+any other floats. A root link joined only by a fixed joint to the real trunk is fine (it
+is a massless body carrying the trunk). MJCF is used as written (`base` applies to URDF
+only).
 Notices (dropped visuals, ignored tags, converted meshes) are logged once through `log`.
 """
 import logging
@@ -24,7 +27,7 @@ from .xacro_files import XacroError, expand_xacro
 ROBOT_SUFFIXES = ('.xml', '.urdf', '.xacro')
 #: Name of the free joint a floating-base URDF gets at its root link.
 FLOATING_JOINT = 'floating_base'
-BASES = ('floating', 'fixed')
+BASES = ('floating', 'fixed', None)
 
 _LOG = logging.getLogger(__name__)
 
@@ -58,16 +61,16 @@ def is_xml_string(source):
     return isinstance(source, str) and source.lstrip().startswith('<')
 
 
-def load_description(source, *, package_paths=None, xacro_args=None, base='floating',
+def load_description(source, *, package_paths=None, xacro_args=None, base=None,
                      log=_LOG.warning):
     """RobotDescription of `source`: a path or an XML string (see module docstring).
 
     package_paths: {package: folder} or ['NAME=DIR', ...] for $(find)/package:// (the
     ament index and ROS_PACKAGE_PATH are searched after them); xacro_args: {name: value};
-    base: 'floating' or 'fixed' (URDF). Raises DescriptionError.
+    base: 'floating', 'fixed' or None (URDF; module docstring). Raises DescriptionError.
     """
     if base not in BASES:
-        raise DescriptionError(f'base must be one of {", ".join(BASES)}, got {base!r}')
+        raise DescriptionError(f"base must be 'floating', 'fixed' or None, got {base!r}")
     try:
         resolver = PackageResolver(package_paths)
     except ValueError as error:
@@ -106,6 +109,8 @@ def load_description(source, *, package_paths=None, xacro_args=None, base='float
 
 
 def _from_urdf(root, where, base_dir, resolver, base):
+    if base is None:
+        base = 'fixed' if _fixed_to_world(root) else 'floating'
     prepared = prepare_urdf(root, where, base_dir, resolver)
     spec = _spec(lambda: mujoco.MjSpec.from_string(prepared.text, assets=prepared.assets),
                  where)
@@ -125,6 +130,13 @@ def _from_urdf(root, where, base_dir, resolver, base):
                             velocity_limits=prepared.velocity_limits,
                             initial_positions=prepared.initial_positions,
                             notices=prepared.notices)
+
+
+def _fixed_to_world(root):
+    """Whether URDF <robot> `root` hangs its root link from a `world` link by a fixed
+    joint (as an arm's description mounts it)."""
+    return any(joint.get('type') == 'fixed' and joint.find('parent') is not None
+               and joint.find('parent').get('link') == 'world' for joint in root.iter('joint'))
 
 
 def _from_mjcf(text, path, where):

@@ -123,7 +123,7 @@ class Simulation:
         try:
             self.description = load_description(
                 scene.model_path, package_paths=robot.get('package_paths'),
-                xacro_args=robot.get('xacro_args'), base=robot.get('base', 'floating'),
+                xacro_args=robot.get('xacro_args'), base=robot.get('base'),
                 log=self.notices.append)  # (what reading the description changed)
         except DescriptionError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
