@@ -45,6 +45,11 @@ _EFFORT_PREFIX = 'effort_'
 _MOVABLE = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
 
 
+def movable_joints(model):
+    """Ids of the hinge and slide joints of compiled `model` (the joints with a position)."""
+    return [j for j in range(model.njnt) if mujoco.mjtJoint(int(model.jnt_type[j])) in _MOVABLE]
+
+
 def servo_settings(servos, joint):
     """The `servos` settings ({kp, kd, effort} or PASSIVE) of joint name `joint`: the
     entries of every matching glob pattern, in order, later ones overriding."""

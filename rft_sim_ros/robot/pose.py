@@ -15,10 +15,10 @@ Spawn (`robot.spawn`), for a robot whose root body has a free joint:
               run's clock then starts at 0 from that state.
 """
 import mujoco
-import numpy as np
 
 from ..sand.geoms import body_geoms
-from .sand_bodies import geom_footprint, geom_lowest_z
+from .joints import movable_joints
+from .sand_bodies import free_root_joint, geom_footprint, geom_lowest_z
 
 #: spawn 'rest' is settled once the base is slower than this (m/s) for REST_HOLD_S (s).
 REST_SPEED = 1e-3
@@ -73,8 +73,7 @@ def set_initial_pose(model, data, keyframe=None, initial_positions=None):
             j = model.joint(joint).id
         except KeyError:
             raise ValueError(f'initial position for {joint!r}: no such joint') from None
-        if mujoco.mjtJoint(int(model.jnt_type[j])) not in (mujoco.mjtJoint.mjJNT_HINGE,
-                                                           mujoco.mjtJoint.mjJNT_SLIDE):
+        if j not in movable_joints(model):
             raise ValueError(f'initial position for {joint!r}: not a hinge or slide joint')
         data.qpos[model.jnt_qposadr[j]] = value
     return into_ranges(model, data)
@@ -85,9 +84,8 @@ def into_ranges(model, data):
     range's nearest end. Returns [(joint name, position it had, range low, range high)]
     (rad or m) of those moved."""
     moved = []
-    for j in np.flatnonzero(model.jnt_limited):
-        if mujoco.mjtJoint(int(model.jnt_type[j])) not in (mujoco.mjtJoint.mjJNT_HINGE,
-                                                           mujoco.mjtJoint.mjJNT_SLIDE):
+    for j in movable_joints(model):
+        if not model.jnt_limited[j]:
             continue
         low, high = model.jnt_range[j]
         adr = model.jnt_qposadr[j]
@@ -95,14 +93,6 @@ def into_ranges(model, data):
             moved.append((model.joint(j).name, float(data.qpos[adr]), float(low), float(high)))
             data.qpos[adr] = min(max(data.qpos[adr], low), high)
     return moved
-
-
-def free_root_joint(model, base):
-    """Id of the free joint on the root of body `base`'s tree, or None (a base fixed to the
-    world)."""
-    joint = model.body_jntadr[model.body_rootid[base]]
-    free = joint >= 0 and int(model.jnt_type[joint]) == mujoco.mjtJoint.mjJNT_FREE
-    return int(joint) if free else None
 
 
 def lift_to(model, data, base, bodies, clearance, ground):

@@ -138,12 +138,16 @@ def unheld_free_trees(model, sand_bodies):
     held = {int(roots[b]) for b in sand_bodies}
     colliding = {int(roots[model.geom_bodyid[g]]) for g in range(model.ngeom)
                  if is_collision_geom(model, g)}
-    free = []
-    for root in sorted(colliding - held - {0}):
-        joint = model.body_jntadr[root]
-        if joint >= 0 and int(model.jnt_type[joint]) == mujoco.mjtJoint.mjJNT_FREE:
-            free.append(_name(model, root))
-    return free
+    return [_name(model, root) for root in sorted(colliding - held - {0})
+            if free_root_joint(model, root) is not None]
+
+
+def free_root_joint(model, body):
+    """Id of the free joint on the root of body `body`'s tree, or None (a tree fixed to the
+    world)."""
+    joint = model.body_jntadr[model.body_rootid[body]]
+    free = joint >= 0 and int(model.jnt_type[joint]) == mujoco.mjtJoint.mjJNT_FREE
+    return int(joint) if free else None
 
 
 def match_bodies(names, patterns, shaped=None):

@@ -100,7 +100,7 @@ def load_scene(name_or_path, overrides=None):
     if is_robot_file(path):
         if not path.is_file():
             raise SceneError(f'robot file {path} not found')
-        raw = apply_overrides(robot_scene(path, overrides.get('robot.base')), overrides)
+        raw = apply_overrides(robot_scene(path), overrides)
         return _validate(raw, path, Locator(path, {}, overridden=overrides))
     if path.suffix in ('.yaml', '.yml') or len(path.parts) > 1:
         if not path.is_file():
@@ -123,19 +123,19 @@ def load_scene(name_or_path, overrides=None):
     return _validate(raw, path, Locator(path, lines, overridden=overrides))
 
 
-def robot_scene(model_path, base=None):
+def robot_scene(model_path):
     """The scene of a bare robot file (the mapping a scene YAML would hold): scenario
     `external` (the robot holds its pose and takes commands), paper sand (zeta 3.75
     N/cm^3), 1 ms steps, ROBOT_PLATES plates per sand body, the schema's default duration,
-    a floating base lowered onto the sand and settled (spawn rest), a fixed one (`base`
-    'fixed', `robot.base`; None: as the description says) where the model puts it (spawn
-    model; `Simulation` starts a base the description fixes there too); sand bodies and
-    legs auto unless `rft.bodies` (`rft-sim run --sand-bodies`) names them."""
+    the base as the description says (`robot.base`), lowered onto the sand and settled
+    (spawn rest; a base fixed to the world starts where the model puts it: `Simulation`);
+    sand bodies and legs auto unless `rft.bodies` (`rft-sim run --sand-bodies`) names
+    them."""
     return {'name': Path(model_path).name.split('.')[0], 'scenario': 'external',
             'description': f'{Path(model_path).name} in sand (external commands)',
             'model': str(Path(model_path).resolve()), 'timestep': 0.001, 'zeta': 3.75,
             'rft': {'plates_per_body': ROBOT_PLATES}, 'legs': 'auto',
-            'robot': {'base': base, 'spawn': 'model' if base == 'fixed' else 'rest'}}
+            'robot': {'spawn': 'rest'}}
 
 
 def parse_assignment(text):

@@ -2,10 +2,9 @@
 with the key that changes it: bear the robot on sand bodies too small for its weight
 (robot/bearing.py), hold free bodies that have no sand body (another robot, a loose crate),
 run MuJoCo's noslip iterations on the constraints the sand solve takes."""
-import mujoco
 
 from ..robot.bearing import bearing
-from ..robot.sand_bodies import geom_lowest_z, unheld_free_trees
+from ..robot.sand_bodies import free_root_joint, geom_lowest_z, unheld_free_trees
 from ..units import zeta_to_si
 
 #: Free trees named in the notice before "and N more".
@@ -37,10 +36,9 @@ def caveats(model, data, engine, scene, base):
 def _bearing_notice(model, data, engine, zeta, base):
     """[notice] where a free-floating robot bears its weight only with bodies in the sand
     that are not sand bodies (robot/bearing.py), at zeta (N/cm^3); else []."""
-    root = model.body_rootid[base]
-    joint = model.body_jntadr[root]
-    if joint < 0 or int(model.jnt_type[joint]) != mujoco.mjtJoint.mjJNT_FREE:
+    if free_root_joint(model, base) is None:
         return []
+    root = model.body_rootid[base]
     starts = engine.plate_start
     plates = [(engine.local_normal[a:b], engine.local_pos[a:b], engine.areas[a:b])
               for a, b in zip(starts[:-1], starts[1:])]

@@ -19,10 +19,12 @@ import numpy as np
 
 from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
-from ..robot.joints import JointInterfaces, add_joint_interfaces, position_servos
-from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, free_root_joint,
-                          initial_keyframe, lift_to, parse_spawn, set_initial_pose)
-from ..robot.sand_bodies import keep_sand_visuals, legs_from_tree, resolve_sand_bodies
+from ..robot.joints import (JointInterfaces, add_joint_interfaces, movable_joints,
+                            position_servos)
+from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, initial_keyframe, lift_to,
+                          parse_spawn, set_initial_pose)
+from ..robot.sand_bodies import (free_root_joint, keep_sand_visuals, legs_from_tree,
+                                 resolve_sand_bodies)
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
@@ -161,7 +163,8 @@ class Simulation:
         self._say_moved_into_ranges(self._initial_pose())
         # the body /odom follows: the scene's, else the first body under the world
         self._base_id = self._base(self.model)
-        self.base_body = self.model.body(self._base_id).name or f'body{self._base_id}'
+        self.base_body = self.model.body(self._base_id).name  # (every body has one:
+        # robot.description names the others)
         if scene.deformable.get('enabled'):
             surface = self._bed(surface, scene.deformable)
         try:
@@ -265,9 +268,7 @@ class Simulation:
     def _named_joints(self):
         """Ids of the hinge and slide joints that have a name; how many have none is said in
         a notice (they get no interfaces either: `add_joint_interfaces`)."""
-        movable = [j for j in range(self.model.njnt)
-                   if mujoco.mjtJoint(int(self.model.jnt_type[j]))
-                   in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)]
+        movable = movable_joints(self.model)
         named = [j for j in movable if self.model.joint(j).name]
         if len(named) < len(movable):
             self.notices.append(f'{len(movable) - len(named)} hinge or slide joint(s) without '
