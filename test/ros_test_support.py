@@ -4,6 +4,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rft_sim_ros.ros.factory import jazzy_typestore
+from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.sim.simulation import Simulation
 from rft_sim_ros.sim.state import ActivePlates, LegWrench, SimState
 
 
@@ -95,3 +98,100 @@ class ListSink:
 
     def write_diagnostics(self, state, status):
         self.diagnostics.append((state, status))
+
+
+#: control_msgs (5.8.0, the version ROS 2 Jazzy ships; github.com/ros-controls/control_msgs,
+#: branch jazzy): the FollowJointTrajectory action's messages and the tolerances it uses,
+#: which the rosbags Jazzy typestore does not hold. `control_msgs_typestore` registers them.
+CONTROL_MSGS_DEFINITIONS = {
+    'control_msgs/msg/JointTolerance': """
+string name
+float64 position
+float64 velocity
+float64 acceleration
+""",
+    'control_msgs/msg/JointComponentTolerance': """
+uint16 X_AXIS=1
+uint16 Y_AXIS=2
+uint16 Z_AXIS=3
+uint16 TRANSLATION=4
+uint16 ROTATION=5
+string joint_name
+uint16 component
+float64 position
+float64 velocity
+float64 acceleration
+""",
+    'control_msgs/action/FollowJointTrajectory_Goal': """
+trajectory_msgs/JointTrajectory trajectory
+trajectory_msgs/MultiDOFJointTrajectory multi_dof_trajectory
+control_msgs/JointTolerance[] path_tolerance
+control_msgs/JointComponentTolerance[] component_path_tolerance
+control_msgs/JointTolerance[] goal_tolerance
+control_msgs/JointComponentTolerance[] component_goal_tolerance
+builtin_interfaces/Duration goal_time_tolerance
+""",
+    'control_msgs/action/FollowJointTrajectory_Result': """
+int32 error_code
+int32 SUCCESSFUL = 0
+int32 INVALID_GOAL = -1
+int32 INVALID_JOINTS = -2
+int32 OLD_HEADER_TIMESTAMP = -3
+int32 PATH_TOLERANCE_VIOLATED = -4
+int32 GOAL_TOLERANCE_VIOLATED = -5
+string error_string
+""",
+    'control_msgs/action/FollowJointTrajectory_Feedback': """
+std_msgs/Header header
+string[] joint_names
+trajectory_msgs/JointTrajectoryPoint desired
+trajectory_msgs/JointTrajectoryPoint actual
+trajectory_msgs/JointTrajectoryPoint error
+string[] multi_dof_joint_names
+trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired
+trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual
+trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error
+""",
+}
+
+
+def control_msgs_typestore():
+    """A rosbags Jazzy typestore that also holds `CONTROL_MSGS_DEFINITIONS`."""
+    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, text in CONTROL_MSGS_DEFINITIONS.items():
+        store.register(get_types_from_msg(text, name))
+    return store
+
+
+class Harness:
+    """A SimRuntime on the servo rig with a fake clock, a list sink and captured logs."""
+
+    def __init__(self, scene, **options):
+        self.clock = FakeClock()
+        self.sink = ListSink()
+        self.warnings, self.errors = [], []
+        self.sim = Simulation(scene)
+        options.setdefault('publish_rate', 100.0)
+        self.runtime = SimRuntime(self.sim, self.sink, warn=self.warnings.append,
+                                  error=self.errors.append, clock=self.clock, **options)
+
+    def run(self, wall_seconds, tick=0.005):
+        """Tick the runtime for `wall_seconds` of fake wall time."""
+        for _ in range(int(round(wall_seconds / tick))):
+            self.clock.advance(tick)
+            self.runtime.tick()
+
+    def times(self):
+        return [s.time for s in self.sink.states]
+
+    def targets(self):
+        return self.sim.commands.sample(self.sim.time).positions.copy()
+
+
+def position_array(values):
+    """A std_msgs/Float64MultiArray (rosbags) of `values`."""
+    types_ = jazzy_typestore().types
+    layout = types_['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0)
+    return types_['std_msgs/msg/Float64MultiArray'](layout=layout,
+                                                    data=np.array(values, dtype=float))

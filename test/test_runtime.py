@@ -16,7 +16,7 @@ from rft_sim_ros.ros.runtime import SimRuntime, array_order
 from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation
-from ros_test_support import SERVO_RIG, FakeClock, ListSink
+from ros_test_support import SERVO_RIG, FakeClock, Harness, position_array
 
 FACTORY = RosbagsFactory()
 PERIOD = 0.01  # s: the servo rig publishes at 100 Hz of sim time
@@ -25,31 +25,6 @@ PERIOD = 0.01  # s: the servo rig publishes at 100 Hz of sim time
 @pytest.fixture(scope='module')
 def rig_scene():
     return load_scene(SERVO_RIG)
-
-
-class Harness:
-    """A SimRuntime on the servo rig with a fake clock, a list sink and captured logs."""
-
-    def __init__(self, scene, **options):
-        self.clock = FakeClock()
-        self.sink = ListSink()
-        self.warnings, self.errors = [], []
-        self.sim = Simulation(scene)
-        options.setdefault('publish_rate', 100.0)
-        self.runtime = SimRuntime(self.sim, self.sink, warn=self.warnings.append,
-                                  error=self.errors.append, clock=self.clock, **options)
-
-    def run(self, wall_seconds, tick=0.005):
-        """Tick the runtime for `wall_seconds` of fake wall time."""
-        for _ in range(int(round(wall_seconds / tick))):
-            self.clock.advance(tick)
-            self.runtime.tick()
-
-    def times(self):
-        return [s.time for s in self.sink.states]
-
-    def targets(self):
-        return self.sim.commands.sample(self.sim.time).positions.copy()
 
 
 @pytest.fixture
@@ -63,13 +38,6 @@ def trajectory(names, *points, start=0.0):
         joint_names=names, start_time=start,
         points=[TrajectoryPoint(positions=p[1], time_from_start=p[0],
                                 velocities=p[2] if len(p) > 2 else None) for p in points]))
-
-
-def position_array(values):
-    types_ = FACTORY.typestore.types
-    layout = types_['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0)
-    return types_['std_msgs/msg/Float64MultiArray'](layout=layout,
-                                                    data=np.array(values, dtype=float))
 
 
 # --- pacing and publishing ------------------------------------------------------------------

@@ -34,7 +34,7 @@ import numbers
 import reprlib
 from collections import Counter
 from dataclasses import dataclass
-from typing import NamedTuple, Optional, Sequence
+from typing import NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -52,13 +52,19 @@ class Reason(str, enum.Enum):
     POSITIONS_LENGTH = 'positions_length'
     VELOCITIES_LENGTH = 'velocities_length'
     ENDS_IN_PAST = 'ends_in_past'
+    #: a FollowJointTrajectory goal's own parts: tolerances, multi-DOF joints
+    #: (`trajectory_goals`)
+    GOAL = 'goal'
 
 
 @dataclass(frozen=True)
 class CommandResult:
-    """Outcome of a command: accepted, or rejected for `reason` explained in `message`."""
+    """Outcome of a command: accepted, or rejected for `reason` explained in `message`.
+    span: an accepted trajectory's start and the time of its last waypoint (s of sim time),
+    else None."""
     reason: Optional[Reason] = None
     message: str = ''
+    span: Optional[Tuple[float, float]] = None
 
     @property
     def accepted(self):
@@ -275,12 +281,12 @@ class CommandHandler:
     def set_trajectory(self, command, now):
         """Accept `command` (a `TrajectoryCommand`) received at sim time `now` (s), or reject it.
 
-        Never raises for bad input: the returned `CommandResult` says what was wrong.
+        Never raises for bad input: the returned `CommandResult` says what was wrong, or
+        gives the accepted trajectory's span.
         """
-        try:
-            plan = self._validate(command, now)
-        except _Rejected as rejected:
-            return self._reject(rejected)
+        result, plan = self._plan(command, now)
+        if plan is None:
+            return result
         self._start_pending(now)
         self._efforts = None
         if plan.start > now:
@@ -288,7 +294,20 @@ class CommandHandler:
         else:
             self._pending = None
             self._active = self._spline(plan, now)
-        return ACCEPTED
+        return result
+
+    def check_trajectory(self, command, now):
+        """`set_trajectory`'s verdict on `command` at sim time `now` (s), changing nothing
+        but the count of rejections (an action server's decision to accept a goal)."""
+        return self._plan(command, now)[0]
+
+    def _plan(self, command, now):
+        """(CommandResult, the validated _Plan or None if rejected)."""
+        try:
+            plan = self._validate(command, now)
+        except _Rejected as rejected:
+            return self._reject(rejected), None
+        return CommandResult(span=(plan.start, float(plan.times[-1]))), plan
 
     def _reject(self, rejected):
         self._rejections[rejected.reason] += 1

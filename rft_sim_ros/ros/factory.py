@@ -21,6 +21,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
+#: The messages of an action that rclpy nests in its class (`Action.Goal`), by the suffix
+#: the rosbags/IDL spelling gives them ('pkg/action/Action_Goal').
+ACTION_PARTS = ('Goal', 'Result', 'Feedback')
+
 
 class MessageFactory(Protocol):
     """What `rft_sim_ros.ros.messages` needs from a message backend."""
@@ -90,11 +94,18 @@ class RclpyFactory:
         self._classes = {}
 
     def message_class(self, type_name):
-        """The rclpy class of `type_name` ('pkg/msg/Name' or 'pkg/srv/Name')."""
+        """The rclpy class of `type_name`: 'pkg/msg/Name', 'pkg/srv/Name', 'pkg/action/Name',
+        or an action's part 'pkg/action/Name_Goal' (_Result, _Feedback), which rclpy nests
+        as Name.Goal."""
         cls = self._classes.get(type_name)
         if cls is None:
             package, kind, name = type_name.split('/')
-            cls = getattr(importlib.import_module(f'{package}.{kind}'), name)
+            action, _, part = name.rpartition('_')
+            nested = kind == 'action' and part in ACTION_PARTS
+            cls = getattr(importlib.import_module(f'{package}.{kind}'),
+                          action if nested else name)
+            if nested:
+                cls = getattr(cls, part)
             self._classes[type_name] = cls
         return cls
 

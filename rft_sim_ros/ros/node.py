@@ -3,24 +3,29 @@
 This module only connects ROS entities to `rft_sim_ros.ros.runtime.SimRuntime`, which makes
 every decision (pacing, checks, command dispatch, what to publish when). Interface
 (docs/ros.md): parameters of `rft_sim_ros.ros.parameters`; publishers of
-`topics.published_topics`; subscriptions to the ros2_control command topics; services
-~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger). The robot comes from the
-parameters scene / model / robot_description, or, with none of them set, from the first
-valid message on /robot_description (rft_sim_ros.ros.robot_source). The node publishes
-/clock itself and must not run on sim time; its timer runs on the steady wall clock.
+`topics.published_topics`; subscriptions to the ros2_control command topics;
+joint_trajectory_controller's FollowJointTrajectory action server (control_msgs); services
+~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger). The
+robot comes from the parameters scene / model / robot_description, or, with none of them
+set, from the first valid message on /robot_description (rft_sim_ros.ros.robot_source). The
+node publishes /clock itself and must not run on sim time; its timer runs on the steady
+wall clock.
 """
 import sys
 import tempfile
 from pathlib import Path
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 
-from rft_sim_ros.ros import messages, parameters, topics
+from rft_sim_ros.control.trajectory_goals import GoalState
+from rft_sim_ros.ros import follow_messages, messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
@@ -138,6 +143,7 @@ class SimNode(Node):
         self.create_subscription(self._factory.message_class(topics.EFFORT_COMMANDS_TYPE),
                                  topics.EFFORT_COMMANDS, self.runtime.on_efforts,
                                  QUEUE_DEPTH)
+        self._serve_follow_joint_trajectory()
         set_bool = self._factory.message_class('std_srvs/srv/SetBool')
         trigger = self._factory.message_class('std_srvs/srv/Trigger')
         self.create_service(set_bool, '~/pause',
@@ -155,6 +161,27 @@ class SimNode(Node):
         logger.info(f'scene {sim.scene.name}: publishing every {self.runtime.publish_period:g} s '
                     f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
                     f'{" (paused)" if self.runtime.paused else ""}')
+
+    def _serve_follow_joint_trajectory(self):
+        """The FollowJointTrajectory action server, where control_msgs is installed."""
+        try:
+            action = self._factory.message_class(topics.FOLLOW_JOINT_TRAJECTORY_TYPE)
+        except ImportError as error:
+            self.get_logger().warning(f'no {topics.FOLLOW_JOINT_TRAJECTORY} action: '
+                                      f'control_msgs is not installed ({error})')
+            return
+        self._action_server = ActionServer(
+            self, action, topics.FOLLOW_JOINT_TRAJECTORY, execute_callback=self._follow_goal,
+            goal_callback=self._accept_goal, cancel_callback=lambda goal: CancelResponse.ACCEPT)
+
+    def _accept_goal(self, goal):
+        return GoalResponse.REJECT if self.runtime.goal_problem(goal) else GoalResponse.ACCEPT
+
+    async def _follow_goal(self, goal_handle):
+        """Execute an accepted goal: the runtime follows it; the result comes when it ends."""
+        listener = _GoalListener(self._factory, goal_handle)
+        self.runtime.start_goal(goal_handle.request, listener)
+        return await listener.result
 
     def _declare(self, name, default):
         """Declare parameter `name` from its spec; returns its value (None if unset)."""
@@ -211,6 +238,27 @@ class SimNode(Node):
                 self.runtime.set_parameter(change.name, change.value)
                 if change.name == parameters.REAL_TIME_FACTOR:
                     self._timer.timer_period_ns = int(self.runtime.tick_period * 1e9)
+
+
+class _GoalListener:
+    """The runtime's side of an rclpy goal handle: feedback and the end go to the client;
+    `result` is done with the Result message once the goal has ended."""
+
+    def __init__(self, factory, goal_handle):
+        self._factory, self._handle = factory, goal_handle
+        self.result = Future()
+
+    def publish_feedback(self, feedback):
+        self._handle.publish_feedback(follow_messages.feedback_message(self._factory, feedback))
+
+    def cancel_requested(self):
+        return self._handle.is_cancel_requested
+
+    def finish(self, outcome):
+        end = {GoalState.SUCCEEDED: self._handle.succeed, GoalState.ABORTED: self._handle.abort,
+               GoalState.CANCELED: self._handle.canceled}[outcome.state]
+        end()
+        self.result.set_result(follow_messages.result_message(self._factory, outcome))
 
 
 def main(args=None):

@@ -10,9 +10,17 @@ rclpy node only forwards events to it:
   for at most `tick_budget_s` of wall time so the executor stays responsive, then
   /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
   initial state.
-* `on_trajectory(msg)` / `on_positions(msg)` / `on_efforts(msg)`: incoming commands (any message backend) go to
-  `sim.commands` at the current sim time; bad ones are rejected with a throttled warning
-  naming the problem and counted per reason (reported on /diagnostics). Never raises.
+* `on_trajectory(msg)` / `on_positions(msg)` / `on_efforts(msg)`: incoming commands (any
+  message backend) go to `sim.commands` at the current sim time; bad ones are rejected with
+  a throttled warning naming the problem and counted per reason (reported on
+  /diagnostics). Never raises.
+* `goal_problem(msg)` / `start_goal(msg, listener)`: FollowJointTrajectory goals
+  (`trajectory_goals`), one at a time: the action server asks whether to accept a goal,
+  then starts it. The goal's trajectory runs like one on the topic; after each publish
+  cycle the goal is checked against its tolerances, its listener gets the feedback and, at
+  the end, the outcome. A new goal or any accepted command preempts it (aborted,
+  INVALID_GOAL, as joint_trajectory_controller aborts a preempted goal), as do reset and
+  divergence; a cancel the listener reports is served at the next tick, paused or not.
 * `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused.
 * `pause(flag)`, `reset()`, `step()`, `reset_terrain()`: the services, each answering a
   `ServiceResult`.
@@ -33,7 +41,8 @@ from rft_sim_ros.ros import inbound, parameters, topics
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_key
 from rft_sim_ros.ros.messages import RunStatus
 from rft_sim_ros.ros.pacing import Pacer
-from rft_sim_ros.control.commands import CommandResult, Reason
+from rft_sim_ros.control import trajectory_goals as goals
+from rft_sim_ros.control.commands import CommandResult, Reason, Targets
 from rft_sim_ros.sim.publishing import PublishSchedule
 from rft_sim_ros.sim.simulation import SimulationDiverged
 from rft_sim_ros.control.throttle import ThrottledLog
@@ -95,6 +104,8 @@ class SimRuntime:
         self.paused = bool(paused)
         self.diverged = None
         self.last_state = None
+        self._goal = None  # (FollowedGoal, listener) of the goal being followed
+        self._servo_in_state = None  # indices of the servo joints in a SimState's joints
 
     # --- properties -------------------------------------------------------------------------
 
@@ -134,6 +145,8 @@ class SimRuntime:
         started = self._clock()
         if self.last_state is None:
             self._publish_state()
+        if self._goal is not None and self._goal[1].cancel_requested():
+            self._end_goal(goals.canceled(), hold=True)
         now = started
         while (not self.paused and now - started < self._budget
                and self._pacer.due(now, self.sim.time
@@ -152,6 +165,7 @@ class SimRuntime:
             self.paused = True
             self._error(f'simulation diverged {self.diverged}; paused, nothing more is '
                         'published until reset')
+            self._end_goal(goals.aborted(f'the simulation diverged {self.diverged}'))
             return False
         self._cycles += 1
         self._publish_state()
@@ -165,6 +179,7 @@ class SimRuntime:
             self._sink.write_terrain(update)
         for line in self.sim.run_warnings():
             self._warn_once(line)
+        self._check_goal()
 
     def _diagnostics(self, now):
         status = self.status()
@@ -219,7 +234,91 @@ class SimRuntime:
         if not result.accepted:
             self._rejections[result.reason.value] += 1
             self._warn((topic, result.reason), f'rejected command on {topic}: {result.message}')
+        else:
+            self._end_goal(goals.aborted(f'preempted by a new command on {topic}'))
         return result
+
+    # --- FollowJointTrajectory goals ---------------------------------------------------------
+
+    def _goal_request(self, msg):
+        """(CommandResult, GoalRequest, Tolerances) of a goal message; the result says why
+        it cannot be followed (then the others are None), else it is the trajectory's
+        verdict from `check_trajectory`."""
+        try:
+            request = inbound.follow_goal(msg)
+        except (AttributeError, TypeError, ValueError) as error:
+            malformed = f'not a FollowJointTrajectory goal ({error})'
+            return CommandResult(Reason.MALFORMED, malformed), None, None
+        if self.sim.commands is None:
+            return CommandResult(Reason.UNKNOWN_JOINT, 'this scene has no position servos to '
+                                 'command'), None, None
+        try:
+            tolerances = goals.goal_tolerances(request, self.sim.commands.joint_names)
+        except ValueError as error:
+            return CommandResult(Reason.GOAL, str(error)), None, None
+        return (self.sim.commands.check_trajectory(request.trajectory, now=self.sim.time),
+                request, tolerances)
+
+    def goal_problem(self, msg):
+        """Why the FollowJointTrajectory goal `msg` (any message backend) cannot be
+        accepted now, or None; a refused goal is logged and counted as a rejected command."""
+        result = self._goal_request(msg)[0]
+        if not result.accepted:
+            self._outcome(topics.FOLLOW_JOINT_TRAJECTORY, result)
+            return result.message
+        return None
+
+    def start_goal(self, msg, listener):
+        """Follow the accepted goal `msg` from now on, preempting the one being followed.
+
+        listener: receives `publish_feedback(GoalFeedback)` after every publish cycle and, once,
+        `finish(GoalOutcome)`; `cancel_requested()` says whether its client asked to cancel.
+        A goal that has become invalid since it was accepted (its trajectory now ends in the
+        past) finishes at once, aborted with the matching error code.
+        """
+        result, request, tolerances = self._goal_request(msg)
+        if result.accepted:
+            result = self.sim.commands.set_trajectory(request.trajectory, now=self.sim.time)
+        self._outcome(topics.FOLLOW_JOINT_TRAJECTORY, result)
+        if not result.accepted:
+            listener.finish(goals.GoalOutcome(goals.GoalState.ABORTED,
+                                              goals.error_code(result.reason), result.message))
+            return
+        start, end = result.span
+        self._goal = (goals.FollowedGoal(tolerances, start, end, self.sim.commands.joint_names),
+                      listener)
+
+    def _servo_targets(self, state):
+        """`Targets` of the servo joints' actual positions and velocities in `state`."""
+        if self._servo_in_state is None:
+            self._servo_in_state = [state.joint_names.index(name)
+                                    for name in self.sim.servo_joint_names]
+        index = self._servo_in_state
+        return Targets(state.joint_positions[index], state.joint_velocities[index])
+
+    def _check_goal(self):
+        """Feedback of the goal being followed for the state just published, and its end
+        if it ends now (a goal ended by a tolerance leaves the joints holding)."""
+        if self._goal is None:
+            return
+        goal, listener = self._goal
+        feedback, outcome = goal.check(self.last_state.time,
+                                       self.sim.commands.sample(self.sim.time),
+                                       self._servo_targets(self.last_state))
+        listener.publish_feedback(feedback)
+        if outcome is not None:
+            self._end_goal(outcome, hold=outcome.state is not goals.GoalState.SUCCEEDED)
+
+    def _end_goal(self, outcome, hold=False):
+        """End the goal being followed (if any) with `outcome`; hold: its joints hold the
+        positions last published."""
+        if self._goal is None:
+            return
+        listener, self._goal = self._goal[1], None
+        if hold:
+            self.sim.commands.hold_positions(self._servo_targets(self.last_state).positions,
+                                             self.sim.time)
+        listener.finish(outcome)
 
     # --- parameters -------------------------------------------------------------------------
 
@@ -278,6 +377,7 @@ class SimRuntime:
         """std_srvs/Trigger `reset`: back to the scene's initial state; sim time keeps
         running forward; commands are dropped; paused stays as it is."""
         self.sim.reset()
+        self._end_goal(goals.aborted('the simulation was reset'))
         self.diverged = None
         self._pacer.restart(self._clock(), self.sim.time)
         return ServiceResult(True, f'reset at sim time {self.sim.time:.6f} s '

@@ -22,6 +22,8 @@ TERRAIN_MARKER = '/rft/terrain/marker'
 JOINT_TRAJECTORY = '/joint_trajectory_controller/joint_trajectory'
 POSITION_COMMANDS = '/forward_position_controller/commands'
 EFFORT_COMMANDS = '/effort_controller/commands'
+#: joint_trajectory_controller's action server (control_msgs/action/FollowJointTrajectory).
+FOLLOW_JOINT_TRAJECTORY = '/joint_trajectory_controller/follow_joint_trajectory'
 
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
@@ -35,6 +37,7 @@ DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
 POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 EFFORT_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
+FOLLOW_JOINT_TRAJECTORY_TYPE = 'control_msgs/action/FollowJointTrajectory'
 
 _NAME_TOKEN = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
 

@@ -1,0 +1,145 @@
+"""The rft_sim node's FollowJointTrajectory action server, driven by an rclpy ActionClient
+as MoveIt or a gait stack drives joint_trajectory_controller's.
+
+Runs where ROS 2 Jazzy is sourced with control_msgs; skipped with the reason elsewhere.
+"""
+import pytest
+
+pytest.importorskip('rclpy', reason='ROS 2 Jazzy (rclpy) is not installed here')
+pytest.importorskip('control_msgs.action',
+                    reason='ROS 2 package control_msgs is not installed here')
+
+from action_msgs.msg import GoalStatus  # noqa: E402
+from builtin_interfaces.msg import Duration  # noqa: E402
+from control_msgs.action import FollowJointTrajectory  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
+
+import numpy as np  # noqa: E402
+from rclpy.serialization import serialize_message  # noqa: E402
+
+from rft_sim_ros.control import trajectory_goals as goals  # noqa: E402
+from rft_sim_ros.control.commands import Targets  # noqa: E402
+from rft_sim_ros.ros import follow_messages, topics  # noqa: E402
+from rft_sim_ros.ros.factory import RclpyFactory, RosbagsFactory  # noqa: E402
+from ros_test_support import control_msgs_typestore, messages_equal  # noqa: E402
+from test_node_rclpy import Ros, hip, start_sim  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+Result = FollowJointTrajectory.Result
+
+
+@pytest.fixture
+def ros():
+    session = Ros()
+    yield session
+    session.close()
+
+
+def goal(positions, after_s, names=('hip',), **fields):
+    point = JointTrajectoryPoint(positions=positions,
+                                 time_from_start=Duration(sec=int(after_s),
+                                                          nanosec=int(after_s % 1 * 1e9)))
+    return FollowJointTrajectory.Goal(
+        trajectory=JointTrajectory(joint_names=list(names), points=[point]), **fields)
+
+
+class Client:
+    """An ActionClient on the test's probe node that records feedback."""
+
+    def __init__(self, ros):
+        self.ros = ros
+        self.action = ActionClient(ros.probe, FollowJointTrajectory,
+                                   topics.FOLLOW_JOINT_TRAJECTORY)
+        self.feedback = []
+        assert self.action.wait_for_server(timeout_sec=5.0)
+
+    def send(self, goal_msg):
+        future = self.action.send_goal_async(goal_msg,
+                                             feedback_callback=self.feedback.append)
+        assert self.ros.spin_until(future.done)
+        return future.result()
+
+    def result(self, handle, timeout=10.0):
+        future = handle.get_result_async()
+        assert self.ros.spin_until(future.done, timeout=timeout)
+        return future.result()
+
+
+def test_a_goal_runs_sends_feedback_and_succeeds(ros):
+    sim = start_sim(ros)
+    client = Client(ros)
+    handle = client.send(goal([0.3], 0.2, goal_tolerance=[
+        JointTolerance(name='hip', position=0.01)]))
+    assert handle.accepted
+    answer = client.result(handle)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED
+    assert answer.result.error_code == Result.SUCCESSFUL
+    assert client.feedback
+    last = client.feedback[-1].feedback
+    assert list(last.joint_names) == ['hip', 'knee']
+    assert abs(last.desired.positions[0] - 0.3) < 1e-9
+    assert abs(last.error.positions[0]) <= 0.01
+    assert abs(last.actual.positions[0] - hip(ros.probe.joint_states[-1])) < 0.05
+    assert abs(sim.runtime.sim.commands.sample(sim.runtime.sim.time).positions[0] - 0.3) < 1e-9
+
+
+def test_a_bad_goal_is_rejected_with_the_reason_counted(ros):
+    sim = start_sim(ros)
+    client = Client(ros)
+    assert not client.send(goal([0.3], 0.2, names=('ankle',))).accepted
+    assert not client.send(goal([0.3], 0.2, path_tolerance=[
+        JointTolerance(name='hip', position=-2.0)])).accepted
+    assert sim.runtime.rejections == {'unknown_joint': 1, 'goal': 1}
+
+
+def test_cancel_holds_the_joints_and_a_new_goal_preempts(ros):
+    sim = start_sim(ros)
+    client = Client(ros)
+    first = client.send(goal([0.8], 3.0))
+    assert ros.spin_until(lambda: len(client.feedback) >= 5)
+    second = client.send(goal([-0.8], 3.0))
+    answer = client.result(first)
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert answer.result.error_code == Result.INVALID_GOAL
+    assert 'preempted' in answer.result.error_string
+    assert ros.spin_until(lambda: hip(ros.probe.joint_states[-1]) < 0.0)
+    cancel = second.cancel_goal_async()
+    assert ros.spin_until(cancel.done)
+    answer = client.result(second)
+    assert answer.status == GoalStatus.STATUS_CANCELED
+    held = sim.runtime.sim.commands.sample(sim.runtime.sim.time).positions[0]
+    assert -0.8 < held < 0.0
+    ros.spin_for(0.3)
+    assert abs(hip(ros.probe.joint_states[-1]) - held) < 0.01
+
+
+def test_a_path_tolerance_violation_aborts_the_goal(ros):
+    start_sim(ros)
+    client = Client(ros)
+    handle = client.send(goal([0.6], 0.3, path_tolerance=[
+        JointTolerance(name='hip', position=0.02)]))
+    answer = client.result(handle)
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert answer.result.error_code == Result.PATH_TOLERANCE_VIOLATED
+    assert 'hip' in answer.result.error_string
+
+
+def test_feedback_and_result_serialise_as_control_msgs_defines_them():
+    """The node's rclpy messages and the rosbags ones built from the control_msgs
+    definitions the ROS-free tests use are the same bytes on the wire."""
+    store = control_msgs_typestore()
+    reference = RosbagsFactory(store)
+    pair = Targets(np.array([0.1, -0.2]), np.array([0.5, 0.25]))
+    feedback = goals.GoalFeedback(time=3.25, joint_names=('hip', 'knee'), desired=pair,
+                                  actual=pair, error=pair, time_from_start=1.5)
+    outcome = goals.GoalOutcome(goals.GoalState.ABORTED, goals.ErrorCode.PATH_TOLERANCE_VIOLATED,
+                                'path tolerance exceeded')
+    for build in (lambda f: follow_messages.feedback_message(f, feedback),
+                  lambda f: follow_messages.result_message(f, outcome)):
+        expected = build(reference)
+        decoded = store.deserialize_cdr(serialize_message(build(RclpyFactory())),
+                                        expected.__msgtype__)
+        assert messages_equal(decoded, expected)
