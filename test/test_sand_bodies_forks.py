@@ -3,7 +3,7 @@ legs hang by hip joints from a pelvis below its waist joint has two feet and two
 shin's welded lower link beside its foot, and a foot's toes in the ground band, stay in
 their leg; every body touching the ground (toes beside their sole, a snake's links) is a
 sand body; a free body beside the robot with no sand body is named at start-up
-(robot/sand_bodies.py)."""
+and is held once named beside auto (robot/sand_bodies.py)."""
 import mujoco
 import pytest
 
@@ -144,9 +144,21 @@ def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
     path.write_text(f'<mujoco><worldbody>{_robot_body()}{crate}</worldbody></mujoco>')
     sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
     [notice] = [n for n in sim.notices if 'free bodies' in n]
-    assert 'hold: crate;' in notice and 'rft.bodies' in notice
+    assert 'hold: crate;' in notice and '[auto, crate]' in notice
     both = Simulation(load_scene(path, {'rft.plates_per_body': 50,
                                         'rft.bodies': ['foot_*', 'crate']}))
     assert not [n for n in both.notices if 'free bodies' in n]
+    # auto beside a name: auto's picks for the robot, then the crate, a leg of its own
+    beside = Simulation(load_scene(path, {'rft.plates_per_body': 50,
+                                          'rft.bodies': ['auto', 'crate']}))
+    assert list(beside.sand_bodies) == [*sim.sand_bodies, 'crate']
+    assert beside.legs == {**sim.legs, 'crate': ('crate',)}
+    assert not [n for n in beside.notices if 'free bodies' in n]
+    beside.step(round(0.5 / beside.timestep))                   # the sand holds the crate
+    crate_z = beside.data.xpos[beside.model.body('crate').id, 2]
+    assert 0.05 < crate_z < 0.1
+    assert list(Simulation(load_scene(path, {
+        'rft.plates_per_body': 50, 'rft.bodies': 'crate, auto'})).sand_bodies) == \
+        list(beside.sand_bodies)                                # auto's picks come first
     kept = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'sand.keep_floor': True}))
     assert not [n for n in kept.notices if 'free bodies' in n]

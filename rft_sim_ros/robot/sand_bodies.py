@@ -1,7 +1,8 @@
 """Which bodies of a robot touch the sand, and which legs they form, without hand work.
 
 Sand bodies are given as MuJoCo body names, glob patterns (`'*_calf'`, `'*foot*'`, matched
-with fnmatch, case-sensitive) or `auto`:
+with fnmatch, case-sensitive) or `auto`, alone or beside names and globs (`[auto, crate]`:
+auto's picks for the robot, and the crate):
 
 auto picks, in the initial pose, one body per kinematic branch: the branches are the
 subtrees that hang by a joint from the base body's rigid group (the base and the bodies
@@ -36,6 +37,8 @@ import numpy as np
 
 from ..sand.geoms import SAND_SURFACE_BIT, is_collision_geom
 
+#: The sand-body pattern that asks for `auto_sand_bodies`.
+AUTO = 'auto'
 #: auto keeps branches whose lowest point is within this fraction of the robot's height of
 #: the lowest point of all.
 AUTO_TOLERANCE = 0.25
@@ -170,12 +173,16 @@ def match_bodies(names, patterns, shaped=None):
 
 
 def resolve_sand_bodies(model, data, patterns, base):
-    """Names of the sand bodies that `patterns` (list of names/globs, or ['auto']) choose."""
-    if list(patterns) == ['auto']:
-        return [_name(model, b) for b in auto_sand_bodies(model, data, base)]
-    names = [_name(model, b) for b in range(model.nbody)]
-    shaped = {names[b] for b in range(1, model.nbody) if model.body_geomnum[b] > 0}
-    return match_bodies(names, patterns, shaped)
+    """Names of the sand bodies that `patterns` (list of names, globs and `AUTO`) choose:
+    auto's picks first, then the others' matches not among them."""
+    chosen = [_name(model, b) for b in auto_sand_bodies(model, data, base)] \
+        if AUTO in patterns else []
+    others = [p for p in patterns if p != AUTO]
+    if others:
+        names = [_name(model, b) for b in range(model.nbody)]
+        shaped = {names[b] for b in range(1, model.nbody) if model.body_geomnum[b] > 0}
+        chosen += [n for n in match_bodies(names, others, shaped) if n not in chosen]
+    return chosen
 
 
 def legs_from_tree(model, sand_bodies, base):
@@ -200,12 +207,11 @@ def _leg_name(name):
 
 def keep_sand_visuals(spec, patterns, visual=False):
     """Before compiling with discardvisual: mark the visual geoms (contype = conaffinity = 0)
-    of the bodies that `patterns` (names/globs; not auto, which only looks at collision
-    geoms) name as their sand surface (`SAND_SURFACE_BIT`), so that they stay and carry the
+    of the bodies that `patterns` (names/globs; auto, which only looks at collision geoms,
+    is passed over) name as their sand surface (`SAND_SURFACE_BIT`), so that they stay and carry the
     plates (`sand.geoms.body_geoms`): those of a body with no collision geom, or with
     `visual` (rft.plate_geoms: visual) those of every such body."""
-    if list(patterns) == ['auto']:
-        return
+    patterns = [p for p in patterns if p != AUTO]
     bodies = [b for b in spec.bodies if b.name and any(
         fnmatch.fnmatchcase(b.name, p) for p in patterns)]
     for body in bodies:

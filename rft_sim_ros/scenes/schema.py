@@ -284,7 +284,8 @@ KEYS = (
         "that touch sand: MuJoCo body names, glob patterns ('*_calf', '*foot*') or auto (one "
         'per kinematic branch: the body with its lowest collision geometry in the initial pose, '
         'and every body touching the ground; '
-        'rft_sim_ros/robot/sand_bodies.py). The bodies chosen are printed at start-up.', _names),
+        'rft_sim_ros/robot/sand_bodies.py), alone or beside names and globs ([auto, crate]: '
+        "auto's picks and a loose crate's). The bodies chosen are printed at start-up.", _names),
     Key('rft.plate_geoms', "'collision' or 'visual'", '', 'collision', 'Which geoms of a sand '
         'body carry its plates: the ones MuJoCo collides (a body without any: its visual '
         'geoms), or its visual geoms, the shape as drawn (a model whose feet collide as a few '

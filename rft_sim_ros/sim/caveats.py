@@ -23,7 +23,8 @@ def caveats(model, data, engine, scene, base):
                 f' and {len(unheld) - SHOWN_TREES} more' if len(unheld) > SHOWN_TREES else '')
             notices.append(f'free bodies without a sand body, which the sand does not hold: '
                            f'{shown}; they fall through its surface unless other rigid ground '
-                           'holds them (name their bodies in rft.bodies)')
+                           'holds them (name their bodies in rft.bodies; beside auto: '
+                           f'[auto, {unheld[0]}])')
     noslip = int(model.opt.noslip_iterations)
     if noslip and scene.low_velocity['method'] == 'implicit':
         notices.append(f"MuJoCo's noslip iterations ({noslip}) do not act on the constraints "

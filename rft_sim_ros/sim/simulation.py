@@ -23,7 +23,7 @@ from ..robot.joints import (JointInterfaces, add_joint_interfaces, movable_joint
                             position_servos)
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, initial_keyframe, lift_to,
                           parse_spawn, set_initial_pose)
-from ..robot.sand_bodies import (free_root_joint, keep_sand_visuals, legs_from_tree,
+from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
                                  resolve_sand_bodies)
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
@@ -136,8 +136,8 @@ class Simulation:
         self.scenario.edit_model(spec)
         visual = scene.plate_geoms == 'visual'
         patterns = scene.sand_bodies
-        if visual and list(patterns) == ['auto']:  # their visuals are marked before compiling
-            patterns = self._auto_sand_bodies(spec)
+        if visual and AUTO in patterns:  # auto's bodies' visuals are marked before compiling
+            patterns = self._auto_sand_bodies(spec) + [p for p in patterns if p != AUTO]
         keep_sand_visuals(spec, patterns, visual)
         spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
         interface_joints = add_joint_interfaces(spec, scene.servos)
@@ -230,7 +230,7 @@ class Simulation:
 
     def _auto_sand_bodies(self, spec):
         """The body names auto picks, found on a compiled copy of `spec` (visual geoms
-        discarded) in the initial pose; ['auto'] where that copy fails, so that the model's
+        discarded) in the initial pose; [AUTO] where that copy fails, so that the model's
         own compile and pose report the error."""
         scene = self.scene
         try:
@@ -241,9 +241,9 @@ class Simulation:
             set_initial_pose(model, data, initial_keyframe(model, scene.keyframe),
                              self._initial_positions)
             mujoco.mj_kinematics(model, data)
-            return resolve_sand_bodies(model, data, ['auto'], self._base(model))
+            return resolve_sand_bodies(model, data, [AUTO], self._base(model))
         except (ValueError, KeyError):
-            return ['auto']
+            return [AUTO]
 
     def _plates(self, scene):
         """{sand body: Plates} as the scene asks (a count or a density per body); a body
