@@ -206,6 +206,8 @@ def test_a_path_tolerance_aborts_and_the_joints_hold_where_they_are(rig):
     rig.run(0.5)
     outcome = listener.outcome
     assert outcome.error_code is ErrorCode.PATH_TOLERANCE_VIOLATED and 'hip' in outcome.message
+    assert rig.warnings[-1] == (f'{topics.FOLLOW_JOINT_TRAJECTORY} goal aborted '
+                                f'(PATH_TOLERANCE_VIOLATED): {outcome.message}')
     last = listener.feedback[-1]
     assert abs(last.error.positions[0]) > 0.02 and last.time < 0.3
     assert all(abs(f.error.positions[0]) <= 0.02 for f in listener.feedback[:-1])

@@ -310,14 +310,17 @@ class SimRuntime:
             self._end_goal(outcome, hold=outcome.state is not goals.GoalState.SUCCEEDED)
 
     def _end_goal(self, outcome, hold=False):
-        """End the goal being followed (if any) with `outcome`; hold: its joints hold the
-        positions last published."""
+        """End the goal being followed (if any) with `outcome` (logged as a warning if it
+        is aborted); hold: its joints hold the positions last published."""
         if self._goal is None:
             return
         listener, self._goal = self._goal[1], None
         if hold:
             self.sim.commands.hold_positions(self._servo_targets(self.last_state).positions,
                                              self.sim.time)
+        if outcome.state is goals.GoalState.ABORTED:
+            self._warn_once(f'{topics.FOLLOW_JOINT_TRAJECTORY} goal aborted '
+                            f'({outcome.error_code.name}): {outcome.message}')
         listener.finish(outcome)
 
     # --- parameters -------------------------------------------------------------------------
