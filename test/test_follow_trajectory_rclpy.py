@@ -49,10 +49,9 @@ def goal(positions, after_s, names=('hip',), **fields):
 class Client:
     """An ActionClient on the test's probe node that records feedback."""
 
-    def __init__(self, ros):
+    def __init__(self, ros, action=topics.FOLLOW_JOINT_TRAJECTORY):
         self.ros = ros
-        self.action = ActionClient(ros.probe, FollowJointTrajectory,
-                                   topics.FOLLOW_JOINT_TRAJECTORY)
+        self.action = ActionClient(ros.probe, FollowJointTrajectory, action)
         self.feedback = []
         assert self.action.wait_for_server(timeout_sec=5.0)
 
@@ -125,6 +124,20 @@ def test_a_path_tolerance_violation_aborts_the_goal(ros):
     assert answer.status == GoalStatus.STATUS_ABORTED
     assert answer.result.error_code == Result.PATH_TOLERANCE_VIOLATED
     assert 'hip' in answer.result.error_string
+
+
+def test_the_trajectory_controller_parameter_renames_topic_and_action(ros):
+    """ROS 2 Jazzy cannot remap an action's name: the parameter serves a stack whose
+    controller has another name, its topic and its action."""
+    start_sim(ros, trajectory_controller='left/leg_controller')
+    client = Client(ros, '/left/leg_controller/follow_joint_trajectory')
+    answer = client.result(client.send(goal([0.25], 0.2)))
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED
+    publisher = ros.probe.create_publisher(JointTrajectory,
+                                           '/left/leg_controller/joint_trajectory', 10)
+    assert ros.spin_until(lambda: publisher.get_subscription_count() > 0)
+    publisher.publish(goal([-0.25], 0.1).trajectory)
+    assert ros.spin_until(lambda: abs(hip(ros.probe.joint_states[-1]) + 0.25) < 0.01)
 
 
 def test_feedback_and_result_serialise_as_control_msgs_defines_them():

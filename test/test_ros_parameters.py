@@ -71,3 +71,16 @@ def test_scene_overrides_parse_like_the_cli():
         parameters.scene_overrides(['gait'])
     with pytest.raises(SceneError, match='list'):
         parameters.scene_overrides('gait=none')
+
+
+@pytest.mark.parametrize('name, kept', [('arm_controller', 'arm_controller'),
+                                        ('/left/joint_trajectory_controller',
+                                         'left/joint_trajectory_controller')])
+def test_a_trajectory_controller_is_a_ros_name(name, kept):
+    assert parameters.trajectory_controller(name) == kept
+
+
+@pytest.mark.parametrize('bad', ['', 'arm controller', '2arm', 'arm//x', 'arm/', '~/x', 3])
+def test_a_trajectory_controller_that_is_no_ros_name_is_refused(bad):
+    with pytest.raises(ValueError, match='trajectory_controller must be a ROS name'):
+        parameters.trajectory_controller(bad)

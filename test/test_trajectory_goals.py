@@ -135,8 +135,8 @@ def rig_scene():
 class Rig(Harness):
     """The servo rig's runtime, its initial state published."""
 
-    def __init__(self, scene):
-        super().__init__(scene)
+    def __init__(self, scene, **options):
+        super().__init__(scene, **options)
         self.runtime.tick()
 
     def start(self, req):
@@ -262,6 +262,23 @@ def test_bad_goals_are_refused_with_the_reason_and_counted(rig):
     assert 'goal_tolerance of hip' in problem
     assert runtime.rejections == {'unknown_joint': 1, 'goal': 1}
     assert runtime.goal_problem(object()).startswith('not a FollowJointTrajectory goal')
+
+
+def test_the_controller_name_names_the_topic_and_the_action(rig_scene):
+    """A stack whose controller has another name (the action's name cannot be remapped in
+    ROS 2 Jazzy): warnings and outcomes name its topic and action."""
+    rig = Rig(rig_scene, trajectory_controller='/left/leg_controller')
+    assert rig.runtime.trajectory_topic == '/left/leg_controller/joint_trajectory'
+    assert rig.runtime.trajectory_action == '/left/leg_controller/follow_joint_trajectory'
+    first = rig.start(request((1.0, [0.5])))
+    rig.start(request((1.0, [0.4])))
+    assert first.outcome.message == ('preempted by a new command on '
+                                     '/left/leg_controller/follow_joint_trajectory')
+    rig.runtime.goal_problem(goal_msg(request((0.1, [0.2]), names=('ankle',))))
+    assert rig.warnings[-1].startswith('rejected command on '
+                                       '/left/leg_controller/follow_joint_trajectory: ')
+    with pytest.raises(ValueError, match='trajectory_controller'):
+        Rig(rig_scene, trajectory_controller='leg controller')
 
 
 def test_a_goal_that_ended_before_it_started_is_aborted_at_once(rig):

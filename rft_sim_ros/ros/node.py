@@ -131,11 +131,14 @@ class SimNode(Node):
         self.runtime = SimRuntime(
             sim, self, publish_rate=self._declare(parameters.PUBLISH_RATE,
                                                   sim.scene.publish_rate),
-            joint_names=joint_names, real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
+            joint_names=joint_names,
+            trajectory_controller=self._declare(parameters.TRAJECTORY_CONTROLLER,
+                                                topics.TRAJECTORY_CONTROLLER),
+            real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
             paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
             warn=logger.warning, error=logger.error)
         self.create_subscription(self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE),
-                                 topics.JOINT_TRAJECTORY, self.runtime.on_trajectory,
+                                 self.runtime.trajectory_topic, self.runtime.on_trajectory,
                                  QUEUE_DEPTH)
         self.create_subscription(self._factory.message_class(topics.POSITION_COMMANDS_TYPE),
                                  topics.POSITION_COMMANDS, self.runtime.on_positions,
@@ -167,11 +170,11 @@ class SimNode(Node):
         try:
             action = self._factory.message_class(topics.FOLLOW_JOINT_TRAJECTORY_TYPE)
         except ImportError as error:
-            self.get_logger().warning(f'no {topics.FOLLOW_JOINT_TRAJECTORY} action: '
+            self.get_logger().warning(f'no {self.runtime.trajectory_action} action: '
                                       f'control_msgs is not installed ({error})')
             return
         self._action_server = ActionServer(
-            self, action, topics.FOLLOW_JOINT_TRAJECTORY, execute_callback=self._follow_goal,
+            self, action, self.runtime.trajectory_action, execute_callback=self._follow_goal,
             goal_callback=self._accept_goal, cancel_callback=lambda goal: CancelResponse.ACCEPT)
 
     def _accept_goal(self, goal):

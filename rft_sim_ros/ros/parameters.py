@@ -6,6 +6,7 @@ and asks `parameter_problem` before it accepts a change; a non-empty answer is t
 joint_names) are taken from the loaded scene by the node.
 """
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,6 +35,7 @@ JOINT_NAMES = 'joint_names'
 PAUSED = 'paused'
 PLATES = 'plates'
 TERRAIN_RATE = 'terrain_rate'
+TRAJECTORY_CONTROLLER = 'trajectory_controller'
 
 PARAMETERS = (
     ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
@@ -61,6 +63,9 @@ PARAMETERS = (
     ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
     ParameterSpec(TERRAIN_RATE, 'sand surface publications (/rft/terrain, /rft/terrain/marker) '
                                 'per second of sim time at most; only when it changed', False),
+    ParameterSpec(TRAJECTORY_CONTROLLER, 'name of the joint_trajectory_controller served: '
+                                         'topic /NAME/joint_trajectory, action '
+                                         '/NAME/follow_joint_trajectory', False),
 )
 
 SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -106,6 +111,21 @@ def publish_rate(value, name=PUBLISH_RATE):
     if number is None or number <= 0.0:
         raise ValueError(f'{name} must be a finite number > 0 Hz, got {value!r}')
     return number
+
+
+#: A ROS name: tokens of letters, digits and underscores, each starting with a letter,
+#: separated by '/' (a leading '/' is allowed).
+_ROS_NAME = re.compile(r'/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*\Z')
+
+
+def trajectory_controller(value):
+    """The controller name `value` (e.g. 'arm_controller', 'left/joint_trajectory_controller')
+    without a leading '/'; raises ValueError unless it is a ROS name."""
+    if not isinstance(value, str) or not _ROS_NAME.match(value):
+        raise ValueError(f"{TRAJECTORY_CONTROLLER} must be a ROS name (letters, digits and "
+                         f"underscores, each part starting with a letter, parts joined by '/'), "
+                         f'got {value!r}')
+    return value.lstrip('/')
 
 
 def scene_overrides(assignments):

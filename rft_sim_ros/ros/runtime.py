@@ -71,14 +71,17 @@ class SimRuntime:
 
     publish_rate: state publications per second of sim time (on average: each cycle is a
     whole number of steps, `PublishSchedule`). joint_names: order of array commands (None: the
-    scene's commanded joints, Simulation.servo_joint_names). plates: publish active plates.
+    scene's commanded joints, Simulation.servo_joint_names). trajectory_controller: the name of
+    the joint_trajectory_controller served (its topic and action name the commands in
+    warnings and goal outcomes). plates: publish active plates.
     terrain: a `terrain.TerrainFeed` of the sim's surface, or None. warn, error: log functions (str).
     clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
     diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
     rejected-command warnings (one line per reason and topic per period).
     """
 
-    def __init__(self, sim, sink, *, publish_rate, joint_names=None, real_time_factor=1.0,
+    def __init__(self, sim, sink, *, publish_rate, joint_names=None,
+                 trajectory_controller=topics.TRAJECTORY_CONTROLLER, real_time_factor=1.0,
                  paused=False, plates=False, terrain=None, warn=print, error=print, clock=time.monotonic,
                  tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
         self.sim = sim
@@ -88,6 +91,9 @@ class SimRuntime:
         servo_joints = tuple(sim.servo_joint_names)
         self.joint_names = servo_joints if joint_names is None else tuple(joint_names)
         self._array_order = array_order(servo_joints, self.joint_names)
+        controller = parameters.trajectory_controller(trajectory_controller)
+        self.trajectory_topic = topics.trajectory_topic(controller)
+        self.trajectory_action = topics.follow_trajectory_action(controller)
         self.plates = bool(plates)
         self._terrain = terrain
         self._clock = clock
@@ -201,7 +207,7 @@ class SimRuntime:
                                        'servos to command')
             else:
                 result = self.sim.commands.set_trajectory(command, now=self.sim.time)
-        return self._outcome(topics.JOINT_TRAJECTORY, result)
+        return self._outcome(self.trajectory_topic, result)
 
     def on_positions(self, msg):
         """A std_msgs/Float64MultiArray of positions in `joint_names` order (rad or m)."""
@@ -264,7 +270,7 @@ class SimRuntime:
         accepted now, or None; a refused goal is logged and counted as a rejected command."""
         result = self._goal_request(msg)[0]
         if not result.accepted:
-            self._outcome(topics.FOLLOW_JOINT_TRAJECTORY, result)
+            self._outcome(self.trajectory_action, result)
             return result.message
         return None
 
@@ -279,7 +285,7 @@ class SimRuntime:
         result, request, tolerances = self._goal_request(msg)
         if result.accepted:
             result = self.sim.commands.set_trajectory(request.trajectory, now=self.sim.time)
-        self._outcome(topics.FOLLOW_JOINT_TRAJECTORY, result)
+        self._outcome(self.trajectory_action, result)
         if not result.accepted:
             listener.finish(goals.GoalOutcome(goals.GoalState.ABORTED,
                                               goals.error_code(result.reason), result.message))
@@ -319,7 +325,7 @@ class SimRuntime:
             self.sim.commands.hold_positions(self._servo_targets(self.last_state).positions,
                                              self.sim.time)
         if outcome.state is goals.GoalState.ABORTED:
-            self._warn_once(f'{topics.FOLLOW_JOINT_TRAJECTORY} goal aborted '
+            self._warn_once(f'{self.trajectory_action} goal aborted '
                             f'({outcome.error_code.name}): {outcome.message}')
         listener.finish(outcome)
 

@@ -18,12 +18,26 @@ DIAGNOSTICS = '/diagnostics'
 TERRAIN = '/rft/terrain'
 TERRAIN_MARKER = '/rft/terrain/marker'
 
+#: The name of the joint_trajectory_controller the node stands in for (the `rft_sim` node's
+#: parameter trajectory_controller changes it: ROS 2 Jazzy cannot remap an action's name).
+TRAJECTORY_CONTROLLER = 'joint_trajectory_controller'
+
+
+def trajectory_topic(controller=TRAJECTORY_CONTROLLER):
+    """joint_trajectory_controller `controller`'s trajectory topic."""
+    return f'/{controller}/joint_trajectory'
+
+
+def follow_trajectory_action(controller=TRAJECTORY_CONTROLLER):
+    """joint_trajectory_controller `controller`'s action (FollowJointTrajectory)."""
+    return f'/{controller}/follow_joint_trajectory'
+
+
 #: Command topics of a ros2_control stack, so existing gait controllers drive the sim unchanged.
-JOINT_TRAJECTORY = '/joint_trajectory_controller/joint_trajectory'
+JOINT_TRAJECTORY = trajectory_topic()
 POSITION_COMMANDS = '/forward_position_controller/commands'
 EFFORT_COMMANDS = '/effort_controller/commands'
-#: joint_trajectory_controller's action server (control_msgs/action/FollowJointTrajectory).
-FOLLOW_JOINT_TRAJECTORY = '/joint_trajectory_controller/follow_joint_trajectory'
+FOLLOW_JOINT_TRAJECTORY = follow_trajectory_action()
 
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
