@@ -4,7 +4,7 @@ description on robot_state_publisher (when that package is installed: /robot_des
 
   ros2 launch rft_sim_ros robot.launch.py [model:=FILE] [robot_description:=XML]
       [sand_bodies:="A,B*"|auto] [keyframe:=NAME] [xacro_args:="[k=v, ...]"]
-      [controller:=NAME|none]
+      [controller:=NAME|none] [trajectory_controller:=NAME]
       [scene_overrides:="[key=value, ...]"] [zeta:=Z] [real_time_factor:=R]
       [record:=true] [bag:=DIR]
 
@@ -15,6 +15,9 @@ xacro model is expanded here (rft_sim_ros.robot.xacro_files: $(find), package://
 ament index) and that one XML string goes to both nodes; an MJCF model is passed by path
 (robot_state_publisher reads URDF only, so it is not started then). controller: an
 executable of rft_sim_ros run with use_sim_time (e.g. trot_gait), or none.
+trajectory_controller: the name of the joint_trajectory_controller the simulator serves (its
+topic /NAME/joint_trajectory and action /NAME/follow_joint_trajectory), for a stack written
+for a robot whose controller has another name.
 """
 import os
 
@@ -42,6 +45,8 @@ ARGUMENTS = {
     'xacro_args': ('[]', "xacro arguments of a xacro model, YAML list of 'k=v' strings"),
     'controller': ('', 'controller executable of rft_sim_ros (default: trot_gait for the '
                        'bundled quadruped, else none)'),
+    'trajectory_controller': ('', 'name of the joint_trajectory_controller served '
+                                  '(default: joint_trajectory_controller)'),
     'scene_overrides': ('[]', "scene values, YAML list of 'key=value' strings"),
     'zeta': ('', "sand stiffness, N/cm^3 (default: the scene's)"),
     'real_time_factor': ('1.0', 'sim s per wall s; 0 = as fast as possible'),
@@ -83,7 +88,7 @@ def _nodes(context):
     if quadruped:  # its scene (sand level, feet), built-in trot off: the controller drives
         parameters.update(scene='quadruped',
                           scene_overrides=['gait=none', *parameters['scene_overrides']])
-    for name in ('sand_bodies', 'keyframe', 'zeta'):
+    for name in ('sand_bodies', 'keyframe', 'zeta', 'trajectory_controller'):
         if _text(context, name):
             parameters[name] = (yaml.safe_load(_text(context, name)) if name == 'zeta'
                                 else _text(context, name))
