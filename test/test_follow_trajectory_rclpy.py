@@ -1,5 +1,6 @@
 """The rft_sim node's FollowJointTrajectory action server, driven by an rclpy ActionClient
-as MoveIt or a gait stack drives joint_trajectory_controller's.
+as MoveIt or a gait stack drives joint_trajectory_controller's; the names of the node's
+interface under another controller name and in a namespace.
 
 Runs where ROS 2 Jazzy is sourced with control_msgs; skipped with the reason elsewhere.
 """
@@ -14,6 +15,7 @@ from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from control_msgs.msg import JointTolerance  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -23,7 +25,8 @@ from rft_sim_ros.control import trajectory_goals as goals  # noqa: E402
 from rft_sim_ros.control.commands import Targets  # noqa: E402
 from rft_sim_ros.ros import follow_messages, topics  # noqa: E402
 from rft_sim_ros.ros.factory import RclpyFactory, RosbagsFactory  # noqa: E402
-from ros_test_support import control_msgs_typestore, messages_equal  # noqa: E402
+from rft_sim_ros.ros.node import SimNode  # noqa: E402
+from ros_test_support import SERVO_RIG, control_msgs_typestore, messages_equal  # noqa: E402
 from test_node_rclpy import Ros, hip, start_sim  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -156,3 +159,27 @@ def test_feedback_and_result_serialise_as_control_msgs_defines_them():
         decoded = store.deserialize_cdr(serialize_message(build(RclpyFactory())),
                                         expected.__msgtype__)
         assert messages_equal(decoded, expected)
+
+
+def test_a_namespace_applies_to_the_robot_topics_not_to_clock_tf_and_diagnostics(ros):
+    """`--ros-args -r __ns:=/go2`: the robot's topics, commands, action and services are
+    /go2/..., as a namespaced ros2_control robot's; /clock, /tf and /diagnostics stay global."""
+    sim = ros.add(SimNode(context=ros.context, namespace='go2', parameter_overrides=[
+        Parameter('scene', value=SERVO_RIG), Parameter('real_time_factor', value=2.0)]))
+    assert ros.spin_until(lambda: ros.probe.clocks)
+    published = {name for name, _ in sim.get_publisher_names_and_types_by_node('rft_sim',
+                                                                                '/go2')}
+    assert {'/clock', '/tf', '/diagnostics', '/go2/joint_states', '/go2/odom',
+            '/go2/rft/leg/wrench'} <= published
+    assert not {'/joint_states', '/odom'} & published
+    subscribed = {name for name, _ in sim.get_subscriber_names_and_types_by_node('rft_sim',
+                                                                                 '/go2')}
+    assert {'/go2/joint_trajectory_controller/joint_trajectory',
+            '/go2/forward_position_controller/commands',
+            '/go2/effort_controller/commands'} <= subscribed
+    services = {name for name, _ in sim.get_service_names_and_types_by_node('rft_sim', '/go2')}
+    assert '/go2/rft_sim/reset' in services
+    client = Client(ros, '/go2/joint_trajectory_controller/follow_joint_trajectory')
+    handle = client.send(goal([0.1], 0.3, names=('ankle',)))
+    assert not handle.accepted
+    assert sim.runtime.rejections == {'unknown_joint': 1}

@@ -279,6 +279,14 @@ def test_the_controller_name_names_the_topic_and_the_action(rig_scene):
                                        '/left/leg_controller/follow_joint_trajectory: ')
     with pytest.raises(ValueError, match='trajectory_controller'):
         Rig(rig_scene, trajectory_controller='leg controller')
+    spaced = Rig(rig_scene, namespace='/go2')                   # the node's namespace
+    spaced.runtime.on_positions(position_array([0.1]))
+    spaced.start(request((1.0, [0.5])))
+    spaced.runtime.reset()
+    assert spaced.warnings[0].startswith('rejected command on '
+                                         '/go2/forward_position_controller/commands: ')
+    assert spaced.warnings[1].startswith('/go2/joint_trajectory_controller/'
+                                         'follow_joint_trajectory goal aborted (INVALID_GOAL)')
 
 
 def test_a_goal_that_ended_before_it_started_is_aborted_at_once(rig):

@@ -74,8 +74,8 @@ class GaitNode(Node):
             raise ValueError(f'rate must be > 0 Hz, got {values["rate"]}')
         self._factory = RclpyFactory()
         self._publisher = self.create_publisher(
-            self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE), topics.JOINT_TRAJECTORY,
-            QUEUE_DEPTH)
+            self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE),
+            topics.relative(topics.JOINT_TRAJECTORY), QUEUE_DEPTH)
         self.create_timer(1.0 / values['rate'], self._publish)  # node clock: sim time
 
     def _publish(self):

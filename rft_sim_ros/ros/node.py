@@ -75,8 +75,8 @@ class SimNode(Node):
             latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                  reliability=ReliabilityPolicy.RELIABLE)
             self._description_subscription = self.create_subscription(
-                self._factory.message_class(ROBOT_DESCRIPTION_TYPE), ROBOT_DESCRIPTION_TOPIC,
-                self._on_robot_description, latched)
+                self._factory.message_class(ROBOT_DESCRIPTION_TYPE),
+                topics.relative(ROBOT_DESCRIPTION_TOPIC), self._on_robot_description, latched)
             return
         self._start(self._robot[parameters.ROBOT_DESCRIPTION])
 
@@ -120,7 +120,7 @@ class SimNode(Node):
             matched=lambda info: terrain.resend() if info.current_count_change > 0 else None)
         self._topic_publishers = {
             topic: self.create_publisher(
-                self._factory.message_class(msgtype), topic,
+                self._factory.message_class(msgtype), topics.relative(topic),
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
                 event_callbacks=joined if topic in TERRAIN_TOPICS else None)
             for topic, msgtype in topics.published_topics(
@@ -134,18 +134,18 @@ class SimNode(Node):
             joint_names=joint_names,
             trajectory_controller=self._declare(parameters.TRAJECTORY_CONTROLLER,
                                                 topics.TRAJECTORY_CONTROLLER),
+            namespace=self.get_namespace(),
             real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
             paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
             warn=logger.warning, error=logger.error)
-        self.create_subscription(self._factory.message_class(topics.JOINT_TRAJECTORY_TYPE),
-                                 self.runtime.trajectory_topic, self.runtime.on_trajectory,
-                                 QUEUE_DEPTH)
-        self.create_subscription(self._factory.message_class(topics.POSITION_COMMANDS_TYPE),
-                                 topics.POSITION_COMMANDS, self.runtime.on_positions,
-                                 QUEUE_DEPTH)
-        self.create_subscription(self._factory.message_class(topics.EFFORT_COMMANDS_TYPE),
-                                 topics.EFFORT_COMMANDS, self.runtime.on_efforts,
-                                 QUEUE_DEPTH)
+        for msgtype, topic, callback in (
+                (topics.JOINT_TRAJECTORY_TYPE, self.runtime.trajectory_topic,
+                 self.runtime.on_trajectory),
+                (topics.POSITION_COMMANDS_TYPE, topics.POSITION_COMMANDS,
+                 self.runtime.on_positions),
+                (topics.EFFORT_COMMANDS_TYPE, topics.EFFORT_COMMANDS, self.runtime.on_efforts)):
+            self.create_subscription(self._factory.message_class(msgtype), topics.relative(topic),
+                                     callback, QUEUE_DEPTH)
         self._serve_follow_joint_trajectory()
         set_bool = self._factory.message_class('std_srvs/srv/SetBool')
         trigger = self._factory.message_class('std_srvs/srv/Trigger')
@@ -174,7 +174,8 @@ class SimNode(Node):
                                       f'control_msgs is not installed ({error})')
             return
         self._action_server = ActionServer(
-            self, action, self.runtime.trajectory_action, execute_callback=self._follow_goal,
+            self, action, topics.relative(self.runtime.trajectory_action),
+            execute_callback=self._follow_goal,
             goal_callback=self._accept_goal, cancel_callback=lambda goal: CancelResponse.ACCEPT)
 
     def _accept_goal(self, goal):

@@ -72,8 +72,9 @@ class SimRuntime:
     publish_rate: state publications per second of sim time (on average: each cycle is a
     whole number of steps, `PublishSchedule`). joint_names: order of array commands (None: the
     scene's commanded joints, Simulation.servo_joint_names). trajectory_controller: the name of
-    the joint_trajectory_controller served (its topic and action name the commands in
-    warnings and goal outcomes). plates: publish active plates.
+    the joint_trajectory_controller served; namespace: the node's ('/' or '/go2'): the
+    command topics and the action are named as they resolve there in warnings and goal
+    outcomes. plates: publish active plates.
     terrain: a `terrain.TerrainFeed` of the sim's surface, or None. warn, error: log functions (str).
     clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
     diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
@@ -81,7 +82,8 @@ class SimRuntime:
     """
 
     def __init__(self, sim, sink, *, publish_rate, joint_names=None,
-                 trajectory_controller=topics.TRAJECTORY_CONTROLLER, real_time_factor=1.0,
+                 trajectory_controller=topics.TRAJECTORY_CONTROLLER, namespace='/',
+                 real_time_factor=1.0,
                  paused=False, plates=False, terrain=None, warn=print, error=print, clock=time.monotonic,
                  tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
         self.sim = sim
@@ -94,6 +96,7 @@ class SimRuntime:
         controller = parameters.trajectory_controller(trajectory_controller)
         self.trajectory_topic = topics.trajectory_topic(controller)
         self.trajectory_action = topics.follow_trajectory_action(controller)
+        self._namespace = namespace
         self.plates = bool(plates)
         self._terrain = terrain
         self._clock = clock
@@ -237,6 +240,7 @@ class SimRuntime:
         return self._outcome(topic, result)
 
     def _outcome(self, topic, result):
+        topic = topics.resolved(topic, self._namespace)
         if not result.accepted:
             self._rejections[result.reason.value] += 1
             self._warn((topic, result.reason), f'rejected command on {topic}: {result.message}')
@@ -325,8 +329,9 @@ class SimRuntime:
             self.sim.commands.hold_positions(self._servo_targets(self.last_state).positions,
                                              self.sim.time)
         if outcome.state is goals.GoalState.ABORTED:
-            self._warn_once(f'{self.trajectory_action} goal aborted '
-                            f'({outcome.error_code.name}): {outcome.message}')
+            action = topics.resolved(self.trajectory_action, self._namespace)
+            self._warn_once(f'{action} goal aborted ({outcome.error_code.name}): '
+                            f'{outcome.message}')
         listener.finish(outcome)
 
     # --- parameters -------------------------------------------------------------------------

@@ -53,7 +53,23 @@ POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 EFFORT_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 FOLLOW_JOINT_TRAJECTORY_TYPE = 'control_msgs/action/FollowJointTrajectory'
 
+#: Topics that stay global when the node runs in a namespace, as in ROS convention: one
+#: clock, one tf tree, one diagnostics stream.
+GLOBAL_TOPICS = (CLOCK, TF, DIAGNOSTICS)
+
 _NAME_TOKEN = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
+
+
+def relative(name):
+    """The name a node gives topic or action `name` (as written here, absolute): relative,
+    so that the node's namespace applies (`--ros-args -r __ns:=/go2` gives /go2/joint_states,
+    as a namespaced ros2_control robot has), except the `GLOBAL_TOPICS`."""
+    return name if name in GLOBAL_TOPICS else name.lstrip('/')
+
+
+def resolved(name, namespace='/'):
+    """Topic or action `name` as a node in `namespace` ('/' or '/go2') resolves it."""
+    return name if name in GLOBAL_TOPICS else namespace.rstrip('/') + name
 
 
 def _checked_leg(leg):
