@@ -345,7 +345,8 @@ def build_parser():
     run.add_argument('scene', help='bundled scene name, path to a scene YAML, or a robot file '
                                    '(MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro)')
     run.add_argument('--sand-bodies', metavar='PATTERN[,PATTERN...]|auto',
-                     help='bodies that touch sand (rft.bodies): names, glob patterns or auto')
+                     help='bodies that touch sand (rft.bodies): names, glob patterns and '
+                          "auto (auto,crate: auto's picks and the crate)")
     run.add_argument('--base', choices=('floating', 'fixed'),
                      help='URDF root link: free or welded to the world (default: as the '
                           'URDF says: welded where a fixed joint hangs it from a world link)')

@@ -45,7 +45,7 @@ PARAMETERS = (
                                      'robot_state_publisher takes it; unset with scene and model '
                                      'unset too: read from /robot_description', False),
     ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.bodies): 'A,B*' names or glob "
-                               "patterns, or 'auto'", False),
+                               "patterns, 'auto', or auto beside them ('auto,crate')", False),
     ParameterSpec(KEYFRAME, "initial pose: the model's keyframe of this name (robot.keyframe), "
                             "held until commands arrive (unset: its 'home' keyframe where it "
                             'has one)', False),
