@@ -40,6 +40,7 @@ def make_state(time=12.3456789012, legs=('L1', 'R2'), plates=2, seed=0):
         joint_positions=rng.normal(size=4),
         joint_velocities=rng.normal(size=4),
         joint_efforts=rng.normal(size=4),
+        base_frame='trunk',
         base_position=np.array([0.5, -0.25, 0.125]),
         base_quaternion_wxyz=quaternion_wxyz_about([1.0, 2.0, 3.0], np.pi / 6),
         base_linear_velocity=np.array([0.1, -0.02, 0.003]),

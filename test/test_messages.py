@@ -122,7 +122,7 @@ def test_odometry_frames_pose_and_covariance():
     state = make_state()
     msg = messages.odometry_message(FACTORY, state)
     assert msg.__msgtype__ == topics.ODOMETRY_TYPE
-    assert (msg.header.frame_id, msg.child_frame_id) == ('odom', 'base_link')
+    assert (msg.header.frame_id, msg.child_frame_id) == ('odom', 'trunk')
     assert stamp_ns(msg.header.stamp) == seconds_to_ns(state.time)
     np.testing.assert_array_equal(vec(msg.pose.pose.position), state.base_position)
     q = msg.pose.pose.orientation
@@ -165,7 +165,7 @@ def test_tf_has_base_and_one_world_aligned_frame_per_leg():
     assert msg.__msgtype__ == topics.TF_TYPE
     assert len(msg.transforms) == 1 + len(state.legs)
     base = msg.transforms[0]
-    assert (base.header.frame_id, base.child_frame_id) == ('odom', 'base_link')
+    assert (base.header.frame_id, base.child_frame_id) == ('odom', 'trunk')
     odom = messages.odometry_message(FACTORY, state)
     np.testing.assert_array_equal(vec(base.transform.translation), vec(odom.pose.pose.position))
     assert messages_equal(base.transform.rotation, odom.pose.pose.orientation)
@@ -313,7 +313,7 @@ def sim_states(draw):
         joint_names=tuple(draw(st.lists(st.text(max_size=10), min_size=n_joints,
                                         max_size=n_joints))),
         joint_positions=draw(arrays), joint_velocities=draw(arrays),
-        joint_efforts=draw(arrays),
+        joint_efforts=draw(arrays), base_frame=draw(st.text(min_size=1, max_size=20)),
         base_position=draw(vec3), base_quaternion_wxyz=draw(quat),
         base_linear_velocity=draw(vec3), base_angular_velocity=draw(vec3),
         legs=tuple(LegWrench(name, draw(vec3), draw(vec3), draw(vec3)) for name in legs),

@@ -3,12 +3,17 @@ $(find) include, package:// OBJ and COLLADA meshes, a COLLADA visual, <ros2_cont
 <gazebo> tags, a fixed root link) and the bundled quadruped. They load, make the plate count
 asked, stand in sand from their ros2_control initial pose, and move under commands."""
 import json
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rft_sim_ros.cli import main
+from rft_sim_ros.robot.packages import PackageResolver
+from rft_sim_ros.robot.xacro_files import expand_xacro
+from rft_sim_ros.ros import messages
+from rft_sim_ros.ros.factory import RosbagsFactory
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.scenes.quadruped import leg_forward
 from rft_sim_ros.sim.simulation import Simulation
@@ -88,3 +93,25 @@ def test_quadruped_stands_on_its_feet_at_the_pose_height():
     depth = scene.surface_height - foot_bottom
     assert 0.0 < depth < 0.03  # feet in the sand, carrying 9.8 kg
     assert sim.engine.body_wrenches[:, 2].sum() == pytest.approx(9.8 * 9.81, rel=0.03)
+
+
+def _root_link(urdf_xml):
+    """The URDF's root link: the one that is no joint's child (robot_state_publisher's root)."""
+    robot = ET.fromstring(urdf_xml)
+    children = {joint.find('child').get('link') for joint in robot.findall('joint')}
+    [root] = [link.get('name') for link in robot.findall('link')
+              if link.get('name') not in children]
+    return root
+
+
+def test_odom_and_tf_name_the_base_frame_as_the_urdf_root_link(sandbot):
+    """odom -> <root link> joins the tree robot_state_publisher publishes from the same
+    description (root link 'base', not 'base_link', in both robots)."""
+    urdf = expand_xacro(XACRO, PackageResolver({'sandbot_description': str(PACKAGE)}))
+    quadruped = Simulation(load_scene('quadruped', {'rft.plates_per_body': 50}))
+    for sim, root in ((sandbot, _root_link(urdf)), (quadruped, 'base')):
+        state = sim.state()
+        assert state.base_frame == root == 'base'
+        factory = RosbagsFactory()
+        assert messages.odometry_message(factory, state).child_frame_id == root
+        assert messages.tf_message(factory, state).transforms[0].child_frame_id == root

@@ -96,6 +96,7 @@ class StateEncoder:
     def __init__(self, state):
         self.joint_names = tuple(state.joint_names)
         self.leg_names = tuple(leg.name for leg in state.legs)
+        self.base_frame = state.base_frame
         self.topics = [topics.CLOCK, topics.JOINT_STATES, topics.ODOM, topics.TF,
                        *(topics.leg_wrench_topic(name) for name in self.leg_names)]
 
@@ -113,7 +114,7 @@ class StateEncoder:
 
         layout = _Layout()
         self._odom_frames = (_header(layout, topics.ODOM_FRAME),
-                             layout.strings([topics.BASE_FRAME]))
+                             layout.strings([self.base_frame]))
         layout.numbers('d', 7)
         layout.zeros('d', 36)
         layout.numbers('d', 6)
@@ -123,7 +124,7 @@ class StateEncoder:
         layout = _Layout()
         self._tf_count = layout.constant(struct.pack('<I', 1 + len(self.leg_names)))
         self._tf_frames = []
-        for child in (topics.BASE_FRAME, *map(topics.leg_frame_id, self.leg_names)):
+        for child in (self.base_frame, *map(topics.leg_frame_id, self.leg_names)):
             self._tf_frames.append((_header(layout, topics.ODOM_FRAME),
                                     layout.strings([child])))
             layout.numbers('d', 7)
@@ -137,9 +138,10 @@ class StateEncoder:
             self._wrenches.append((layout.compile(), frame))
 
     def fits(self, state):
-        """Whether `state` has the joints and legs this encoder was built for."""
+        """Whether `state` has the joints, legs and base frame this encoder was built for."""
         return (tuple(state.joint_names) == self.joint_names
-                and tuple(leg.name for leg in state.legs) == self.leg_names)
+                and tuple(leg.name for leg in state.legs) == self.leg_names
+                and state.base_frame == self.base_frame)
 
     @property
     def structs(self):

@@ -7,7 +7,8 @@ state's sim time.
 
 Frames (REP 105, names in `rft_sim_ros.ros.topics`):
   odom       fixed world frame of the simulation, z up (the MuJoCo world frame).
-  base_link  the robot base; /odom and /tf carry odom -> base_link.
+  base       the robot's base body, named as in the model (a URDF's root link:
+             base_link, base, ...); /odom and /tf carry odom -> base.
   rft/<leg>  one per leg: child of odom, origin at the leg's reference point
              (`LegWrench.point`), axes parallel to odom (identity rotation). The leg's
              wrench is published in this frame, so force.z is the vertical ground force in
@@ -120,10 +121,11 @@ def joint_state_message(factory, state):
 
 
 def odometry_message(factory, state):
-    """nav_msgs/Odometry of base_link in odom (REP 105).
+    """nav_msgs/Odometry of the base frame (`state.base_frame`) in odom (REP 105).
 
-    pose: base_link position (m) and orientation in odom. twist: linear (m/s) and angular
-    (rad/s) velocity expressed in base_link (the child frame). Covariances: ODOM_COVARIANCE.
+    pose: the base frame's position (m) and orientation in odom. twist: linear (m/s) and
+    angular (rad/s) velocity expressed in the base frame (the child frame). Covariances:
+    ODOM_COVARIANCE.
     """
     pose = factory.make('geometry_msgs/msg/Pose', position=_point(factory, state.base_position),
                         orientation=_quaternion(factory, state.base_quaternion_wxyz))
@@ -133,7 +135,7 @@ def odometry_message(factory, state):
     return factory.make(
         'nav_msgs/msg/Odometry',
         header=header(factory, state.time, topics.ODOM_FRAME),
-        child_frame_id=topics.BASE_FRAME,
+        child_frame_id=state.base_frame,
         pose=factory.make('geometry_msgs/msg/PoseWithCovariance', pose=pose,
                           covariance=factory.float64_array(ODOM_COVARIANCE, 36)),
         twist=factory.make('geometry_msgs/msg/TwistWithCovariance', twist=twist,
@@ -141,9 +143,9 @@ def odometry_message(factory, state):
 
 
 def tf_message(factory, state):
-    """tf2_msgs/TFMessage: odom -> base_link, then odom -> rft/<leg> for every leg (at the
-    leg's reference point, identity rotation)."""
-    transforms = [_transform_stamped(factory, state.time, topics.ODOM_FRAME, topics.BASE_FRAME,
+    """tf2_msgs/TFMessage: odom -> the base frame, then odom -> rft/<leg> for every leg (at
+    the leg's reference point, identity rotation)."""
+    transforms = [_transform_stamped(factory, state.time, topics.ODOM_FRAME, state.base_frame,
                                      state.base_position, state.base_quaternion_wxyz)]
     transforms += [_transform_stamped(factory, state.time, topics.ODOM_FRAME,
                                       topics.leg_frame_id(leg.name), leg.point, _IDENTITY_WXYZ)

@@ -5,9 +5,9 @@ One table that the rclpy node (publishers, subscriptions) and the rosbag2 writer
 """
 import re
 
-#: TF frames (REP 105): `odom` is the fixed world frame of the simulation, z up.
+#: TF frames (REP 105): `odom` is the fixed world frame of the simulation, z up; the base
+#: frame is the robot's base body (`SimState.base_frame`).
 ODOM_FRAME = 'odom'
-BASE_FRAME = 'base_link'
 
 CLOCK = '/clock'
 JOINT_STATES = '/joint_states'

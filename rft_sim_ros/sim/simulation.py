@@ -591,7 +591,7 @@ class Simulation:
         d = self.data
         velocity = np.empty(6)
         mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_XBODY, self._base_id,
-                                 velocity, 1)  # base_link frame origin, base_link axes
+                                 velocity, 1)  # base frame origin, base frame axes
         plates = None
         if with_plates:
             positions, forces, areas = self.engine.active_plates()
@@ -602,6 +602,7 @@ class Simulation:
             joint_positions=d.qpos[self._qpos_adr],  # (index arrays: copies already)
             joint_velocities=d.qvel[self._dof_adr],
             joint_efforts=d.qfrc_actuator[self._dof_adr],
+            base_frame=self.base_body,
             base_position=d.xpos[self._base_id].copy(),
             base_quaternion_wxyz=d.xquat[self._base_id].copy(),
             base_linear_velocity=velocity[3:],  # (this call's own array)

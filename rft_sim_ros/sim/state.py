@@ -51,10 +51,13 @@ class SimState:
     joint_names / joint_positions (rad or m) / joint_velocities (rad/s or m/s) /
     joint_efforts (N m or N, the actuator force acting on the joint): the scene's actuated
     and passive 1-DOF joints, in the scene's joint order.
-    base_position: (3,) m, base_link origin in odom. base_quaternion_wxyz: (4,) orientation
-    of base_link in odom (w, x, y, z; MuJoCo order, convert to ROS x, y, z, w when packing).
-    base_linear_velocity / base_angular_velocity: (3,) m/s, rad/s, expressed in base_link
-    (the child frame, as nav_msgs/Odometry.twist requires).
+    base_frame: the TF frame of the robot's base, the base body's name (a URDF's root link,
+    e.g. base_link or base), so that odom -> base_frame joins the tree robot_state_publisher
+    publishes from the same description.
+    base_position: (3,) m, base frame origin in odom. base_quaternion_wxyz: (4,) orientation
+    of the base frame in odom (w, x, y, z; MuJoCo order, convert to ROS x, y, z, w when
+    packing). base_linear_velocity / base_angular_velocity: (3,) m/s, rad/s, expressed in the
+    base frame (the child frame, as nav_msgs/Odometry.twist requires).
     legs: per-leg RFT wrenches. zeta: sand stiffness in N/cm^3 (the paper's unit).
     plates_active: number of plates currently in the sand and leading.
     """
@@ -63,6 +66,7 @@ class SimState:
     joint_positions: np.ndarray
     joint_velocities: np.ndarray
     joint_efforts: np.ndarray
+    base_frame: str
     base_position: np.ndarray
     base_quaternion_wxyz: np.ndarray
     base_linear_velocity: np.ndarray
@@ -74,6 +78,6 @@ class SimState:
 
     @property
     def base_speed(self):
-        """|base_linear_velocity|, m/s (the speed of the base_link origin)."""
+        """|base_linear_velocity|, m/s (the speed of the base frame's origin)."""
         v = np.asarray(self.base_linear_velocity, dtype=float)
         return math.sqrt(v @ v)  # np.linalg.norm's own formula, without its checks
