@@ -14,7 +14,7 @@ from action_msgs.msg import GoalStatus  # noqa: E402
 from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from control_msgs.msg import JointTolerance  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
+from rclpy.action import ActionClient, ActionServer  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
@@ -183,3 +183,21 @@ def test_a_namespace_applies_to_the_robot_topics_not_to_clock_tf_and_diagnostics
     handle = client.send(goal([0.1], 0.3, names=('ankle',)))
     assert not handle.accepted
     assert sim.runtime.rejections == {'unknown_joint': 1}
+
+
+def test_without_control_msgs_the_node_runs_without_the_action(ros, monkeypatch):
+    """A ROS install that lacks control_msgs: the node starts, says so, and serves the rest."""
+    real = RclpyFactory.message_class
+
+    def without_control_msgs(self, type_name):
+        if type_name.startswith('control_msgs/'):
+            raise ModuleNotFoundError("No module named 'control_msgs'")
+        return real(self, type_name)
+
+    monkeypatch.setattr(RclpyFactory, 'message_class', without_control_msgs)
+    sim = start_sim(ros)
+    assert not [w for w in sim.waitables if isinstance(w, ActionServer)]
+    assert ros.spin_until(lambda: len(ros.probe.joint_states) >= 3)
+    monkeypatch.undo()
+    served = start_sim(ros, trajectory_controller='other')      # (the check can fail)
+    assert [w for w in served.waitables if isinstance(w, ActionServer)]
