@@ -232,6 +232,38 @@ def test_array_command_sets_all_targets_and_cancels_the_trajectory():
         np.testing.assert_array_equal(h.sample(t).velocities, 0.0)
 
 
+def test_velocity_command_moves_the_targets_from_where_they_are():
+    """A velocity forward controller's command: the targets move at the velocities from
+    the targets they had, until a position command; a trajectory takes over from the moving
+    target, velocity included (a cubic first segment where its waypoints carry velocities)."""
+    h = handler()
+    h.set_trajectory(traj(JOINTS, (2.0, [1.1, 0.8, 0.3])), now=0.0)
+    at_one = h.sample(1.0).positions                         # halfway: 0.6, 0.3, 0.3
+    velocities = np.array([0.5, -1.0, 0.0])
+    assert h.set_velocities(velocities, now=1.0).accepted
+    for t in (1.0, 1.5, 4.0):
+        target = h.sample(t)
+        np.testing.assert_allclose(target.positions, at_one + velocities * (t - 1.0))
+        np.testing.assert_array_equal(target.velocities, velocities)
+    h.set_trajectory(traj(JOINTS, (1.0, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])), now=4.0)
+    start = h.sample(4.0)
+    np.testing.assert_allclose(start.positions, at_one + velocities * 3.0)
+    np.testing.assert_allclose(start.velocities, velocities)   # continuous
+    assert h.set_velocities([0.1, 0.2], now=4.5).reason is Reason.ARRAY_LENGTH
+    assert h.set_velocities([0.1, math.nan, 0.0], now=4.5).reason is Reason.NOT_FINITE
+    assert h.set_positions([0.0, 0.0, 0.0], now=6.0).accepted
+    np.testing.assert_array_equal(h.sample(9.0).velocities, 0.0)
+
+
+def test_velocity_command_ends_effort_mode_from_the_tracked_positions():
+    h = handler()
+    h.set_efforts([1.0, 1.0, 1.0], now=0.0)
+    h.track(np.array([0.4, 0.5, 0.6]), now=1.0)
+    assert h.set_velocities(np.array([1.0, 0.0, 0.0]), now=1.0).accepted
+    assert h.efforts is None
+    np.testing.assert_allclose(h.sample(2.0).positions, [1.4, 0.5, 0.6])
+
+
 # --- rejection ------------------------------------------------------------------------------
 
 GOOD_POINTS = ((0.5, [1, 1, 1], [0, 0, 0]), (1.0, [2, 2, 2]))

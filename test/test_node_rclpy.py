@@ -215,6 +215,21 @@ def test_efforts_drive_the_joints_and_malformed_ones_are_rejected(ros):
     assert sim.runtime.sim.interfaces.mode == 'position'
 
 
+def test_velocities_turn_the_joints_and_malformed_ones_are_rejected(ros):
+    """/velocity_controller/commands: rad/s per joint in joint_names order, as ros2_control's
+    velocity forward controller takes them."""
+    sim = start_sim(ros)
+    velocities = ros.probe.create_publisher(Float64MultiArray, topics.VELOCITY_COMMANDS, 10)
+    assert ros.spin_until(lambda: ros.probe.joint_states
+                          and velocities.get_subscription_count() > 0)
+    velocities.publish(Float64MultiArray(data=[math.inf, 0.0]))
+    assert ros.spin_until(lambda: sim.runtime.rejections == {'not_finite': 1})
+    velocities.publish(Float64MultiArray(data=[0.4, 0.0]))
+    assert ros.spin_until(lambda: hip(ros.probe.joint_states[-1]) > 0.15)
+    state = ros.probe.joint_states[-1]
+    assert abs(state.velocity[list(state.name).index('hip')] - 0.4) < 0.02
+
+
 def test_pause_step_and_reset_services(ros):
     sim = start_sim(ros)
     ros.probe.positions.publish(Float64MultiArray(data=[0.3, 0.0]))

@@ -191,6 +191,25 @@ def test_effort_arrays_drive_the_joints_until_a_position_command(rig_scene):
     np.testing.assert_allclose(h.sink.states[-1].joint_positions, 0.0, atol=0.01)
 
 
+def test_velocity_arrays_turn_the_joints_at_the_commanded_speed(rig_scene):
+    """/velocity_controller/commands: velocities in joint_names order; the servos follow
+    targets that move at them, so the joints turn at that speed; a bad one is rejected."""
+    h = Harness(rig_scene, joint_names=['knee', 'hip'])
+    h.runtime.tick()
+    result = h.runtime.on_velocities(position_array([0.5]))
+    assert not result.accepted and result.reason.value == 'array_length'
+    assert topics.VELOCITY_COMMANDS in h.warnings[0]
+    assert h.runtime.on_velocities(position_array([0.0, 0.5])).accepted   # hip 0.5 rad/s
+    h.run(0.5)
+    speeds = [s.joint_velocities[0] for s in h.sink.states if s.time > 0.25]
+    assert np.mean(speeds) == pytest.approx(0.5, rel=0.02)
+    hip, knee = h.sink.states[-1].joint_positions
+    assert hip == pytest.approx(0.25, abs=0.03) and knee == pytest.approx(0.0, abs=0.01)
+    assert h.runtime.on_positions(position_array([0.0, 0.0])).accepted
+    h.run(0.5)
+    np.testing.assert_allclose(h.sink.states[-1].joint_positions, 0.0, atol=0.01)
+
+
 def test_joint_names_must_name_every_servo_once(rig_scene):
     for bad in (['hip'], ['hip', 'hip'], ['hip', 'knee', 'ankle'], ['hip', 'elbow']):
         with pytest.raises(ValueError, match='joint_names'):

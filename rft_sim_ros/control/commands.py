@@ -17,6 +17,12 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
 * `set_positions` (std_msgs/Float64MultiArray to forward_position_controller): new
   targets for all joints in `joint_names` order, held from now on; cancels any trajectory.
   `hold_positions` does the same, unchecked, for the targets of a built-in gait.
+* `set_velocities` (std_msgs/Float64MultiArray to a velocity forward controller, ros2_control's
+  JointGroupVelocityController): velocities for all joints in `joint_names` order (rad/s or
+  m/s), held from now on: each joint's target moves at its velocity from the target it has
+  now, so the servo turns a wheel at that speed (its position lags the target by what the
+  load asks of the servo's gain); cancels any trajectory, and a later trajectory takes over
+  from the moving target, velocity included.
 * `set_efforts` (std_msgs/Float64MultiArray to the effort forward controller): efforts for
   all joints in `joint_names` order (N m or N), applied from now on instead of the position
   targets (`efforts` is then not None) until the next position command or trajectory; the
@@ -148,6 +154,17 @@ class _Spline:
         return Targets(position, velocity)
 
 
+class _Ramp:
+    """Targets moving at constant `velocities` (J,) from `positions` (J,) at `time` (s) on."""
+
+    def __init__(self, time, positions, velocities):
+        self.time, self.positions, self.velocities = time, positions, velocities
+
+    def sample(self, t):
+        return Targets(self.positions + self.velocities * (t - self.time),
+                       self.velocities.copy())
+
+
 @dataclass(frozen=True)
 class _Plan:
     """A validated trajectory: absolute waypoint times, indices of its joints, values."""
@@ -237,6 +254,19 @@ class CommandHandler:
         self._pending = None
         self._efforts = None
         self._active = _Spline.hold(now, positions)
+
+    def set_velocities(self, velocities, now):
+        """Move every joint's target at `velocities` (all joints, `joint_names` order; rad/s or
+        m/s) from sim time `now` (s) on, from the targets at `now` (module docstring)."""
+        try:
+            values = self._joint_array(velocities, 'velocity command')
+        except _Rejected as rejected:
+            return self._reject(rejected)
+        start = self.sample(now).positions
+        self._pending = None
+        self._efforts = None
+        self._active = _Ramp(now, start, values)
+        return ACCEPTED
 
     def set_efforts(self, efforts, now):
         """Apply `efforts` (all joints, `joint_names` order; N m or N) from sim time `now` (s)

@@ -143,6 +143,8 @@ class SimNode(Node):
                  self.runtime.on_trajectory),
                 (topics.POSITION_COMMANDS_TYPE, topics.POSITION_COMMANDS,
                  self.runtime.on_positions),
+                (topics.VELOCITY_COMMANDS_TYPE, topics.VELOCITY_COMMANDS,
+                 self.runtime.on_velocities),
                 (topics.EFFORT_COMMANDS_TYPE, topics.EFFORT_COMMANDS, self.runtime.on_efforts)):
             self.create_subscription(self._factory.message_class(msgtype), topics.relative(topic),
                                      callback, QUEUE_DEPTH)

@@ -56,9 +56,9 @@ PARAMETERS = (
     ParameterSpec(REAL_TIME_FACTOR, 'sim seconds per wall second; 0 = as fast as possible', True),
     ParameterSpec(PUBLISH_RATE, "state messages per second of sim time (default: the scene's)",
                   False),
-    ParameterSpec(JOINT_NAMES, 'joint order of /forward_position_controller/commands and '
-                               "/effort_controller/commands (default: the scene's commanded "
-                               'joints)', False),
+    ParameterSpec(JOINT_NAMES, 'joint order of /forward_position_controller/commands, '
+                               '/velocity_controller/commands and /effort_controller/commands '
+                               "(default: the scene's commanded joints)", False),
     ParameterSpec(PAUSED, 'stop stepping (sim time and /clock stand still)', True),
     ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
     ParameterSpec(TERRAIN_RATE, 'sand surface publications (/rft/terrain, /rft/terrain/marker) '

@@ -10,8 +10,8 @@ rclpy node only forwards events to it:
   for at most `tick_budget_s` of wall time so the executor stays responsive, then
   /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
   initial state.
-* `on_trajectory(msg)` / `on_positions(msg)` / `on_efforts(msg)`: incoming commands (any
-  message backend) go to `sim.commands` at the current sim time; bad ones are rejected with
+* `on_trajectory(msg)` / `on_positions(msg)` / `on_velocities(msg)` / `on_efforts(msg)`:
+  incoming commands (any message backend) go to `sim.commands` at the current sim time; bad ones are rejected with
   a throttled warning naming the problem and counted per reason (reported on
   /diagnostics). Never raises.
 * `goal_problem(msg)` / `start_goal(msg, listener)`: FollowJointTrajectory goals
@@ -216,6 +216,11 @@ class SimRuntime:
         """A std_msgs/Float64MultiArray of positions in `joint_names` order (rad or m)."""
         return self._on_array(msg, 'position', topics.POSITION_COMMANDS)
 
+    def on_velocities(self, msg):
+        """A std_msgs/Float64MultiArray of velocities in `joint_names` order (rad/s or m/s),
+        as ros2_control's velocity forward controller takes them."""
+        return self._on_array(msg, 'velocity', topics.VELOCITY_COMMANDS)
+
     def on_efforts(self, msg):
         """A std_msgs/Float64MultiArray of efforts in `joint_names` order (N m or N), as
         ros2_control's effort forward controller takes them."""
@@ -234,8 +239,9 @@ class SimRuntime:
             else:
                 if len(values) == len(self._array_order):
                     values = [values[i] for i in self._array_order]
-                apply = (self.sim.commands.set_positions if kind == 'position'
-                         else self.sim.commands.set_efforts)
+                commands = self.sim.commands
+                apply = {'position': commands.set_positions, 'velocity': commands.set_velocities,
+                         'effort': commands.set_efforts}[kind]
                 result = apply(values, now=self.sim.time)
         return self._outcome(topic, result)
 

@@ -36,6 +36,7 @@ def follow_trajectory_action(controller=TRAJECTORY_CONTROLLER):
 #: Command topics of a ros2_control stack, so existing gait controllers drive the sim unchanged.
 JOINT_TRAJECTORY = trajectory_topic()
 POSITION_COMMANDS = '/forward_position_controller/commands'
+VELOCITY_COMMANDS = '/velocity_controller/commands'
 EFFORT_COMMANDS = '/effort_controller/commands'
 FOLLOW_JOINT_TRAJECTORY = follow_trajectory_action()
 
@@ -50,6 +51,7 @@ MARKER_TYPE = 'visualization_msgs/msg/Marker'
 DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
 POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
+VELOCITY_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 EFFORT_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 FOLLOW_JOINT_TRAJECTORY_TYPE = 'control_msgs/action/FollowJointTrajectory'
 
