@@ -208,9 +208,9 @@ def _leg_name(name):
 def keep_sand_visuals(spec, patterns, visual=False):
     """Before compiling with discardvisual: mark the visual geoms (contype = conaffinity = 0)
     of the bodies that `patterns` (names/globs; auto, which only looks at collision geoms,
-    is passed over) name as their sand surface (`SAND_SURFACE_BIT`), so that they stay and carry the
-    plates (`sand.geoms.body_geoms`): those of a body with no collision geom, or with
-    `visual` (rft.plate_geoms: visual) those of every such body."""
+    is passed over) name as their sand surface (`SAND_SURFACE_BIT`), so that they stay and
+    carry the plates (`sand.geoms.body_geoms`): those of a body with no collision geom, or
+    with `visual` (rft.plate_geoms: visual) those of every such body."""
     patterns = [p for p in patterns if p != AUTO]
     bodies = [b for b in spec.bodies if b.name and any(
         fnmatch.fnmatchcase(b.name, p) for p in patterns)]

@@ -4,20 +4,10 @@ Jazzy) that the `rft_sim` node's action server sends: feedback and result (a goa
 `rft_sim_ros.ros.messages`; every field is set. Units SI; stamps are sim time.
 """
 from rft_sim_ros.ros import topics
-from rft_sim_ros.ros.messages import duration, header
+from rft_sim_ros.ros.messages import duration, header, trajectory_point
 
 RESULT_TYPE = f'{topics.FOLLOW_JOINT_TRAJECTORY_TYPE}_Result'
 FEEDBACK_TYPE = f'{topics.FOLLOW_JOINT_TRAJECTORY_TYPE}_Feedback'
-
-
-def _trajectory_point(factory, targets, time_from_start):
-    """trajectory_msgs/JointTrajectoryPoint of `targets` (positions, velocities)."""
-    empty = factory.float64_sequence([])
-    return factory.make('trajectory_msgs/msg/JointTrajectoryPoint',
-                        positions=factory.float64_sequence(targets.positions),
-                        velocities=factory.float64_sequence(targets.velocities),
-                        accelerations=empty, effort=empty,
-                        time_from_start=duration(factory, time_from_start))
 
 
 def _empty_multi_dof_point(factory):
@@ -31,7 +21,8 @@ def feedback_message(factory, feedback):
     positions and velocities, time_from_start = time since the trajectory's start; the
     multi-DOF fields empty."""
     def point(targets):
-        return _trajectory_point(factory, targets, feedback.time_from_start)
+        return trajectory_point(factory, targets.positions, targets.velocities,
+                                feedback.time_from_start)
     return factory.make(FEEDBACK_TYPE, header=header(factory, feedback.time, ''),
                         joint_names=[str(n) for n in feedback.joint_names],
                         desired=point(feedback.desired), actual=point(feedback.actual),

@@ -341,17 +341,24 @@ def duration(factory, seconds):
     return factory.make('builtin_interfaces/msg/Duration', sec=sec, nanosec=nanosec)
 
 
+def trajectory_point(factory, positions, velocities, time_from_start):
+    """trajectory_msgs/JointTrajectoryPoint: positions (rad or m), velocities (rad/s or m/s;
+    empty for none), time_from_start (s); accelerations and efforts empty."""
+    empty = factory.float64_sequence([])
+    return factory.make('trajectory_msgs/msg/JointTrajectoryPoint',
+                        positions=factory.float64_sequence(positions),
+                        velocities=factory.float64_sequence(velocities),
+                        accelerations=empty, effort=empty,
+                        time_from_start=duration(factory, time_from_start))
+
+
 def joint_trajectory_message(factory, command):
     """trajectory_msgs/JointTrajectory of a `TrajectoryCommand` (what a gait publisher
     sends): header.stamp = start time (sim time, s; 0 = start on receipt), frame_id '';
     per point positions (rad or m), velocities (rad/s or m/s; empty when not given) and
     time_from_start (s). Accelerations and efforts are left empty."""
-    empty = factory.float64_sequence([])
-    points = [factory.make('trajectory_msgs/msg/JointTrajectoryPoint',
-                           positions=factory.float64_sequence(point.positions),
-                           velocities=factory.float64_sequence(point.velocities or []),
-                           accelerations=empty, effort=empty,
-                           time_from_start=duration(factory, point.time_from_start))
+    points = [trajectory_point(factory, point.positions, point.velocities or [],
+                               point.time_from_start)
               for point in command.points]
     return factory.make('trajectory_msgs/msg/JointTrajectory',
                         header=header(factory, command.start_time, ''),

@@ -11,9 +11,9 @@ rclpy node only forwards events to it:
   /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
   initial state.
 * `on_trajectory(msg)` / `on_positions(msg)` / `on_velocities(msg)` / `on_efforts(msg)`:
-  incoming commands (any message backend) go to `sim.commands` at the current sim time; bad ones are rejected with
-  a throttled warning naming the problem and counted per reason (reported on
-  /diagnostics). Never raises.
+  incoming commands (any message backend) go to `sim.commands` at the current sim time;
+  bad ones are rejected with a throttled warning naming the problem and counted per reason
+  (reported on /diagnostics). Never raises.
 * `goal_problem(msg)` / `start_goal(msg, listener)`: FollowJointTrajectory goals
   (`trajectory_goals`), one at a time: the action server asks whether to accept a goal,
   then starts it. The goal's trajectory runs like one on the topic; after each publish
@@ -114,7 +114,8 @@ class SimRuntime:
         self.diverged = None
         self.last_state = None
         self._goal = None  # (FollowedGoal, listener) of the goal being followed
-        self._servo_in_state = None  # indices of the servo joints in a SimState's joints
+        # indices of the servo joints among a SimState's joints
+        self._servo_in_state = [sim.joint_names.index(name) for name in servo_joints]
 
     # --- properties -------------------------------------------------------------------------
 
@@ -306,9 +307,6 @@ class SimRuntime:
 
     def _servo_targets(self, state):
         """`Targets` of the servo joints' actual positions and velocities in `state`."""
-        if self._servo_in_state is None:
-            self._servo_in_state = [state.joint_names.index(name)
-                                    for name in self.sim.servo_joint_names]
         index = self._servo_in_state
         return Targets(state.joint_positions[index], state.joint_velocities[index])
 
