@@ -1,5 +1,6 @@
 """The benchmark's own logic (the measurements themselves run in `rft-sim bench`)."""
 import math
+from pathlib import Path
 
 import pytest
 
@@ -73,7 +74,7 @@ def test_engine_step_worker_times_one_gait_cycle_of_the_walk(tmp_path):
         'deformable 2 m x 2 m, 1 cm']
     worker = Worker(CODE, {'rft.plates_per_body': 50, **bed}, tmp_path)
     try:
-        assert worker.info['package'] == str(CODE / 'rft_sim_ros' / '__init__.py')
+        assert Path(worker.info['package']).resolve() == CODE / 'rft_sim_ros' / '__init__.py'
         assert worker.info['cycle_steps'] == 1250  # 1 Hz gait at 0.8 ms
         assert 0.0 < worker.chunk() < 0.01
         low, high = worker.x_extent  # (the walk starts about the origin, heading +x)
@@ -81,6 +82,16 @@ def test_engine_step_worker_times_one_gait_cycle_of_the_walk(tmp_path):
     finally:
         worker.close()
     assert worker.process.returncode == 0
+
+
+def test_terrain_cost_names_the_code_by_its_commit(tmp_path):
+    """A report names the code it measured by its git commit, not by a path of the machine."""
+    from rft_sim_ros.bench.terrain_cost import CODE, commit
+    if not (CODE / '.git').exists():
+        pytest.skip('the package is not in a git checkout here')
+    head = commit(CODE)
+    assert head and '/' not in head and len(head.split('+')[0]) >= 7
+    assert commit(tmp_path) is None
 
 
 def test_terrain_cost_lays_its_surfaces_along_the_whole_walk():

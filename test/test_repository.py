@@ -5,8 +5,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-#: Paths of the development workspace, which users never get (split so this file passes).
-PRIVATE = ('shared/' + 'reference', '/work/' + 'shared', '../' + 'shared')
+#: Paths of the development workspace, which users never get (split so this file passes),
+#: and this checkout's own absolute path (a result file that recorded where it ran).
+PRIVATE = ('shared/' + 'reference', '/' + 'work/', '../' + 'shared', str(ROOT) + '/')
 
 
 def test_no_tracked_file_cites_the_private_workspace():

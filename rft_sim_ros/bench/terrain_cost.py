@@ -154,6 +154,11 @@ class Worker:
             [sys.executable, '-P', str(WORKER), json.dumps(overrides)], cwd=cwd, env=env,
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.info = self._answer()
+        expected = Path(code).resolve() / 'rft_sim_ros' / '__init__.py'
+        if Path(self.info['package']).resolve() != expected:
+            self.close()
+            raise RuntimeError(f'engine step worker imported {self.info["package"]}, not the '
+                               f'package in {code}')
 
     def _answer(self):
         line = self.process.stdout.readline()
@@ -215,9 +220,23 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
                          'ratio_to_plane': float(np.median(values / plane)),
                          'samples_s': values.tolist(),
                          'bodies_x_m': [min(w.x_extent[0] for w in workers[label]),
-                                        max(w.x_extent[1] for w in workers[label])],
-                         'package': workers[label][0].info['package']}
+                                        max(w.x_extent[1] for w in workers[label])]}
     return result
+
+
+def commit(code):
+    """The git commit checked out in the folder `code` (its short hash, with '+changes'
+    where the work tree differs from it), or None outside a git checkout: which code a
+    report measured, without recording paths of the machine it ran on."""
+    def git(*args):
+        return subprocess.run(['git', '-C', str(code), *args], capture_output=True,
+                              text=True).stdout.strip()
+    try:
+        head = git('rev-parse', '--short', 'HEAD')
+        changed = head and git('status', '--porcelain', '--untracked-files=no')
+    except OSError:  # no git on the machine
+        return None
+    return head + '+changes' * bool(changed) or None
 
 
 def markdown(results):
@@ -239,6 +258,8 @@ def markdown(results):
         left, right = row['bodies_x_m']
         lines.append(f'| {label} | {row["step_s"] * 1e6:.1f} | {row["ratio_to_plane"]:.3f} '
                      f'| {left:.2f} .. {right:.2f} |')
+    if results.get('code'):
+        lines += ['', f'Code measured: {results["code"]}.']
     if results.get('baseline'):
         lines += ['', f'Baseline code: {results["baseline"]}.']
     return '\n'.join(lines) + '\n'
@@ -263,7 +284,9 @@ def main(argv=None):
                'surfaces_x_m': [centre_x - 0.5 * length, centre_x + 0.5 * length],
                'cases': surface_costs(args.rounds, args.baseline, args.processes, log),
                'load_after': os.getloadavg()[0],
-               'baseline': args.baseline_label or args.baseline}
+               'code': commit(CODE),
+               'baseline': args.baseline and (args.baseline_label or commit(args.baseline)
+                                              or Path(args.baseline).name)}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / 'terrain_cost.json').write_text(json.dumps(results, indent=2) + '\n')
