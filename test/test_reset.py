@@ -39,22 +39,76 @@ STILT = """<mujoco><worldbody>
   </body></worldbody></mujoco>"""
 
 
-def test_a_robot_that_cannot_stand_starts_as_drop_0_would_have_started_it(tmp_path):
+def test_a_robot_that_falls_while_settling_starts_as_drop_0_would_have_started_it(tmp_path):
     """A trunk on one stilt topples while spawn rest settles it (only its foot is in the
-    sand, so the trunk would start fallen into it): it starts from the state before the
-    settling instead, exactly as spawn drop:0 starts it, and start-up says so once, resets
-    included."""
+    sand, so its trunk falls into the sand, which does not hold it): it starts from the
+    state before the settling instead, exactly as spawn drop:0 starts it, and start-up says
+    so once, resets included."""
     path = tmp_path / 'stilt.xml'
     path.write_text(STILT)
     sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
     dropped = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'drop:0'}))
     assert sim.settle_steps > 1000 and dropped.settle_steps == 0
-    assert not [n for n in dropped.notices if 'still moving' in n]
+    assert not [n for n in dropped.notices if 'spawn rest' in n]
     np.testing.assert_array_equal(sim.data.qpos, dropped.data.qpos)
     assert not sim.data.qvel.any() and sim.data.time == 0.0
     sim.step(100)
     dropped.step(100)
     np.testing.assert_allclose(sim.data.qpos, dropped.data.qpos, rtol=0, atol=1e-12)
     sim.reset()
-    [notice] = [n for n in sim.notices if 'still moving' in n]
+    [notice] = [n for n in sim.notices if 'spawn rest' in n]
+    assert notice.startswith('spawn rest: fell: its base (trunk) reached ')
     assert 'it starts as spawn drop:0 starts it instead' in notice
+
+
+def test_a_robot_still_moving_when_settling_ends_starts_as_drop_0_would(tmp_path, monkeypatch):
+    """Settling gives up after SETTLE_LIMIT_S (here cut to 50 ms, while the stilt is still
+    toppling, its trunk far above the sand): the robot starts as drop:0 starts it."""
+    from rft_sim_ros.sim import simulation
+    monkeypatch.setattr(simulation, 'SETTLE_LIMIT_S', 0.05)
+    path = tmp_path / 'stilt.xml'
+    path.write_text(STILT)
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    dropped = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'robot.spawn': 'drop:0'}))
+    assert sim.settle_steps == round(0.05 / sim.timestep)
+    np.testing.assert_array_equal(sim.data.qpos, dropped.data.qpos)
+    [notice] = [n for n in sim.notices if 'spawn rest' in n]
+    assert notice.startswith('spawn rest: still moving after 0.05 s (base speed ')
+
+
+def test_a_robot_on_a_slope_is_set_down_turned_to_it_and_stands(tmp_path):
+    """spawn rest on a slope turns the robot to the slope's plane under its sand bodies
+    before it is set down (said at start-up), so that its feet meet the sand together: a
+    four-legged table (plates on its feet only) settles on a 15 deg slope, its top within
+    2 deg of the slope's plane (the downhill feet carry more and sink more), and stands
+    there; on level sand nothing is turned."""
+    path = tmp_path / 'table.xml'
+    path.write_text(TABLE)
+    for downhill in (90.0, 200.0):
+        sim = Simulation(load_scene(path, {
+            'rft.plates_per_body': 50, 'sand.surface.type': 'slope',
+            'sand.surface.angle_deg': 15.0, 'sand.surface.downhill_deg': downhill}))
+        up = sim.data.xmat[sim.model.body('top').id].reshape(3, 3)[:, 2]
+        normal = np.asarray(sim.engine.surface.normal(0.0, 0.0)).reshape(3)
+        assert np.degrees(np.arccos(up @ normal)) < 2.0
+        [notice] = [n for n in sim.notices if 'turned' in n]
+        assert notice.startswith('robot.spawn rest: turned 15 deg to the sand surface')
+        assert not [n for n in sim.notices if n.startswith('spawn rest:')]  # it settled
+        start = sim.data.qpos[:3].copy()
+        sim.step(int(0.5 / sim.timestep))
+        assert np.linalg.norm(sim.data.qpos[:3] - start) < 1e-3
+    level = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    assert not [n for n in level.notices if 'turned' in n]
+    np.testing.assert_allclose(level.data.xmat[level.model.body('top').id].reshape(3, 3)[:, 2],
+                               [0.0, 0.0, 1.0], atol=1e-6)
+
+
+TABLE = """<mujoco><worldbody>
+  <body name="top" pos="0 0 1"><freejoint/>
+    <geom type="box" size="0.3 0.15 0.02" mass="4"/>
+""" + ''.join(f"""    <body name="leg{i}" pos="{x} {y} -0.02"><joint name="hip{i}" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.1"/>
+      <body name="foot{i}" pos="0 0 -0.22"><geom type="box" size="0.03 0.03 0.01" mass="0.05"/>
+      </body></body>
+""" for i, (x, y) in enumerate([(0.25, 0.1), (0.25, -0.1), (-0.25, 0.1), (-0.25, -0.1)])) + """
+  </body></worldbody></mujoco>"""

@@ -6,7 +6,8 @@ initial values come this way too).
 
 Spawn (`robot.spawn`), for a robot whose root body has a free joint:
   model       the pose as the model (or scenario) gives it;
-  drop:H      moved vertically so that its sand bodies' geoms are H m or more above the sand
+  drop:H      turned to the sand surface under its sand bodies where that is not level (a
+              slope: `align_to`), moved vertically so that its sand bodies' geoms are H m or more above the sand
               surface under each (slopes, grids: the surface's highest point under each geom's
               bounding box), and one exactly H, at rest, then released;
   rest        that lowest clearance 0 (on the surface), released, and settled before the run
@@ -15,6 +16,7 @@ Spawn (`robot.spawn`), for a robot whose root body has a free joint:
               run's clock then starts at 0 from that state.
 """
 import mujoco
+import numpy as np
 
 from ..sand.geoms import body_geoms
 from .joints import movable_joints
@@ -25,6 +27,8 @@ REST_SPEED = 1e-3
 REST_HOLD_S = 0.1
 #: spawn 'rest' gives up after this much sim time (s).
 SETTLE_LIMIT_S = 3.0
+#: Nodes per side of the lattice on which `align_to` samples the surface under the robot.
+ALIGN_SAMPLES = 9
 
 
 def parse_spawn(text):
@@ -93,6 +97,50 @@ def into_ranges(model, data):
             moved.append((model.joint(j).name, float(data.qpos[adr]), float(low), float(high)))
             data.qpos[adr] = min(max(data.qpos[adr], low), high)
     return moved
+
+
+def surface_gradient(height, box, samples=ALIGN_SAMPLES):
+    """(dz/dx, dz/dy) of the least-squares plane of the surface `height(x, y)` (m, world;
+    arrays in and out) over the horizontal box (x0, x1, y0, y1) (m), sampled on a lattice of
+    `samples` x `samples` nodes; exactly (0, 0) over a level surface."""
+    x0, x1, y0, y1 = box
+    x, y = np.meshgrid(np.linspace(x0, x1, samples), np.linspace(y0, y1, samples))
+    z = np.asarray(height(x.ravel(), y.ravel()), dtype=float)
+    if np.all(z == z[0]):
+        return 0.0, 0.0
+    x, y = x.ravel() - x.mean(), y.ravel() - y.mean()
+    fit, *_ = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), z, rcond=None)
+    return float(fit[0]), float(fit[1])
+
+
+def align_to(model, data, base, bodies, height):
+    """Turn the free root of body `base` about its origin, at rest, by the smallest rotation
+    that takes world z to the normal of the surface's least-squares plane under the geoms of
+    `bodies` (ids; `surface_gradient` over the box that holds their bounding boxes), so that
+    a robot set down on a slope stands on it as it would on level sand. `height(x, y)`: the
+    surface height (m, world). Returns the angle turned (rad; 0 where the surface under the
+    bodies is level, and the pose is then untouched). Raises ValueError without a free
+    root."""
+    joint = free_root_joint(model, base)
+    if joint is None:
+        raise ValueError('spawn needs a floating base (a free joint on the root body)')
+    mujoco.mj_kinematics(model, data)
+    boxes = np.array([geom_footprint(model, data, geom)
+                      for body in bodies for geom in body_geoms(model, body)])
+    box = (boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max())
+    gx, gy = surface_gradient(height, box)
+    if gx == 0.0 and gy == 0.0:
+        return 0.0
+    axis = np.array([gy, -gx, 0.0])  # z x n for n ~ (-gx, -gy, 1)
+    angle = float(np.arctan(np.hypot(gx, gy)))
+    turn, orientation = np.empty(4), np.empty(4)
+    mujoco.mju_axisAngle2Quat(turn, axis / np.linalg.norm(axis), angle)
+    adr = model.jnt_qposadr[joint] + 3
+    mujoco.mju_mulQuat(orientation, turn, data.qpos[adr:adr + 4])
+    data.qpos[adr:adr + 4] = orientation / np.linalg.norm(orientation)
+    data.qvel[model.jnt_dofadr[joint]:model.jnt_dofadr[joint] + 6] = 0.0
+    mujoco.mj_kinematics(model, data)
+    return angle
 
 
 def lift_to(model, data, base, bodies, clearance, ground):

@@ -349,7 +349,9 @@ KEYS = (
         'positions of the initial pose, applied after the keyframe.', _mapping_of(_finite)),
     Key('robot.spawn', "'model', 'rest' or 'drop:HEIGHT'", 'm', 'model', 'Where the robot '
         'starts: as the model/scenario puts it; rest = lowered onto the sand and settled '
-        'before the run; drop:H = lowest sand-body point H m above the sand, released.',
+        'before the run; drop:H = lowest sand-body point H m above the sand, released. Rest '
+        'and drop first turn the robot to the plane of a sloped surface under its sand '
+        'bodies.',
         _spawn),
     Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
         'each can be overridden with `--set NAME=VALUE`.', _mapping),

@@ -19,13 +19,18 @@ ENTRY_DEPTH = 0.01
 
 
 class SandEntryWatch:
-    """The collision geoms of moving bodies other than `sand_bodies` (ids) of `model`."""
+    """The collision geoms of moving bodies other than `sand_bodies` (ids) of `model`; with
+    `welded_to` (a body id), of that body and the bodies welded to it alone (e.g. the
+    robot's base and a URDF's links fixed to it: spawn rest's test of a fall)."""
 
-    def __init__(self, model, sand_bodies):
+    def __init__(self, model, sand_bodies, welded_to=None):
         plated = set(int(b) for b in sand_bodies)
+        weld = model.body_weldid
         self._geoms = np.array([g for g in range(model.ngeom)
-                                if model.body_weldid[model.geom_bodyid[g]] != 0
+                                if weld[model.geom_bodyid[g]] != 0
                                 and int(model.geom_bodyid[g]) not in plated
+                                and (welded_to is None
+                                     or weld[model.geom_bodyid[g]] == weld[welded_to])
                                 and is_collision_geom(model, g)], dtype=int)
         self._model = model
 

@@ -21,8 +21,8 @@ from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
 from ..robot.joints import (JointInterfaces, add_joint_interfaces, movable_joints,
                             position_servos)
-from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, initial_keyframe, lift_to,
-                          parse_spawn, set_initial_pose)
+from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, initial_keyframe,
+                          lift_to, parse_spawn, set_initial_pose)
 from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
                                  resolve_sand_bodies)
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
@@ -196,6 +196,7 @@ class Simulation:
         self._set_legs(scene)
         self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
         self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
+        self._fall_watch = SandEntryWatch(self.model, self.engine.body_ids, self._base_id)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
@@ -360,11 +361,17 @@ class Simulation:
         kind, height = self._spawn
         if kind != 'model':
             bodies = [self.model.body(b).id for b in self.sand_bodies]
-            try:  # onto (or above) the sand surface under its sand bodies
+            surface = self.engine.surface
+            try:  # turned to, and onto (or above), the sand surface under its sand bodies
+                turned = align_to(self.model, self.data, self._base_id, bodies, surface.height)
                 lift_to(self.model, self.data, self._base_id, bodies, height or 0.0,
-                        self.engine.surface.highest)
+                        surface.highest)
             except ValueError as error:
                 raise self.scene.locator.error('robot.spawn', str(error)) from None
+            notice = (f'robot.spawn {kind}: turned {np.degrees(turned):.3g} deg to the sand '
+                      'surface under its sand bodies (the normal of its plane there)')
+            if turned and notice not in self.notices:  # (a reset spawns again)
+                self.notices.append(notice)
         mujoco.mj_forward(self.model, self.data)
         self.interfaces.set_mode('position')
         self.commands = None
@@ -376,17 +383,21 @@ class Simulation:
 
     def _settle(self):
         """Spawn 'rest': step, the joints holding their targets, until the base is at rest
-        (robot/pose.py), then start the clock at 0 from there. A robot still moving after
-        SETTLE_LIMIT_S (one that cannot stand without its controller) starts instead from
-        the state before, at rest on the sand, as spawn drop:0 would."""
+        (robot/pose.py), then start the clock at 0 from there. A robot that does not come to
+        rest on its sand bodies (still moving after SETTLE_LIMIT_S, as one that cannot stand
+        without its controller; or fallen: its base, carrying no plates, into the sand, which
+        does not hold it: `sand_entry`) starts instead from the state before, at rest on the
+        sand, as spawn drop:0 would."""
         if self.commands is not None:
             self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
         kind = mujoco.mjtState.mjSTATE_INTEGRATION
         lowered = np.empty(mujoco.mj_stateSize(self.model, kind))
         mujoco.mj_getState(self.model, self.data, lowered, kind)
         still, hold = 0, max(1, int(round(REST_HOLD_S / self.timestep)))
+        check = max(1, int(round(ENTRY_CHECK_S / self.timestep)))
+        failure = None
         before = self._engine_counts()
-        for _ in range(int(round(SETTLE_LIMIT_S / self.timestep))):
+        for step in range(1, int(round(SETTLE_LIMIT_S / self.timestep)) + 1):
             self.engine.step()
             self.settle_steps += 1
             velocity = self.data.qvel[self.model.body_dofadr[self._base_id]:][:3]
@@ -395,13 +406,22 @@ class Simulation:
                 raise SceneError(f'scene {self.scene.name}: spawn rest: the robot did not '
                                  'settle (diverged)')
             still = still + 1 if speed < REST_SPEED else 0
+            if still >= hold or step % check == 0:
+                fallen = self._fall_watch.deepest(self.data, self.engine.surface)
+                if fallen is not None:
+                    body, depth = fallen
+                    failure = (f'fell: its base ({body}) reached {depth * 100:.3g} cm into the '
+                               'sand, which does not hold it (it carries no plates)')
+                    break
             if still >= hold:
                 break
         else:
-            notice = (f'spawn rest: still moving after {SETTLE_LIMIT_S:g} s (base speed '
-                      f'{speed:.2g} m/s), as a robot that cannot stand without its controller '
-                      '(a humanoid) falls: it starts as spawn drop:0 starts it instead, at rest '
-                      'on the sand, the clock running at once')
+            failure = (f'still moving after {SETTLE_LIMIT_S:g} s (base speed {speed:.2g} '
+                       'm/s), as a robot that cannot stand without its controller (a humanoid) '
+                       'falls')
+        if failure is not None:
+            notice = (f'spawn rest: {failure}: it starts as spawn drop:0 starts it instead, at '
+                      'rest on the sand, the clock running at once')
             if notice not in self.notices:  # (a reset settles again)
                 self.notices.append(notice)
             mujoco.mj_setState(self.model, self.data, lowered, kind)
