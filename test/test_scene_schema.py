@@ -107,6 +107,20 @@ def test_a_colon_without_a_space_is_named_not_read_as_a_key(tmp_path):
         == [{'x': [0, 1], 'y': [0, 1], 'factor': 0.3}]
 
 
+def test_numbers_in_exponent_form_are_numbers_everywhere(tmp_path):
+    """YAML 1.1 (PyYAML) reads 1e-3 and 5e-2 as text; scene files, --set values and lists
+    in them read them as numbers, as YAML 1.2 and users do; text stays text."""
+    path = write(tmp_path, MINIMAL + 'timestep: 5e-4\nsand: {surface_height: -2E-2, '
+                 'zeta_map: {regions: [{x: [-1e0, 1], y: [0, 2e-1], factor: 5e-1}]}}\n')
+    scene = load_scene(path, dict([parse_assignment('duration=2e-1')]))
+    assert scene.timestep == 5e-4 and scene.surface_height == -0.02 and scene.duration == 0.2
+    assert scene.values['sand.zeta_map.regions'] == [{'x': [-1.0, 1], 'y': [0, 0.2],
+                                                       'factor': 0.5}]
+    assert parse_assignment('sand.surface.center=[1e-1,0]') == ('sand.surface.center', [0.1, 0])
+    assert parse_assignment('rft.bodies=[e5, 1e]') == ('rft.bodies', ['e5', '1e'])
+    assert parse_assignment('x=1_000')[1] == 1000 and parse_assignment('x=.5')[1] == 0.5
+
+
 def test_scenes_command_prints_effective_values_and_set_keys(capsys):
     assert cli.main(['scenes', 'plate_drop', '--set', 'timestep=0.002']) == 0
     out = capsys.readouterr().out

@@ -82,6 +82,8 @@ def test_the_contract_study_file_loads(tmp_path):
                     'repeats: 1\nmetrics: [forward_distance_m, mean_sinkage_m]\n')
     study = load_study(path)
     assert len(study.runs) == 4 and study.keys == ('zeta', 'payload')
+    path.write_text('scene: hexapod\nvary: {timestep: [5e-4, 1e-3]}\nmetrics: [steps]\n')
+    assert [run.overrides['timestep'] for run in load_study(path).runs] == [5e-4, 1e-3]
 
 
 def test_a_run_that_raises_or_times_out_is_recorded():

@@ -18,7 +18,7 @@ import yaml
 
 from .. import resources
 from ..robot.description import is_robot_file
-from .schema import BY_PATH, Locator, SceneError, check_scene, load_with_lines
+from .schema import BY_PATH, Locator, SceneError, check_scene, load_with_lines, load_yaml
 
 
 #: Plates per sand body of a bare robot file's scene.
@@ -140,19 +140,14 @@ def robot_scene(model_path):
 
 def parse_assignment(text):
     """'key=value' -> (key, value), the value read as YAML (numbers, lists, booleans; 1e6
-    counts as a number)."""
+    counts as a number, in lists too: `load_yaml`)."""
     key, sep, value = text.partition('=')
     if not sep or not key.strip():
         raise SceneError(f'--set expects key=value, got {text!r}')
     try:
-        parsed = yaml.safe_load(value)
+        parsed = load_yaml(value)
     except yaml.YAMLError:
         parsed = value
-    if isinstance(parsed, str):  # YAML 1.1 reads 1e6 as text; users mean a number
-        try:
-            parsed = float(parsed)
-        except ValueError:
-            pass
     _refuse_glued_keys(parsed, f'--set {key.strip()}')
     return key.strip(), parsed
 

@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from ..scenes.config import SceneError, anchor_paths, load_scene
+from ..scenes.schema import load_yaml
 from .cost import run_cost
 
 _KNOWN = {'scene', 'set', 'duration', 'vary', 'repeats', 'metrics', 'description'}
@@ -66,7 +67,7 @@ def load_study(path):
     """Read, validate and expand the study file at `path`. Raises StudyError."""
     path = Path(path)
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = load_yaml(path.read_text())
     except OSError as error:
         raise StudyError(f'cannot read study file {path}: {error.strerror}') from None
     except yaml.YAMLError as error:
