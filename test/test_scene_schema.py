@@ -73,6 +73,23 @@ def test_defaults_fill_a_minimal_scene(tmp_path):
     (('model: plate.xml\n', ''), None, 'model', 'missing (required)'),  # no line to name
     (('name: mini', 'name: mini\nsand:\n  surface_height: [1]'), 3, 'sand.surface_height',
      'finite number'),
+    # a key of another kind of surface or map than the scene's would have no effect
+    (('name: mini', 'name: mini\nsand:\n  surface:\n    angle_deg: 10'), 4,
+     'sand.surface.angle_deg', 'applies to sand.surface.type slope, and this scene has '
+     'sand.surface.type plane: drop the key or change that'),
+    (('name: mini', 'name: mini\nsand:\n  surface: {type: slope, size: [1, 1]}'), 3,
+     'sand.surface.size', 'applies to sand.surface.type grid, and this scene has '
+     'sand.surface.type slope'),
+    (('name: mini', 'name: mini\nsand:\n  zeta_map:\n    regions: [{x: [0, 1], y: [0, 1], '
+      'factor: 0.5}]\n    file: loose.npy'), 5, 'sand.zeta_map.file',
+     'applies to a map from sand.zeta_map.file, and this scene has a map of '
+     'sand.zeta_map.regions'),
+    (('name: mini', 'name: mini\nsand:\n  zeta_map: {file: loose.npy, cell: 0.02}'), 3,
+     'sand.zeta_map.cell', 'applies to a map of sand.zeta_map.regions, and this scene has a '
+     'map from sand.zeta_map.file'),
+    (('name: mini', 'name: mini\nsand:\n  zeta_map:\n    regions: [{x: [0, 1], y: [0, 1], '
+      'factor: 0.5, z: 3}]'), 4, 'sand.zeta_map.regions', 'region 0: unknown key z (a region '
+     'is {x: [low, high], y: [low, high], factor: f})'),
 ])
 def test_errors_name_file_line_and_key(tmp_path, edit, line, key, words):
     """Schema errors come from load_scene, those that need the model (body names, keyframes)

@@ -170,6 +170,12 @@ def _regions(value):
     if not isinstance(value, list) or not value or not all(isinstance(r, dict) for r in value):
         raise ValueError('must be a list of {x: [low, high], y: [low, high], factor: f}, '
                          f'got {value!r}')
+    for index, region in enumerate(value):
+        unknown = sorted(map(str, set(region) - {'x', 'y', 'factor'}))
+        if unknown:
+            raise ValueError(f'region {index}: unknown key{"s" * (len(unknown) > 1)} '
+                             f'{", ".join(unknown)} (a region is {{x: [low, high], y: [low, '
+                             'high], factor: f})')
     return value
 
 
@@ -185,13 +191,16 @@ def _optional_section(value):
 class Key:
     """One scene key: dotted `path`, `type` and `unit` as the reference shows them,
     `default` (REQUIRED: must be given; None: absent), `description`, and `check(value)`
-    that returns the value to use or raises ValueError with what is wrong."""
+    that returns the value to use or raises ValueError with what is wrong. `variants`: the
+    kinds of its section the key belongs to (`VARIANTS`; empty: every kind), e.g. a slope's
+    angle; given for another kind it is refused, not silently left without effect."""
     path: str
     type: str
     unit: str
     default: object
     description: str
     check: Callable
+    variants: tuple = ()
 
     @property
     def required(self):
@@ -231,47 +240,50 @@ KEYS = (
     Key('sand.surface.type', "'plane', 'slope', 'grid' or 'hfield'", '', 'plane',
         'Horizontal plane at sand.surface_height; inclined plane; height field from a file; '
         "the model's own <hfield> geom.", _choice('plane', 'slope', 'grid', 'hfield')),
-    Key('sand.surface.angle_deg', 'number in [0, 90)', 'deg', 0.0, 'Slope: inclination '
+    Key('sand.surface.angle_deg', 'number in [0, 89.9]', 'deg', 0.0, 'Slope: inclination '
         '(through (0, 0, sand.surface_height)).',
-        lambda v: _number(v, minimum=0.0, maximum=89.9)),
+        lambda v: _number(v, minimum=0.0, maximum=89.9), variants=('slope',)),
     Key('sand.surface.downhill_deg', 'number', 'deg', 0.0, 'Slope: heading of the downhill '
-        'direction, from +x towards +y.', _finite),
+        'direction, from +x towards +y.', _finite, variants=('slope',)),
     Key('sand.surface.file', 'text', '', None, 'Grid: a PNG (grey levels) or .npy (heights, '
-        'm, added to sand.surface_height), relative to the scene file.', _optional_text),
+        'm, added to sand.surface_height), relative to the scene file.', _optional_text,
+        variants=('grid',)),
     Key('sand.surface.size', '[x, y] > 0', 'm', None, "Grid: extent of the file's nodes.",
-        lambda v: _pair(v, positive=True)),
+        lambda v: _pair(v, positive=True), variants=('grid',)),
     Key('sand.surface.center', '[x, y]', 'm', [0.0, 0.0], "Grid: world (x, y) of the grid's "
-        'centre.', _pair),
+        'centre.', _pair, variants=('grid',)),
     Key('sand.surface.height_range', '[low, high]', 'm', None, 'Grid: heights that grey 0..1 '
-        'maps to (required for a PNG; rescales a .npy).', _low_high),
+        'maps to (required for a PNG; rescales a .npy).', _low_high, variants=('grid',)),
     Key('sand.surface.geom', 'text or id', '', None, "Hfield: the model's hfield geom, fixed "
         "to the world, by its name, its <hfield>'s, or its id (default: the only one; its "
-        'rigid collisions are switched off).', _geom_reference),
+        'rigid collisions are switched off).', _geom_reference, variants=('hfield',)),
     Key('sand.surface.beyond', "'edge' or 'plane'", '', 'edge', 'Grid, hfield: the sand '
         "beyond the field: its edge heights continued, or the plane at sand.surface_height "
         '(met over one cell outside the field: a patch of terrain in a flat bed).',
-        _choice('edge', 'plane')),
+        _choice('edge', 'plane'), variants=('grid', 'hfield')),
     Key('sand.zeta_map', 'mapping or null', '', None, 'Factors multiplying zeta by position '
         '(docs/terrain.md); null: zeta everywhere.', _optional_section),
     Key('sand.zeta_map.regions', 'list of {x, y, factor}', 'm', None, 'Rectangles {x: [low, '
-        'high], y: [low, high], factor: f}, later over earlier.', _regions),
-    Key('sand.zeta_map.cell', 'number > 0', 'm', 0.01, 'Raster of the regions.', _positive),
+        'high], y: [low, high], factor: f}, later over earlier.', _regions,
+        variants=('regions',)),
+    Key('sand.zeta_map.cell', 'number > 0', 'm', 0.01, 'Raster of the regions.', _positive,
+        variants=('regions',)),
     Key('sand.zeta_map.file', 'text', '', None, 'Instead of regions: a .npy of factors or a '
         'PNG (grey levels onto sand.zeta_map.range), relative to the scene file.',
-        _optional_text),
+        _optional_text, variants=('file',)),
     Key('sand.zeta_map.size', '[x, y] > 0', 'm', None, "File: extent of the map's cells.",
-        lambda v: _pair(v, positive=True)),
+        lambda v: _pair(v, positive=True), variants=('file',)),
     Key('sand.zeta_map.center', '[x, y]', 'm', [0.0, 0.0], "File: world (x, y) of the map's "
-        'centre.', _pair),
+        'centre.', _pair, variants=('file',)),
     Key('sand.zeta_map.range', '[low, high]', '', None, 'PNG file: factors that grey 0..1 '
-        'maps to.', _low_high),
+        'maps to.', _low_high, variants=('file',)),
     Key('sand.deformable', 'mapping', '', {}, 'Deformable sand: footprints, craters, piles, '
         'avalanches (docs/terrain.md).', _section),
     Key('sand.deformable.enabled', 'true or false', '', False, 'Whether the robot changes '
         'the surface.', _flag),
     Key('sand.deformable.cell', 'number > 0', 'm', 0.01, 'Side of the square cells of the '
         'deformable bed (about the plates\' size or larger).', _positive),
-    Key('sand.deformable.repose_deg', 'number in (0, 90)', 'deg', 30.0, 'Angle of repose: '
+    Key('sand.deformable.repose_deg', 'number in (0, 89.9]', 'deg', 30.0, 'Angle of repose: '
         'steeper slopes avalanche.', lambda v: _number(v, positive=True, maximum=89.9)),
     Key('sand.deformable.size', '[x, y] > 0', 'm', [2.0, 2.0], 'Extent of the deformable bed '
         '(outside it the surface stays as it is).', lambda v: _pair(v, positive=True)),
@@ -436,6 +448,17 @@ class Locator:
         return SceneError(f'{self.where(path)}: {message}')
 
 
+#: Sections whose keys belong to kinds (`Key.variants`): {section: (the kind a scene has,
+#: from its values and the dotted paths it gives; what a kind is called in a message)}.
+VARIANTS = {
+    'sand.surface': (lambda values, given: values['sand.surface.type'],
+                     lambda kind: f'sand.surface.type {kind}'),
+    'sand.zeta_map': (lambda values, given: 'regions' if 'sand.zeta_map.regions' in given
+                      else 'file', lambda kind: {'regions': 'a map of sand.zeta_map.regions',
+                                                 'file': 'a map from sand.zeta_map.file'}[kind]),
+}
+
+
 def check_scene(raw, locator):
     """Validate the scene mapping `raw` against the schema -> {dotted path: value} for every
     leaf key (defaults filled in; sections whose value is null have no leaves). Raises
@@ -444,7 +467,33 @@ def check_scene(raw, locator):
         raise SceneError(f'{locator.source}: a scene file must hold a mapping')
     values = {}
     _check_section(raw, '', locator, values)
+    _check_variants(set(_given(raw)), values, locator)
     return values
+
+
+def _given(content, prefix=''):
+    """The dotted paths of the schema keys the scene mapping `content` gives."""
+    for name, value in content.items():
+        path = f'{prefix}{name}'
+        yield path
+        if isinstance(value, dict) and BY_PATH[path].section:
+            yield from _given(value, path + '.')
+
+
+def _check_variants(given, values, locator):
+    """Refuse a given key of another kind than its section's in this scene (a slope's angle
+    on a plane, a file's size beside regions): it would have no effect."""
+    for path in sorted(given):
+        key = BY_PATH[path]
+        section = path.rpartition('.')[0]
+        if not key.variants:
+            continue
+        kind_of, name = VARIANTS[section]
+        kind = kind_of(values, given)
+        if kind not in key.variants:
+            wanted = ' or '.join(name(v) for v in key.variants)
+            raise locator.error(path, f'applies to {wanted}, and this scene has {name(kind)}: '
+                                'drop the key or change that')
 
 
 def _check_section(content, prefix, locator, values):
