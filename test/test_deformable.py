@@ -149,6 +149,25 @@ def test_deformable_keys_are_checked():
         load_scene('plate_drop', {'sand.deformable.cell': 0})
     with pytest.raises(ValueError, match='at least two cells'):
         DeformableSand(Plane(), size=(0.01, 1.0), cell=0.01)
+    # a bed far larger than any machine's memory is refused before anything is allocated
+    with pytest.raises(ValueError, match=r'a bed of 1000001 x 1000001 nodes \(0.01 m cells\) '
+                       r'needs about 8.38e\+04 GiB, more than half of this machine'):
+        DeformableSand(Plane(), size=(1e4, 1e4), cell=0.01)
+
+
+def test_start_up_says_where_the_bed_lies_and_what_it_rounded():
+    """The bed's extent and nodes; a size that is not whole cells rounded (2 m of 3 cm cells:
+    67 cells, 2.01 m); a base steeper than the angle of repose said."""
+    bed = DeformableSand(Plane(), size=(2.0, 1.2), cell=0.03, center=(0.5, 0.0))
+    assert bed.size == pytest.approx((2.01, 1.2)) and bed.grid.shape == (41, 68)
+    assert bed.notices == ('deformable bed: x -0.505 .. 1.505 m, y -0.6 .. 0.6 m, 68 x 41 nodes '
+                           '0.03 m apart; sand.deformable.size [2.0, 1.2] m rounded to whole '
+                           'cells',)
+    steep = DeformableSand(Slope(0.0, 35.0), size=(1.0, 1.0), cell=0.05, repose_deg=30.0)
+    assert steep.notices[-1] == ('deformable bed: its base surface is steeper (35 deg) than '
+                                 'the angle of repose (30 deg): it avalanches wherever the '
+                                 'robot disturbs it, and on from there')
+    assert len(DeformableSand(Slope(0.0, 25.0), size=(1.0, 1.0), cell=0.05).notices) == 1
 
 
 def test_a_deformable_run_saves_its_final_surface_and_reports_its_volume(tmp_path):
@@ -157,6 +176,13 @@ def test_a_deformable_run_saves_its_final_surface_and_reports_its_volume(tmp_pat
                         progress=False)
     surface = np.load(tmp_path / 'terrain.npy')
     assert surface.shape == (51, 51) and (tmp_path / 'terrain.png').is_file()
+    placed = summary['terrain_grid']  # where the saved nodes lie
+    bed = load_scene('plate_drop', BED).values
+    assert placed['nodes_xy'] == [51, 51]
+    np.testing.assert_allclose(np.array(placed['origin_m']) + 50 * np.array(placed['spacing_m']),
+                               -np.array(placed['origin_m']), atol=1e-12)  # centred
+    assert placed['spacing_m'][0] == pytest.approx(bed['sand.deformable.size'][0] / 50)
+    assert summary['scene_values']['sand.deformable.enabled'] is True
     metrics = summary['metrics']
     assert abs(metrics['sand_volume_change_m3']) < 1e-15
     assert metrics['max_footprint_depth_m'] >= 0.0

@@ -282,6 +282,30 @@ def test_slope_heights_and_normal():
         Slope(0.0, angle_deg=95.0)
 
 
+def test_a_surfaces_steepest_inclination():
+    """A slope's angle; a grid's steepest point of its bilinear surface, at a cell corner
+    (z = x y over a unit cell: gradient (1, 1) at (1, 1), 54.7 deg; a tilted plane sampled on
+    a grid: its own angle); a plane 0."""
+    assert Slope(0.0, 12.5, 40.0).steepest_deg() == 12.5 and Plane(0.3).steepest_deg() == 0.0
+    x, y = np.meshgrid(np.linspace(0, 1, 2), np.linspace(0, 1, 2))
+    assert HeightGrid(x * y, (1.0, 1.0)).steepest_deg() == pytest.approx(
+        np.degrees(np.arctan(np.sqrt(2))))
+    x, y = np.meshgrid(np.linspace(-1, 1, 21), np.linspace(-0.5, 0.5, 11))
+    assert HeightGrid(0.3 * x - 0.4 * y, (2.0, 1.0)).steepest_deg() == pytest.approx(
+        np.degrees(np.arctan(0.5)))
+
+
+@pytest.mark.parametrize('angle, said', [(15.0, False), (25.0, True)])
+def test_a_surface_steeper_than_the_slopes_checked_is_said_at_start_up(angle, said):
+    sim = Simulation(load_scene('plate_drop', {'sand.surface.type': 'slope',
+                                               'sand.surface.angle_deg': angle}))
+    notices = [n for n in sim.notices if 'beyond the slopes checked' in n]
+    assert bool(notices) == said
+    if said:
+        assert notices[0].startswith('the sand surface is 25 deg steep at its steepest: beyond '
+                                     'the slopes checked (up to 20 deg)')
+
+
 HFIELD = """
 <mujoco>
   <asset><hfield name="dunes" nrow="3" ncol="4" size="0.6 0.4 0.05 0.01"

@@ -39,12 +39,18 @@ The rule (volume conserving):
 Every transfer moves the same amount out of one node and into another, so the bed's volume
 is conserved up to floating-point rounding (sum of height changes x cell^2; tested to 1e-9
 of the displaced volume). `reset()` restores the pristine surface exactly (a copy)."""
+import os
+
 import numpy as np
 from numba import njit
 
 from ..kernel_cache import forget_stale
 from .surface import BLOCK, HeightGrid, block_maximum, block_minimum
 
+#: Bytes a bed holds per node (its heights, the pristine copy, marks and work space: 82
+#: measured, 90 at the peak of building it); a bed is refused where that exceeds half the
+#: machine's memory (`check_memory`).
+BED_BYTES_PER_NODE = 90
 #: Rings (Chebyshev distance, nodes) searched for the rim that takes displaced sand.
 DEPOSIT_REACH = 100
 #: Node visits of the avalanche per step at most (the rest carries over to the next step).
@@ -90,12 +96,14 @@ class DeformableSand(HeightGrid):
             raise ValueError(f'sand.deformable.size must be [x, y] m of at least two cells, '
                              f'got {list(size)}')
         nx, ny = int(round(size[0] / cell)) + 1, int(round(size[1] / cell)) + 1
+        check_memory(nx, ny, cell)
         span = ((nx - 1) * cell, (ny - 1) * cell)  # whole cells
         x = center[0] - span[0] / 2 + cell * np.arange(nx)
         y = center[1] - span[1] / 2 + cell * np.arange(ny)
         heights = base.height(*np.meshgrid(x, y))
         super().__init__(heights, span, center)
         self.base, self.cell, self.repose_deg = base, float(cell), float(repose_deg)
+        self.notices = self._notices(base, size, repose_deg)
         self.tan_repose = float(np.tan(np.radians(repose_deg)))
         self.rise = self.tan_repose * self.cell  # m between axis neighbours at repose
         self.pristine = self.grid.copy()
@@ -191,6 +199,21 @@ class DeformableSand(HeightGrid):
         there the surface stays as it is and they leave no footprint."""
         return int(self.state[OUTSIDE])
 
+    def _notices(self, base, asked, repose_deg):
+        """Where the bed lies (its centre defaults to under the robot), its size rounded to
+        whole cells, and a base surface that starts steeper than the angle of repose."""
+        (x0, y0), (sx, sy), (ny, nx) = self.origin, self.size, self.grid.shape
+        rounded = ('' if np.allclose(asked, self.size, rtol=0, atol=1e-9) else
+                   f'; sand.deformable.size {list(asked)} m rounded to whole cells')
+        said = [f'deformable bed: x {x0:.4g} .. {x0 + sx:.4g} m, y {y0:.4g} .. {y0 + sy:.4g} m, '
+                f'{nx} x {ny} nodes {self.cell:g} m apart{rounded}']
+        steepest = base.steepest_deg()
+        if steepest > repose_deg:
+            said.append(f'deformable bed: its base surface is steeper ({steepest:.3g} deg) than '
+                        f'the angle of repose ({repose_deg:g} deg): it avalanches wherever the '
+                        'robot disturbs it, and on from there')
+        return tuple(said)
+
     def metrics(self):
         """Summary metrics of a deformable run (SI)."""
         return {'sand_volume_change_m3': self.volume_change(),
@@ -198,6 +221,22 @@ class DeformableSand(HeightGrid):
                 'sand_displaced_m3': self.displaced_volume(),
                 'sand_piled_m3': self.piled_volume(),
                 'plates_in_sand_outside_bed': self.plates_outside}
+
+
+def check_memory(nx, ny, cell):
+    """Refuse (ValueError) a bed of nx x ny nodes that would take more than half of this
+    machine's memory (`BED_BYTES_PER_NODE`), before any of it is allocated."""
+    try:
+        memory = os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
+    except (AttributeError, ValueError, OSError):  # not a POSIX system: not checked
+        return
+    need = nx * ny * BED_BYTES_PER_NODE
+    if need > memory / 2:
+        raise ValueError(f'sand.deformable: a bed of {nx} x {ny} nodes ({cell:g} m cells) needs '
+                         f'about {need / 2**30:.3g} GiB, more than half of this machine\'s '
+                         f'{memory / 2**30:.3g} GiB: make sand.deformable.size smaller or '
+                         'sand.deformable.cell larger (the bed need only cover where the robot '
+                         'goes)')
 
 
 @njit(cache=True, inline='always')

@@ -130,6 +130,22 @@ def _blocks(grid, block, reduce):
     return out
 
 
+#: deg: the steepest slope the model was checked on (a plate comes to rest on 10 and 20 deg
+#: slopes without creeping, test/test_terrain.py); a steeper surface is said at start-up.
+CHECKED_SLOPE_DEG = 20.0
+
+
+def steepest_squared(grid, spacing):
+    """The largest squared gradient (dz/dx^2 + dz/dy^2) of the bilinear surface on the
+    heights `grid` [iy, ix] with node `spacing` (dx, dy) m: in each cell it is steepest at a
+    corner, where it is the two edges' slopes meeting there."""
+    dx = np.diff(grid, axis=1) / spacing[0]  # (ny, nx - 1): along the x edges
+    dy = np.diff(grid, axis=0) / spacing[1]  # (ny - 1, nx): along the y edges
+    corners = [dx[:-1] ** 2 + dy[:, :-1] ** 2, dx[1:] ** 2 + dy[:, :-1] ** 2,
+               dx[:-1] ** 2 + dy[:, 1:] ** 2, dx[1:] ** 2 + dy[:, 1:] ** 2]
+    return float(max(c.max() for c in corners))
+
+
 class Surface:
     """A sand surface. Subclasses define `height` and `data`; `notices`: what reading it
     decided for the user (one line each)."""
@@ -145,6 +161,11 @@ class Surface:
         y0 <= y <= y1 (m), or (a grid) an upper bound of it within that of the grid cells
         the rectangle touches."""
         raise NotImplementedError
+
+    def steepest_deg(self):
+        """The surface's steepest inclination (deg): a plane's 0, a slope's angle, a grid's
+        steepest cell (the gradient of the bilinear surface at the cell's corners)."""
+        return 0.0
 
     def normal(self, x, y, step=1e-4):
         """Unit upward normal of the surface at (x, y) ((..., 3)), from the height's central
@@ -200,6 +221,9 @@ class Slope(Surface):
     def highest(self, x0, x1, y0, y1):
         return float(np.max(self.height(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))))
 
+    def steepest_deg(self):
+        return float(self.angle_deg)
+
     @property
     def data(self):
         return SurfaceData(SLOPE, self.level, self.gradient, _NO_GRID, (0.0, 0.0), (1.0, 1.0),
@@ -227,6 +251,17 @@ class HeightGrid(Surface):
         self.origin = (self.center[0] - size[0] / 2, self.center[1] - size[1] / 2)
         self.block_max = block_maximum(self.grid)
         self.block_min = block_minimum(self.grid)
+
+    def steepest_deg(self):
+        return float(np.degrees(np.arctan(np.sqrt(steepest_squared(self.grid,
+                                                                   self.spacing)))))
+
+    def placement(self):
+        """Where the nodes lie, for a saved grid: heights[iy, ix] is the world z (m) at world
+        x, y = origin_m + (ix, iy) * spacing_m; nodes_xy: (columns, rows)."""
+        ny, nx = self.grid.shape
+        return {'origin_m': list(self.origin), 'spacing_m': list(self.spacing),
+                'nodes_xy': [nx, ny]}
 
     @classmethod
     def from_file(cls, path, size, center=(0.0, 0.0), height_range=None, base=0.0):

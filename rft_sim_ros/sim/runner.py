@@ -277,8 +277,11 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'metrics': finite(metrics),
         'generic_metrics': finite(generic.result(stable=stable)),
         'scene_config': scene.raw,
+        'scene_values': scene.values,
         'machine': machine_info(),
     }
+    if sim.engine.deformable:  # where terrain.npy's nodes lie
+        summary['terrain_grid'] = sim.engine.surface.placement()
     return summary, series, sim
 
 

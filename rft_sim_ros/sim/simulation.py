@@ -28,7 +28,8 @@ from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
-from ..sand.surface import SURFACE_KINDS, hfield_geom, hfield_label, surface_from_settings
+from ..sand.surface import (CHECKED_SLOPE_DEG, SURFACE_KINDS, hfield_geom, hfield_label,
+                            surface_from_settings)
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
@@ -167,6 +168,13 @@ class Simulation:
         # robot.description names the others)
         if scene.deformable.get('enabled'):
             surface = self._bed(surface, scene.deformable)
+            self.notices.extend(surface.notices)
+        if surface.steepest_deg() > CHECKED_SLOPE_DEG:
+            self.notices.append(
+                f'the sand surface is {surface.steepest_deg():.3g} deg steep at its steepest: '
+                f'beyond the slopes checked (up to {CHECKED_SLOPE_DEG:g} deg) and near dry '
+                "sand's angle of repose (about 30 deg), where real sand fails and flows; the "
+                'model knows nothing of that failure (docs/terrain.md, "Stated limit")')
         try:
             self.sand_bodies = tuple(resolve_sand_bodies(self.model, self.data, patterns,
                                                          self._base_id))
