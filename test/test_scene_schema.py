@@ -124,6 +124,15 @@ def test_a_colon_without_a_space_is_named_not_read_as_a_key(tmp_path):
         == [{'x': [0, 1], 'y': [0, 1], 'factor': 0.3}]
 
 
+def test_an_unknown_override_names_the_closest_setting(tmp_path):
+    with pytest.raises(SceneError, match=r"unknown setting 'sand.deformable.enabeld' \(did you "
+                       r'mean sand.deformable.enabled\?\): a setting is a scene key'):
+        load_scene(write(tmp_path, MINIMAL), {'sand.deformable.enabeld': True})
+    with pytest.raises(SceneError, match=r"'payloda' \(did you mean payload\?\): .* or one of "
+                       r"the scenario's values \(cycles, drop_height, "):
+        load_scene('hexapod', {'payloda': 1.0})
+
+
 def test_numbers_in_exponent_form_are_numbers_everywhere(tmp_path):
     """YAML 1.1 (PyYAML) reads 1e-3 and 5e-2 as text; scene files, --set values and lists
     in them read them as numbers, as YAML 1.2 and users do; text stays text."""

@@ -649,6 +649,15 @@ def test_scene_keys_select_the_surface_and_bad_ones_are_refused(tmp_path):
                                       'sand.surface.geom': 'plate_geom'})
     with pytest.raises(SceneError, match='not an hfield geom'):
         Simulation(scene)
+    with pytest.raises(SceneError, match=r"sand.surface.geom: must be a geom's name or its id "
+                                         r'\(an integer >= 0\), got -1'):
+        load_scene('plate_drop', {'sand.surface.type': 'hfield', 'sand.surface.geom': -1})
+    np.save(tmp_path / 'rgb.npy', np.zeros((5, 5, 3)))
+    scene = load_scene('plate_drop', {'sand.surface.type': 'grid', 'sand.surface.size': [1, 1],
+                                      'sand.surface.file': str(tmp_path / 'rgb.npy')})
+    with pytest.raises(SceneError, match=r'a height grid is a 2-D array of heights \[rows \(y\), '
+                                         r'columns \(x\)\], got 3 dimension\(s\), shape '):
+        Simulation(scene)
 
 
 def _drop(overrides, duration=1.5):
@@ -753,9 +762,13 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
                          'robot.package_paths': {'a': 'there', 'b': 'nowhere'}}, tmp_path) == {
         'model': 'plate_drop.xml', 'scenario': 'plate_drop',
         'robot.package_paths': {'a': str(there), 'b': 'nowhere'}}
-    with pytest.raises(SceneError, match=r"sand.surface.file: 'lowered.npy' not found \(a "
-                                         'relative file is read from the scene file'):
+    with pytest.raises(SceneError, match=r"sand.surface.file: 'lowered.npy' not found: no file "
+                       f'{config_dir() / "lowered.npy"} \\(a relative file is read from the '
+                       "scene file's folder; given with --set, in scene_overrides or in a "
+                       f'study, from the working directory, here {here}, or'):
         load_scene('plate_drop', {**grid, 'sand.surface.file': 'lowered.npy'})
+    with pytest.raises(SceneError, match=f"sand.surface.file: '{there}' is a folder, not a file"):
+        load_scene('plate_drop', {**grid, 'sand.surface.file': str(there)})
     scene = tmp_path / 'scene.yaml'  # in a scene file: from its folder, whatever the cwd
     scene.write_text((config_dir() / 'plate_drop.yaml').read_text().replace(
         '  surface_height: 0.0  # m', '  surface: {type: grid, file: there/lowered.npy, '

@@ -237,7 +237,10 @@ class HeightGrid(Surface):
 
     def __init__(self, heights, size, center=(0.0, 0.0)):
         grid = np.array(heights, dtype=float)
-        if grid.ndim != 2 or min(grid.shape) < 2:
+        if grid.ndim != 2:
+            raise ValueError('a height grid is a 2-D array of heights [rows (y), columns (x)], '
+                             f'got {grid.ndim} dimension(s), shape {grid.shape}')
+        if min(grid.shape) < 2:
             raise ValueError(f'a height grid needs at least 2 x 2 nodes, got shape {grid.shape}')
         if not np.all(np.isfinite(grid)):
             raise ValueError('a height grid must hold finite heights')

@@ -10,6 +10,7 @@ a key is either a name in `params` or a dotted path into the file (e.g. `rft.pla
 Units: SI throughout except zeta, in N/cm^3 (the paper's unit).
 """
 import copy
+import difflib
 import functools
 from dataclasses import dataclass
 from pathlib import Path
@@ -236,16 +237,24 @@ def apply_overrides(raw, overrides):
             if known and not isinstance(node.get(part), dict):
                 node[part] = {}
             if not isinstance(node.get(part), dict):
-                raise SceneError(f'unknown setting {key!r}: scene values are '
-                                 f'{sorted(params)} or dotted keys of the scene file')
+                raise _unknown_setting(key, params)
             node = node[part]
         if parts[-1] not in node and not known:
-            raise SceneError(f'unknown setting {key!r}: scene values are {sorted(params)} '
-                             'or dotted keys of the scene file')
+            raise _unknown_setting(key, params)
         node[parts[-1]] = value
         if key in _ALTERNATIVES:
             node.pop(_ALTERNATIVES[key].split('.')[-1], None)
     return raw
+
+
+def _unknown_setting(key, params):
+    """The SceneError of an override `key` that is neither a scene key nor one of the
+    scenario's values `params`, with the closest of them."""
+    close = difflib.get_close_matches(key, [*BY_PATH, *params], n=1)
+    hint = f' (did you mean {close[0]}?)' if close else ''
+    values = f", or one of the scenario's values ({', '.join(sorted(params))})" if params else ''
+    return SceneError(f'unknown setting {key!r}{hint}: a setting is a scene key (listed in '
+                      f'docs/scene-reference.md and by `rft-sim scenes NAME`){values}')
 
 
 def _validate(raw, path, locator):
@@ -323,12 +332,15 @@ def _subsection(values, section, scene_path, locator):
         file = Path(settings['file']).expanduser()
         if not file.is_absolute():
             file = scene_path.parent / file
+        if file.is_dir():
+            raise locator.error(f'{section}.file', f'{str(file)!r} is a folder, not a file')
         if not file.is_file():
-            raise locator.error(f'{section}.file', f'{settings["file"]!r} not found (a '
-                                'relative file is read from the scene file\'s folder, '
-                                f'{scene_path.parent}, or, given with --set, in a study or in '
-                                'scene_overrides, from the working directory or the study '
-                                "file's folder)")
+            tried = ('' if Path(settings['file']).expanduser().is_absolute() else
+                     " (a relative file is read from the scene file's folder; given with "
+                     '--set, in scene_overrides or in a study, from the working directory, '
+                     f'here {Path.cwd()}, or the study file\'s folder, first)')
+            raise locator.error(f'{section}.file', f'{settings["file"]!r} not found: no file '
+                                f'{file}{tried}')
         settings['file'] = str(file)
     return settings
 

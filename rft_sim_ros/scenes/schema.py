@@ -69,7 +69,9 @@ def _geom_reference(value):
     """A geom's name, or its id (an integer, for a geom without a name), as text."""
     if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
         return str(value)
-    return _optional_text(value)
+    if value is not None and not (isinstance(value, str) and value.strip()):
+        raise ValueError(f"must be a geom's name or its id (an integer >= 0), got {value!r}")
+    return value
 
 
 def _names(value):
