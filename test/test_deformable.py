@@ -155,6 +155,16 @@ def test_deformable_keys_are_checked():
         DeformableSand(Plane(), size=(1e4, 1e4), cell=0.01)
 
 
+def test_cells_wider_than_a_sand_body_are_said_at_start_up():
+    """plate_drop's plate is 10 cm wide: 12 cm cells would make every footprint at least a
+    cell, said with the body's width; 1 cm cells are not."""
+    coarse = Simulation(load_scene('plate_drop', {**BED, 'sand.deformable.cell': 0.12}))
+    [said] = [n for n in coarse.notices if 'is wider than' in n]
+    assert said.startswith('sand.deformable.cell 0.12 m is wider than sand body plate (10 cm): ')
+    fine = Simulation(load_scene('plate_drop', BED))
+    assert not [n for n in fine.notices if 'is wider than' in n]
+
+
 def test_start_up_says_where_the_bed_lies_and_what_it_rounded():
     """The bed's extent and nodes; a size that is not whole cells rounded (2 m of 3 cm cells:
     67 cells, 2.01 m); a base steeper than the angle of repose said."""

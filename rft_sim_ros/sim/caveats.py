@@ -1,7 +1,9 @@
 """What start-up tells the user the sand will not do for their model, each as one notice
 with the key that changes it: bear the robot on sand bodies too small for its weight
 (robot/bearing.py), hold free bodies that have no sand body (another robot, a loose crate),
-run MuJoCo's noslip iterations on the constraints the sand solve takes."""
+run MuJoCo's noslip iterations on the constraints the sand solve takes, resolve footprints
+finer than the deformable bed's cells."""
+import numpy as np
 
 from ..robot.bearing import bearing
 from ..robot.sand_bodies import free_root_joint, geom_lowest_z, unheld_free_trees
@@ -25,6 +27,8 @@ def caveats(model, data, engine, scene, base):
                            f'{shown}; they fall through its surface unless other rigid ground '
                            'holds them (name their bodies in rft.bodies; beside auto: '
                            f'[auto, {unheld[0]}])')
+    if engine.deformable:
+        notices += _coarse_bed_notice(engine)
     noslip = int(model.opt.noslip_iterations)
     if noslip and scene.low_velocity['method'] == 'implicit':
         notices.append(f"MuJoCo's noslip iterations ({noslip}) do not act on the constraints "
@@ -32,6 +36,28 @@ def caveats(model, data, engine, scene, base):
                        'docs/robots.md); rft.low_velocity.method ema or none leaves them to '
                        'MuJoCo')
     return notices
+
+
+def _coarse_bed_notice(engine):
+    """[notice] where the deformable bed's cells are wider than a sand body (its width: the
+    middle of its plates' three extents along the body axes, a shin's or a foot's
+    thickness, a sole's width): a footprint is whole cells, so such a body displaces the
+    sand of cells around it, far more than its own volume; else []."""
+    cell = engine.surface.cell
+    starts = engine.plate_start
+    narrow = []
+    for name, a, b in zip(engine.body_names, starts[:-1], starts[1:]):
+        local = engine.local_pos[a:b]
+        extent = float(np.median(local.max(axis=0) - local.min(axis=0)))
+        if extent < cell:
+            narrow.append(f'{name} ({extent * 100:.3g} cm)')
+    if not narrow:
+        return []
+    return [f'sand.deformable.cell {cell:g} m is wider than sand bod'
+            f'{"ies" if len(narrow) > 1 else "y"} {", ".join(narrow[:SHOWN_TREES])}'
+            f'{f" and {len(narrow) - SHOWN_TREES} more" if len(narrow) > SHOWN_TREES else ""}: '
+            'footprints are whole cells, so their craters and the sand displaced grow with the '
+            'cell, not with the body (sand.deformable.cell: a cell well below that width)']
 
 
 def _bearing_notice(model, data, engine, zeta, base):
