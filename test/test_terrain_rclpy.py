@@ -46,7 +46,7 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
         Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=5.0)]))
     assert ros.spin_until(lambda: clouds and markers)
     first = clouds[0]
-    assert first.header.frame_id == topics.ODOM_FRAME and first.width == 51 * 51
+    assert first.header.frame_id == topics.ODOM_FRAME and (first.height, first.width) == (51, 51)
     assert np.all(points(first)[:, 2] == 0.0)           # the pristine bed at surface height 0
     assert markers[0].action == Marker.DELETE            # nothing deformed yet
     assert ros.spin_until(lambda: sim.runtime.sim.time > 0.4, timeout=20.0)
@@ -56,6 +56,7 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
     assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
     assert ros.spin_until(lambda: markers[-1].action == Marker.ADD, timeout=20.0)
     footprint = points(clouds[-1])
+    assert clouds[-1].height == 1                        # changes: an unorganized cloud
     assert 0 < len(footprint) < 51 * 51 and footprint[:, 2].min() < -1e-3  # a crater
     assert len(markers[-1].points) == len(markers[-1].colors) > 0
     answer = ros.call(reset_terrain, Trigger.Request())
@@ -78,15 +79,35 @@ def test_a_late_subscriber_gets_the_whole_grid(ros):
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
     ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 10)
     assert ros.spin_until(lambda: clouds and markers, timeout=20.0)
-    assert clouds[0].width == 51 * 51
+    assert (clouds[0].height, clouds[0].width) == (51, 51)
     assert markers[0].action == Marker.DELETE  # (the plate still in its footprint: pristine)
 
 
-def test_a_plane_publishes_no_terrain_and_reset_terrain_says_so(ros):
-    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
+def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_path):
+    """A rigid height grid never changes: its cloud is published whole at the start, as an
+    organized cloud (rows x columns, row-major), and again only when a subscriber of the
+    cloud joins, not one of the marker (the marker shows the whole deformation every time)."""
+    heights = np.add.outer(np.linspace(0.0, 0.02, 4), np.linspace(0.0, 0.01, 6))  # [iy, ix]
+    np.save(tmp_path / 'grid.npy', heights)
+    clouds, late = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
-        Parameter('scene', value=SERVO_RIG)]))
-    assert ros.spin_until(lambda: ros.probe.clocks)
-    assert sim.count_publishers(topics.TERRAIN) == 0
-    answer = ros.call(reset_terrain, Trigger.Request())
-    assert answer.success and 'not deformable' in answer.message
+        Parameter('scene', value='plate_drop'), Parameter('real_time_factor', value=1.0),
+        Parameter('terrain_rate', value=10.0), Parameter('scene_overrides', value=[
+            'sand.surface.type=grid', f'sand.surface.file={tmp_path / "grid.npy"}',
+            'sand.surface.size=[0.5, 0.3]'])]))
+    assert ros.spin_until(lambda: clouds)
+    whole = clouds[0]
+    assert (whole.height, whole.width, whole.row_step) == (4, 6, 6 * 12)
+    grid = points(whole).reshape(4, 6, 3)
+    np.testing.assert_allclose(grid[:, :, 2], heights, atol=1e-7)
+    np.testing.assert_allclose(grid[2, 5, :2], [0.25, 0.05], atol=1e-6)  # x along a row
+    ros.spin_for(1.0)
+    count = len(clouds)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, lambda m: None, 10)
+    assert ros.spin_until(lambda: sim.count_subscribers(topics.TERRAIN_MARKER) == 1)
+    ros.spin_for(1.0)  # ten publication times at 10 Hz
+    assert len(clouds) == count
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, late.append, 10)
+    assert ros.spin_until(lambda: late)
+    assert (late[0].height, late[0].width) == (4, 6)

@@ -40,8 +40,6 @@ NODE_NAME = 'rft_sim'
 DESCRIPTION_FOLDER = Path(tempfile.gettempdir()) / 'rft_sim_ros' / 'robot_description'
 QUEUE_DEPTH = 10
 TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
-#: Topics whose new subscribers make the terrain feed send the whole grid again.
-TERRAIN_TOPICS = (topics.TERRAIN, topics.TERRAIN_MARKER)
 
 #: Numeric parameters accept integers too (`ros2 param set /rft_sim zeta 2`); their values
 #: are checked by `parameters`, not by rclpy's static typing.
@@ -115,14 +113,15 @@ class SimNode(Node):
         self._plates = self._declare(parameters.PLATES, False)
         terrain = TerrainFeed(sim.engine.surface,
                               self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE))
-        # a subscriber joining the terrain topics gets the whole grid at the next publication
+        # a subscriber joining the cloud gets the whole grid at the next publication (the
+        # marker shows the whole deformation every time)
         joined = PublisherEventCallbacks(
             matched=lambda info: terrain.resend() if info.current_count_change > 0 else None)
         self._topic_publishers = {
             topic: self.create_publisher(
                 self._factory.message_class(msgtype), topics.relative(topic),
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
-                event_callbacks=joined if topic in TERRAIN_TOPICS else None)
+                event_callbacks=joined if topic == topics.TERRAIN else None)
             for topic, msgtype in topics.published_topics(
                 list(sim.legs), plates=self._plates, terrain=terrain.active).items()}
         logger = self.get_logger()
