@@ -59,9 +59,9 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
     assert clouds[-1].height == 1                        # changes: an unorganized cloud
     assert 0 < len(footprint) < 51 * 51 and footprint[:, 2].min() < -1e-3  # a crater
     assert len(markers[-1].points) == len(markers[-1].colors) > 0
+    count = len(clouds)
     answer = ros.call(reset_terrain, Trigger.Request())
     assert answer.success and 'reset' in answer.message
-    count = len(clouds)
     assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE, timeout=20.0)
     restored = np.concatenate([points(c) for c in clouds[count:]])
     assert np.all(restored[:, 2] == 0.0)                 # the changed nodes back at 0
@@ -111,3 +111,39 @@ def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_p
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, late.append, 10)
     assert ros.spin_until(lambda: late)
     assert (late[0].height, late[0].width) == (4, 6)
+
+
+def test_a_terrain_reset_while_paused_is_published_at_once(ros):
+    """reset_terrain and reset while paused: the pristine surface is published at once, no
+    step needed, sim time standing still."""
+    clouds, markers = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 100)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
+    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
+        Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=1000.0),
+        Parameter('paused', value=True)]))  # each step publishes the changes
+    assert ros.spin_until(lambda: clouds and markers)
+    bed = sim.runtime.sim.engine.surface
+    for service in (reset_terrain, ros.probe.reset):
+        bed.grid[10, 10] -= 0.01                         # a footprint, away from the plate
+        assert ros.call(ros.probe.step, Trigger.Request()).success
+        assert ros.spin_until(lambda: markers[-1].action == Marker.ADD)
+        ticks, count = len(ros.probe.clocks), len(clouds)
+        assert ros.call(service, Trigger.Request()).success
+        assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE)
+        assert ros.spin_until(lambda: len(clouds) == count + 1)
+        restored = points(clouds[-1])
+        assert len(restored) >= 1 and np.all(restored[:, 2] == 0.0)  # back at the surface
+        assert len(ros.probe.clocks) == ticks            # no step: sim time stood still
+
+
+def test_a_plane_publishes_no_terrain_and_reset_terrain_says_so(ros):
+    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value=SERVO_RIG)]))
+    assert ros.spin_until(lambda: ros.probe.clocks)
+    assert sim.count_publishers(topics.TERRAIN) == 0
+    answer = ros.call(reset_terrain, Trigger.Request())
+    assert answer.success and 'not deformable' in answer.message

@@ -217,6 +217,27 @@ def test_runtime_publishes_terrain_with_the_state_and_resets_it():
     assert len(sink.terrain[-1].deformed) == 0  # the pristine surface was published
 
 
+@pytest.mark.parametrize('service', ['reset_terrain', 'reset'])
+def test_a_terrain_reset_is_published_at_once_while_paused(service):
+    """reset_terrain and reset publish the pristine surface at once, not when the simulation
+    resumes and the rate is due (RViz would show the old footprints meanwhile)."""
+    sim = Simulation(load_scene('plate_drop', BED))
+    sink = _Sink()
+    runtime = SimRuntime(sim, sink, publish_rate=100.0, paused=True,
+                         terrain=TerrainFeed(sim.engine.surface, rate=0.5))
+    bed = sim.engine.surface
+    bed.grid[10, 10] -= 0.01  # a footprint away from the plate
+    assert runtime.step().success
+    assert len(sink.terrain) == 1 and len(sink.terrain[0].deformed) == 1
+    assert getattr(runtime, service)().success
+    assert len(sink.terrain) == 2  # at once: paused, 0.01 s after a publication at 0.5 Hz
+    update = sink.terrain[-1]
+    assert update.time == sim.time and update.shape == (1, 1) and len(update.deformed) == 0
+    np.testing.assert_allclose(update.points, [node_xyz(bed, 10, 10)], atol=1e-6)
+    assert getattr(runtime, service)().success
+    assert len(sink.terrain) == 2  # nothing changed: nothing published
+
+
 def test_runtime_warns_once_when_plates_are_in_the_sand_outside_the_bed():
     small = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.06, 0.06]}
     warnings = []
