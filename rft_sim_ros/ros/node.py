@@ -41,10 +41,18 @@ DESCRIPTION_FOLDER = Path(tempfile.gettempdir()) / 'rft_sim_ros' / 'robot_descri
 QUEUE_DEPTH = 10
 TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
 
-#: Numeric parameters accept integers too (`ros2 param set /rft_sim zeta 2`); their values
-#: are checked by `parameters`, not by rclpy's static typing.
-_ANY_NUMBER = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE,
-               parameters.TERRAIN_RATE)
+#: Parameters of type double. They accept integers too (`ros2 param set /rft_sim zeta 2`,
+#: `-p zeta:=2`), taken as doubles (`_as_doubles`), so their type stays double.
+_DOUBLES = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE,
+            parameters.TERRAIN_RATE)
+
+
+def _as_doubles(changes):
+    """The rclpy Parameters `changes`, those of `_DOUBLES` with an integer value made
+    doubles of the same value (a pre-set parameters callback)."""
+    return [Parameter(change.name, Parameter.Type.DOUBLE, float(change.value))
+            if change.name in _DOUBLES and change.type_ == Parameter.Type.INTEGER else change
+            for change in changes]
 
 
 class SimNode(Node):
@@ -56,6 +64,10 @@ class SimNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.add_pre_set_parameters_callback(_as_doubles)
+        # rclpy declares a parameter from its start-up value without the pre-set callbacks
+        self._parameter_overrides.update(
+            (change.name, change) for change in _as_doubles(self._parameter_overrides.values()))
         self.runtime = None
         self._factory = RclpyFactory()
         self._robot = {name: self._declare(name, '') for name in (
@@ -192,8 +204,7 @@ class SimNode(Node):
         """Declare parameter `name` from its spec; returns its value (None if unset)."""
         spec = parameters.SPECS[name]
         descriptor = ParameterDescriptor(description=spec.description,
-                                         read_only=not spec.dynamic,
-                                         dynamic_typing=name in _ANY_NUMBER)
+                                         read_only=not spec.dynamic)
         return self.declare_parameter(name, default, descriptor).value
 
     # --- sink of SimRuntime -----------------------------------------------------------------
