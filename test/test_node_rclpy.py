@@ -359,6 +359,26 @@ def _wait_for_output(process, words, timeout=120.0):
     raise AssertionError(f'{words!r} not logged; output so far: {"".join(lines)}')
 
 
+@pytest.mark.parametrize('rule', ['sand_bodies:=*_foot',
+                                  'scene_overrides:=[sand.surface.size=[2,2]]'])
+def test_a_parameter_value_rcl_cannot_read_is_refused_in_one_line(rule):
+    """`-p` values are YAML to rcl: one that is not (a bare `*`, brackets in a list item)
+    stops the node at start-up with one fatal line naming the rule and how to quote it,
+    status 1, no traceback."""
+    process = _start_executable('rft_sim_ros.ros.node', '-p', rule)
+    try:
+        stdout, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    lines = (stdout + stderr).strip().splitlines()
+    assert process.returncode == 1, stderr
+    assert len(lines) == 1 and 'Traceback' not in stderr, stderr
+    assert '[FATAL]' in lines[0] and f"cannot start: the parameter rule '-p {rule}'" in lines[0]
+    assert '''-p "sand_bodies:='*_foot'"''' in lines[0]
+
+
 @pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
                          ids=['SIGINT', 'SIGTERM'])
 def test_nodes_exit_cleanly_on_a_signal_while_publishing(signal_number):

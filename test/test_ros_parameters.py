@@ -84,3 +84,28 @@ def test_a_trajectory_controller_is_a_ros_name(name, kept):
 def test_a_trajectory_controller_that_is_no_ros_name_is_refused(bad):
     with pytest.raises(ValueError, match='trajectory_controller must be a ROS name'):
         parameters.trajectory_controller(bad)
+
+
+#: rcl's errors (Jazzy) for ROS arguments it cannot read, as rclpy raises them.
+RULE_ERROR = ("Failed to parse ROS arguments: Couldn't parse parameter override rule: "
+              "'-p sand_bodies:=*_foot'. Error: Unknown YAML event, at "
+              "/opt/ros2_jazzy/src/rcl/rcl_yaml_param_parser/src/parse.c:965, at "
+              "/opt/ros2_jazzy/src/rcl/rcl/src/rcl/arguments.c:352")
+REMAP_ERROR = ("Failed to parse ROS arguments: Couldn't parse remap rule: '-r foo'. Error: "
+               "Expected lexeme type (19) not found, search ended at index 3, at "
+               "/opt/ros2_jazzy/src/rcl/rcl/src/rcl/lexer_lookahead.c:239, at "
+               "/opt/ros2_jazzy/src/rcl/rcl/src/rcl/arguments.c:380")
+
+
+def test_a_parameter_rule_that_is_no_yaml_is_named_with_how_to_quote_it():
+    problem = parameters.arguments_problem(RULE_ERROR)
+    assert "the parameter rule '-p sand_bodies:=*_foot' is not valid YAML" in problem
+    assert '''-p "sand_bodies:='*_foot'"''' in problem
+    assert '''-p "scene_overrides:=[sand.surface.type=grid, 'sand.surface.size=[2,2]']"''' in problem
+    assert '\n' not in problem and '.c:' not in problem
+
+
+def test_other_unreadable_arguments_keep_rcls_reason_without_its_sources():
+    assert parameters.arguments_problem(REMAP_ERROR) == (
+        "Failed to parse ROS arguments: Couldn't parse remap rule: '-r foo'. Error: Expected "
+        'lexeme type (19) not found, search ended at index 3')

@@ -128,6 +128,25 @@ def trajectory_controller(value):
     return value.lstrip('/')
 
 
+#: rcl's error for a parameter rule (`-p NAME:=VALUE`) whose value is not YAML.
+_RULE_ERROR = re.compile(r"Couldn't parse parameter override rule: '(?P<rule>.*?)'\. Error")
+#: The source locations rcl appends to its error messages.
+_RCL_SOURCE = re.compile(r', at /\S+:\d+')
+
+
+def arguments_problem(rcl_error):
+    """One line saying why the command line's ROS arguments cannot be read, from rcl's error
+    message `rcl_error`: for a parameter rule, the rule and how to quote a value (ROS 2 reads
+    -p values as YAML); for anything else, rcl's message without its source locations."""
+    match = _RULE_ERROR.search(rcl_error)
+    if match is None:
+        return _RCL_SOURCE.sub('', rcl_error)
+    return (f"the parameter rule '{match['rule']}' is not valid YAML (ROS 2 reads -p values "
+            "as YAML): quote such a value, -p \"sand_bodies:='*_foot'\", and a list item that "
+            "holds brackets, -p \"scene_overrides:=[sand.surface.type=grid, "
+            "'sand.surface.size=[2,2]']\"")
+
+
 def scene_overrides(assignments):
     """{key: value} from 'key=value' strings (values read as YAML; relative files from the
     working directory, `anchor_paths`); raises SceneError."""
