@@ -308,7 +308,9 @@ def test_divergence_pauses_and_reports_an_error(ros):
     ({'zeta': -1.0}, 'zeta must be > 0'),
     ({'joint_names': ['hip']}, 'joint_names'),
     ({'publish_rate': 0.0}, 'publish_rate'),
-    ({'scene_overrides': ['no_such_key=1']}, 'no_such_key')])
+    ({'scene_overrides': ['no_such_key=1']}, 'no_such_key'),
+    ({'scene_overrides': ['sand.deformable.cell=-1']},
+     'scene_overrides sand.deformable.cell: must be > 0')])
 def test_bad_start_parameters_are_refused_with_the_reason(ros, parameters, words):
     with pytest.raises((SceneError, ValueError), match=words):
         start_sim(ros, **parameters)

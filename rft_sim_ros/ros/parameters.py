@@ -153,5 +153,5 @@ def scene_overrides(assignments):
     if isinstance(assignments, str):
         raise SceneError(f"scene_overrides must be a list of 'key=value' strings, "
                          f'got the string {assignments!r}')
-    overrides = dict(parse_assignment(str(text)) for text in assignments or ())
+    overrides = dict(parse_assignment(str(text), SCENE_OVERRIDES) for text in assignments or ())
     return anchor_paths(overrides, Path.cwd())  # files it names: from the working directory
