@@ -62,7 +62,8 @@ PARAMETERS = (
     ParameterSpec(PAUSED, 'stop stepping (sim time and /clock stand still)', True),
     ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
     ParameterSpec(TERRAIN_RATE, 'sand surface publications (/rft/terrain, /rft/terrain/marker) '
-                                'per second of sim time at most; only when it changed', False),
+                                'per second of sim time, on average; only when it changed',
+                  False),
     ParameterSpec(TRAJECTORY_CONTROLLER, 'name of the joint_trajectory_controller served: '
                                          'topic /NAME/joint_trajectory, action '
                                          '/NAME/follow_joint_trajectory', False),

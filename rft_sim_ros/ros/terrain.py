@@ -6,9 +6,9 @@ height grid, an MJCF hfield, deformable sand); a plane or a slope is the same an
 all run long and publishes nothing, at no cost. The first call publishes every node of the
 grid; later calls publish the nodes whose height changed since the last publication
 (footprints, piles, a terrain reset) and nothing when none did, at `rate` per second of sim
-time at most and on average: publications fall on a fixed grid of sim time, one `rate`
-period apart, taken at the first call at or after each grid time (so a run of publish cycles
-that are not a whole fraction of the period keeps the mean rate). `resend()` (the node calls
+time on average: publications fall on a fixed grid of sim time, one `rate` period apart,
+each at the first call at or after its grid time, at most one per grid time (so publish
+cycles that do not divide the period keep the mean rate). `resend()` (the node calls
 it when a subscriber of the cloud joins) makes the next publication carry every node again, so
 that a late subscriber gets the whole surface. Heights in m, world z; x, y in m in the odom
 frame (the MuJoCo world frame).
