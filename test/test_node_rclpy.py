@@ -21,7 +21,8 @@ for _package in ('std_srvs.srv', 'trajectory_msgs.msg', 'sensor_msgs.msg', 'nav_
 
 from builtin_interfaces.msg import Duration, Time  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from rcl_interfaces.srv import SetParameters  # noqa: E402
+from rcl_interfaces.msg import ParameterType  # noqa: E402
+from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -173,10 +174,40 @@ def test_zeta_parameter_is_validated(ros):
     assert sim.runtime.sim.zeta == 0.5
     accepted = set_('zeta', 2)  # an integer is a number too
     assert accepted.successful and sim.runtime.sim.zeta == 2.0
-    assert sim.get_parameter('zeta').value == 2
+    assert sim.get_parameter('zeta').type_ == Parameter.Type.DOUBLE
+    assert not set_('zeta', -1).successful                   # refused as -1.0 would be
     assert not set_('scene', 'plate_drop').successful        # read-only
     assert not set_('real_time_factor', -1.0).successful
     assert set_('real_time_factor', 0.5).successful and sim.runtime.real_time_factor == 0.5
+
+
+DOUBLES = ['zeta', 'real_time_factor', 'publish_rate', 'terrain_rate']
+
+
+def test_number_parameters_stay_doubles_when_given_integers(ros):
+    """An integer for a double parameter, at start-up (`-p zeta:=2`, a launch file's value) or
+    set later (`ros2 param set /rft_sim zeta 3`), is taken as a double: `ros2 param describe`
+    says double and a client reading double_value gets the value."""
+    sim = ros.add(SimNode(context=ros.context, cli_args=[
+        '--ros-args', '-p', 'zeta:=2', '-p', 'publish_rate:=50', '-p', 'terrain_rate:=1'],
+        parameter_overrides=[Parameter('scene', value=SERVO_RIG),
+                             Parameter('real_time_factor', value=2)]))
+    describe = ros.probe.create_client(DescribeParameters, '/rft_sim/describe_parameters')
+    get = ros.probe.create_client(GetParameters, '/rft_sim/get_parameters')
+
+    def typed_values():
+        types = [d.type for d in ros.call(describe, DescribeParameters.Request(
+            names=DOUBLES)).descriptors]
+        values = ros.call(get, GetParameters.Request(names=DOUBLES)).values
+        return types, [(v.type, v.double_value) for v in values]
+
+    double = ParameterType.PARAMETER_DOUBLE
+    assert typed_values() == ([double] * 4, [(double, 2.0), (double, 2.0), (double, 50.0),
+                                             (double, 1.0)])
+    assert sim.runtime.publish_period == pytest.approx(0.02)
+    request = SetParameters.Request(parameters=[Parameter('zeta', value=3).to_parameter_msg()])
+    assert ros.call(ros.probe.set_parameters, request).results[0].successful
+    assert typed_values()[1][0] == (double, 3.0) and sim.runtime.sim.zeta == 3.0
 
 
 def test_a_trajectory_moves_a_joint_and_a_malformed_one_is_rejected(ros):
@@ -277,7 +308,9 @@ def test_divergence_pauses_and_reports_an_error(ros):
     ({'zeta': -1.0}, 'zeta must be > 0'),
     ({'joint_names': ['hip']}, 'joint_names'),
     ({'publish_rate': 0.0}, 'publish_rate'),
-    ({'scene_overrides': ['no_such_key=1']}, 'no_such_key')])
+    ({'scene_overrides': ['no_such_key=1']}, 'no_such_key'),
+    ({'scene_overrides': ['sand.deformable.cell=-1']},
+     'scene_overrides sand.deformable.cell: must be > 0')])
 def test_bad_start_parameters_are_refused_with_the_reason(ros, parameters, words):
     with pytest.raises((SceneError, ValueError), match=words):
         start_sim(ros, **parameters)
@@ -326,6 +359,26 @@ def _wait_for_output(process, words, timeout=120.0):
             if words in line:
                 return lines
     raise AssertionError(f'{words!r} not logged; output so far: {"".join(lines)}')
+
+
+@pytest.mark.parametrize('rule', ['sand_bodies:=*_foot',
+                                  'scene_overrides:=[sand.surface.size=[2,2]]'])
+def test_a_parameter_value_rcl_cannot_read_is_refused_in_one_line(rule):
+    """`-p` values are YAML to rcl: one that is not (a bare `*`, brackets in a list item)
+    stops the node at start-up with one fatal line naming the rule and how to quote it,
+    status 1, no traceback."""
+    process = _start_executable('rft_sim_ros.ros.node', '-p', rule)
+    try:
+        stdout, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    lines = (stdout + stderr).strip().splitlines()
+    assert process.returncode == 1, stderr
+    assert len(lines) == 1 and 'Traceback' not in stderr, stderr
+    assert '[FATAL]' in lines[0] and f"cannot start: the parameter rule '-p {rule}'" in lines[0]
+    assert '''-p "sand_bodies:='*_foot'"''' in lines[0]
 
 
 @pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],

@@ -5,7 +5,8 @@ import pytest
 
 from rft_sim_ros.ros import parameters
 from rft_sim_ros.ros.parameters import parameter_problem
-from rft_sim_ros.scenes.config import SceneError
+from rft_sim_ros.ros.robot_source import load_node_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 
 
 @pytest.mark.parametrize('value, words', [
@@ -84,3 +85,44 @@ def test_a_trajectory_controller_is_a_ros_name(name, kept):
 def test_a_trajectory_controller_that_is_no_ros_name_is_refused(bad):
     with pytest.raises(ValueError, match='trajectory_controller must be a ROS name'):
         parameters.trajectory_controller(bad)
+
+
+#: rcl's errors (Jazzy) for ROS arguments it cannot read, as rclpy raises them.
+RULE_ERROR = ("Failed to parse ROS arguments: Couldn't parse parameter override rule: "
+              "'-p sand_bodies:=*_foot'. Error: Unknown YAML event, at "
+              "/opt/ros2_jazzy/src/rcl/rcl_yaml_param_parser/src/parse.c:965, at "
+              "/opt/ros2_jazzy/src/rcl/rcl/src/rcl/arguments.c:352")
+REMAP_ERROR = ("Failed to parse ROS arguments: Couldn't parse remap rule: '-r foo'. Error: "
+               "Expected lexeme type (19) not found, search ended at index 3, at "
+               "/opt/ros2_jazzy/src/rcl/rcl/src/rcl/lexer_lookahead.c:239, at "
+               "/opt/ros2_jazzy/src/rcl/rcl/src/rcl/arguments.c:380")
+
+
+def test_a_parameter_rule_that_is_no_yaml_is_named_with_how_to_quote_it():
+    problem = parameters.arguments_problem(RULE_ERROR)
+    assert "the parameter rule '-p sand_bodies:=*_foot' is not valid YAML" in problem
+    assert '''-p "sand_bodies:='*_foot'"''' in problem
+    quoted_item = '''-p "scene_overrides:=[sand.surface.type=grid, 'sand.surface.size=[2,2]']"'''
+    assert quoted_item in problem
+    assert '\n' not in problem and '.c:' not in problem
+
+
+def test_other_unreadable_arguments_keep_rcls_reason_without_its_sources():
+    assert parameters.arguments_problem(REMAP_ERROR) == (
+        "Failed to parse ROS arguments: Couldn't parse remap rule: '-r foo'. Error: Expected "
+        'lexeme type (19) not found, search ended at index 3')
+
+
+def test_scene_overrides_are_named_so_in_errors(tmp_path):
+    """A bad value or assignment in the node's scene_overrides is named `scene_overrides KEY`,
+    not with the CLI's `--set` (which keeps its own wording)."""
+    bad = parameters.scene_overrides(['sand.deformable.enabled=true', 'sand.deformable.cell=-1'])
+    with pytest.raises(SceneError, match=r'plate_drop.yaml: scene_overrides sand.deformable.cell: '
+                                         r'must be > 0, got -1'):
+        load_node_scene('plate_drop', '', '', '', bad, tmp_path)
+    with pytest.raises(SceneError, match="scene_overrides expects key=value, got 'gait'"):
+        parameters.scene_overrides(['gait'])
+    with pytest.raises(SceneError, match="scene_overrides params: 'factor:0.3' was read as a key"):
+        parameters.scene_overrides(['params={x: 1, factor:0.3}'])
+    with pytest.raises(SceneError, match='plate_drop.yaml: --set sand.deformable.cell: must be'):
+        load_scene('plate_drop', {'sand.deformable.cell': -1})

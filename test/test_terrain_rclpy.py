@@ -46,7 +46,7 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
         Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=5.0)]))
     assert ros.spin_until(lambda: clouds and markers)
     first = clouds[0]
-    assert first.header.frame_id == topics.ODOM_FRAME and first.width == 51 * 51
+    assert first.header.frame_id == topics.ODOM_FRAME and (first.height, first.width) == (51, 51)
     assert np.all(points(first)[:, 2] == 0.0)           # the pristine bed at surface height 0
     assert markers[0].action == Marker.DELETE            # nothing deformed yet
     assert ros.spin_until(lambda: sim.runtime.sim.time > 0.4, timeout=20.0)
@@ -56,11 +56,12 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
     assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
     assert ros.spin_until(lambda: markers[-1].action == Marker.ADD, timeout=20.0)
     footprint = points(clouds[-1])
+    assert clouds[-1].height == 1                        # changes: an unorganized cloud
     assert 0 < len(footprint) < 51 * 51 and footprint[:, 2].min() < -1e-3  # a crater
     assert len(markers[-1].points) == len(markers[-1].colors) > 0
+    count = len(clouds)
     answer = ros.call(reset_terrain, Trigger.Request())
     assert answer.success and 'reset' in answer.message
-    count = len(clouds)
     assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE, timeout=20.0)
     restored = np.concatenate([points(c) for c in clouds[count:]])
     assert np.all(restored[:, 2] == 0.0)                 # the changed nodes back at 0
@@ -78,8 +79,64 @@ def test_a_late_subscriber_gets_the_whole_grid(ros):
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
     ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 10)
     assert ros.spin_until(lambda: clouds and markers, timeout=20.0)
-    assert clouds[0].width == 51 * 51
+    assert (clouds[0].height, clouds[0].width) == (51, 51)
     assert markers[0].action == Marker.DELETE  # (the plate still in its footprint: pristine)
+
+
+def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_path):
+    """A rigid height grid never changes: its cloud is published whole at the start, as an
+    organized cloud (rows x columns, row-major), and again only when a subscriber of the
+    cloud joins, not one of the marker (the marker shows the whole deformation every time)."""
+    heights = np.add.outer(np.linspace(0.0, 0.02, 4), np.linspace(0.0, 0.01, 6))  # [iy, ix]
+    np.save(tmp_path / 'grid.npy', heights)
+    clouds, late = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value='plate_drop'), Parameter('real_time_factor', value=1.0),
+        Parameter('terrain_rate', value=10.0), Parameter('scene_overrides', value=[
+            'sand.surface.type=grid', f'sand.surface.file={tmp_path / "grid.npy"}',
+            'sand.surface.size=[0.5, 0.3]'])]))
+    assert ros.spin_until(lambda: clouds)
+    whole = clouds[0]
+    assert (whole.height, whole.width, whole.row_step) == (4, 6, 6 * 12)
+    grid = points(whole).reshape(4, 6, 3)
+    np.testing.assert_allclose(grid[:, :, 2], heights, atol=1e-7)
+    np.testing.assert_allclose(grid[2, 5, :2], [0.25, 0.05], atol=1e-6)  # x along a row
+    ros.spin_for(1.0)
+    count = len(clouds)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, lambda m: None, 10)
+    assert ros.spin_until(lambda: sim.count_subscribers(topics.TERRAIN_MARKER) == 1)
+    ros.spin_for(1.0)  # ten publication times at 10 Hz
+    assert len(clouds) == count
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, late.append, 10)
+    assert ros.spin_until(lambda: late)
+    assert (late[0].height, late[0].width) == (4, 6)
+
+
+def test_a_terrain_reset_while_paused_is_published_at_once(ros):
+    """reset_terrain and reset while paused: the pristine surface is published at once, no
+    step needed, sim time standing still."""
+    clouds, markers = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 100)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
+    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
+        Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=1000.0),
+        Parameter('paused', value=True)]))  # each step publishes the changes
+    assert ros.spin_until(lambda: clouds and markers)
+    bed = sim.runtime.sim.engine.surface
+    for service in (reset_terrain, ros.probe.reset):
+        bed.grid[10, 10] -= 0.01                         # a footprint, away from the plate
+        assert ros.call(ros.probe.step, Trigger.Request()).success
+        assert ros.spin_until(lambda: markers[-1].action == Marker.ADD)
+        ticks, count = len(ros.probe.clocks), len(clouds)
+        assert ros.call(service, Trigger.Request()).success
+        assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE)
+        assert ros.spin_until(lambda: len(clouds) == count + 1)
+        restored = points(clouds[-1])
+        assert len(restored) >= 1 and np.all(restored[:, 2] == 0.0)  # back at the surface
+        assert len(ros.probe.clocks) == ticks            # no step: sim time stood still
 
 
 def test_a_plane_publishes_no_terrain_and_reset_terrain_says_so(ros):

@@ -47,6 +47,7 @@ def test_a_static_grid_is_published_whole_once():
     feed = TerrainFeed(grid, rate=2.0)
     update = feed.update(0.0)
     assert update.points.dtype == np.float32 and update.points.shape == (12, 3)
+    assert update.shape == (3, 4)  # the whole grid: its rows and columns
     np.testing.assert_allclose(update.points[5], node_xyz(grid, 1, 1), atol=1e-6)
     np.testing.assert_allclose(update.points[:, 2], grid.grid.ravel(), atol=1e-7)
     assert len(update.deformed) == 0 and update.spacing == pytest.approx(0.1)
@@ -63,6 +64,7 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     update = feed.update(0.5)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 4), node_xyz(bed, 3, 5)],
                                atol=1e-6)
+    assert update.shape == (1, 2)  # changed nodes: one row
     np.testing.assert_allclose(update.change, [-0.01, 0.01])
     np.testing.assert_allclose(update.deformed, update.points)
     bed.grid[3, 5] -= 0.01
@@ -91,10 +93,39 @@ def test_resend_publishes_the_whole_grid_at_once_for_a_late_subscriber(deformabl
     surface.grid[2, 3] -= 0.01
     feed.resend()
     update = feed.update(0.2)  # within 0.5 s of the last publication: due anyway
-    assert len(update.points) == surface.grid.size
+    assert len(update.points) == surface.grid.size and update.shape == surface.grid.shape
     np.testing.assert_allclose(update.points[:, 2], surface.grid.ravel(), atol=1e-7)
     assert len(update.deformed) == (1 if deformable else 0)
     assert feed.update(0.8) is None  # nothing changed since
+
+
+@pytest.mark.parametrize('cycle', [0.03, 0.01, 0.07])
+def test_the_mean_rate_is_the_rate_asked_for(cycle):
+    """Publications on a fixed grid of sim time: with a surface that changes every publish
+    cycle (every `cycle` s), 2 Hz over 100 s of sim time is 200 publications, none closer
+    than a cycle, and no gap longer than a period and a cycle."""
+    bed = DeformableSand(Plane(0.0), size=(0.2, 0.2), cell=0.02)
+    feed = TerrainFeed(bed, rate=2.0)
+    times = []
+    for k in range(1, round(100.0 / cycle) + 1):
+        bed.grid[0, 0] += 1e-4
+        if feed.update(k * cycle) is not None:
+            times.append(k * cycle)
+    assert abs(len(times) - 200) <= 1
+    assert np.diff(times).max() < 0.5 + cycle + 1e-9
+
+
+def test_a_schedule_that_fell_behind_restarts_from_now():
+    """After the surface stood still, the first change is published at once and the next
+    a period later, not in a burst catching up the missed times."""
+    bed = DeformableSand(Plane(0.0), size=(0.2, 0.2), cell=0.02)
+    feed = TerrainFeed(bed, rate=2.0)
+    feed.update(0.0)
+    bed.grid[0, 0] += 0.01
+    assert feed.update(10.0) is not None
+    bed.grid[0, 0] += 0.01
+    assert feed.update(10.1) is None and feed.update(10.49) is None
+    assert feed.update(10.5) is not None
 
 
 def test_rate_is_checked():
@@ -103,9 +134,15 @@ def test_rate_is_checked():
 
 
 def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
-    bed = DeformableSand(Plane(0.1), size=(0.2, 0.2), cell=0.02)
+    bed = DeformableSand(Plane(0.1), size=(0.2, 0.3), cell=0.02)
     feed = TerrainFeed(bed)
-    feed.update(0.0)
+    whole = roundtrip(messages.terrain_cloud_message(FACTORY, feed.update(0.0)))
+    ny, nx = bed.grid.shape
+    assert (ny, nx) == (16, 11)
+    assert (whole.height, whole.width, whole.row_step) == (ny, nx, 12 * nx)  # organized
+    grid = cloud_points(whole).reshape(ny, nx, 3)  # row-major, [iy, ix]
+    np.testing.assert_allclose(grid[4, 7], node_xyz(bed, 4, 7), atol=1e-6)
+    np.testing.assert_allclose(grid[:, :, 2], bed.grid, atol=1e-7)
     bed.grid[2, 2] -= 0.03
     bed.grid[2, 3] += 0.005
     update = feed.update(1.25)
@@ -180,6 +217,27 @@ def test_runtime_publishes_terrain_with_the_state_and_resets_it():
     assert len(sink.terrain[-1].deformed) == 0  # the pristine surface was published
 
 
+@pytest.mark.parametrize('service', ['reset_terrain', 'reset'])
+def test_a_terrain_reset_is_published_at_once_while_paused(service):
+    """reset_terrain and reset publish the pristine surface at once, not when the simulation
+    resumes and the rate is due (RViz would show the old footprints meanwhile)."""
+    sim = Simulation(load_scene('plate_drop', BED))
+    sink = _Sink()
+    runtime = SimRuntime(sim, sink, publish_rate=100.0, paused=True,
+                         terrain=TerrainFeed(sim.engine.surface, rate=0.5))
+    bed = sim.engine.surface
+    bed.grid[10, 10] -= 0.01  # a footprint away from the plate
+    assert runtime.step().success
+    assert len(sink.terrain) == 1 and len(sink.terrain[0].deformed) == 1
+    assert getattr(runtime, service)().success
+    assert len(sink.terrain) == 2  # at once: paused, 0.01 s after a publication at 0.5 Hz
+    update = sink.terrain[-1]
+    assert update.time == sim.time and update.shape == (1, 1) and len(update.deformed) == 0
+    np.testing.assert_allclose(update.points, [node_xyz(bed, 10, 10)], atol=1e-6)
+    assert getattr(runtime, service)().success
+    assert len(sink.terrain) == 2  # nothing changed: nothing published
+
+
 def test_runtime_warns_once_when_plates_are_in_the_sand_outside_the_bed():
     small = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.06, 0.06]}
     warnings = []
@@ -216,9 +274,11 @@ def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
         points = cloud_points(cloud)
         i = np.rint((points[:, 0] - bed.origin[0]) / bed.spacing[0]).astype(int)
         j = np.rint((points[:, 1] - bed.origin[1]) / bed.spacing[1]).astype(int)
-        if heights is None:
-            assert len(points) == final.size
+        if heights is None:  # the whole grid, organized as the grid
+            assert len(points) == final.size and (cloud.height, cloud.width) == final.shape
             heights = np.full(final.shape, np.nan)
+        else:  # the changes
+            assert cloud.height == 1 and cloud.width == len(points)
         heights[j, i] = points[:, 2]
     assert not np.array_equal(final, bed.pristine)  # the plate left its mark
     np.testing.assert_allclose(heights, final.astype(np.float32), rtol=0, atol=1e-7)

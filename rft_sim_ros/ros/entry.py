@@ -11,23 +11,38 @@ error raised while the context is still valid is a real failure and propagates. 
 KeyboardInterrupt that lands where it cannot be raised (a callback of llvmlite's while numba
 compiles the kernels of a first start) is not printed but delivered again
 (`interrupts_never_lost`).
+
+Command-line ROS arguments that rcl cannot read (a `-p` value that is not YAML, such as
+`sand_bodies:=*_foot`) are refused in one fatal line that says why and how to quote
+(`parameters.arguments_problem`), with status 1.
 """
 import rclpy
+import rclpy.logging
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation
+from rclpy.utilities import remove_ros_args
 
 from ..interrupts import interrupts_never_lost, release_quietly
+from .parameters import arguments_problem
 
 
 @interrupts_never_lost()
 def run_node(make_node, name, startup_errors=(), args=None):
     """Spin the node `make_node()` until Ctrl-C, SIGTERM or shutdown; returns the exit status.
 
-    An exception of `startup_errors` (or a ParameterException: a parameter of the wrong
-    type) raised while building the node is logged as fatal under `name`, without a
-    traceback, and gives status 1: it means a bad scene or parameter, which the message says.
-    A signal at any point (start-up included) gives status 0 (see module docstring).
+    ROS arguments rcl cannot read (`args`, default sys.argv), or an exception of
+    `startup_errors` (or a ParameterException: a parameter of the wrong type) raised while
+    building the node, are logged as fatal under `name`, without a traceback, and give
+    status 1: they mean a bad argument, scene or parameter, which the message says. A signal
+    at any point (start-up included) gives status 0 (see module docstring).
     """
+    logger = rclpy.logging.get_logger(name)
+    try:
+        remove_ros_args(args)  # rcl reads them as rclpy.init does, without logging an error
+    except rclpy_implementation.RCLError as error:
+        logger.fatal(f'cannot start: {arguments_problem(str(error))}')
+        return 1
     rclpy.init(args=args)
     try:
         try:
@@ -35,7 +50,7 @@ def run_node(make_node, name, startup_errors=(), args=None):
         except (ParameterException, *startup_errors) as error:
             if not rclpy.ok():  # a signal shut the context down while building
                 return 0
-            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            logger.fatal(f'cannot start: {error}')
             return 1
         try:
             rclpy.spin(node)

@@ -226,16 +226,20 @@ def plates_message(factory, state):
 
 
 def terrain_cloud_message(factory, update):
-    """sensor_msgs/PointCloud2 in odom of a `terrain.TerrainUpdate`: one row of
-    `update.points`, fields x, y, z (float32, m, little-endian, 12 bytes a point), dense."""
+    """sensor_msgs/PointCloud2 in odom of a `terrain.TerrainUpdate`: `update.points` as
+    `update.shape` rows and columns, fields x, y, z (float32, m, little-endian, 12 bytes a
+    point), dense. The whole grid is an organized cloud (height = the grid's rows ny > 1,
+    width = its columns nx, row iy holding the nodes of y = origin + iy * spacing), the
+    changed nodes an unorganized one (height 1), so `height > 1` tells the whole grid."""
     points = np.ascontiguousarray(update.points, dtype='<f4').reshape(-1, 3)
+    height, width = update.shape
     fields = [factory.make('sensor_msgs/msg/PointField', name=name, offset=4 * k,
                            datatype=POINT_FIELD_FLOAT32, count=1)
               for k, name in enumerate('xyz')]
     return factory.make('sensor_msgs/msg/PointCloud2',
                         header=header(factory, update.time, topics.ODOM_FRAME),
-                        height=1, width=len(points), fields=fields, is_bigendian=False,
-                        point_step=12, row_step=12 * len(points),
+                        height=height, width=width, fields=fields, is_bigendian=False,
+                        point_step=12, row_step=12 * width,
                         data=factory.uint8_sequence(np.frombuffer(points.tobytes(), np.uint8)),
                         is_dense=True)
 

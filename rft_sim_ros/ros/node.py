@@ -40,13 +40,19 @@ NODE_NAME = 'rft_sim'
 DESCRIPTION_FOLDER = Path(tempfile.gettempdir()) / 'rft_sim_ros' / 'robot_description'
 QUEUE_DEPTH = 10
 TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
-#: Topics whose new subscribers make the terrain feed send the whole grid again.
-TERRAIN_TOPICS = (topics.TERRAIN, topics.TERRAIN_MARKER)
 
-#: Numeric parameters accept integers too (`ros2 param set /rft_sim zeta 2`); their values
-#: are checked by `parameters`, not by rclpy's static typing.
-_ANY_NUMBER = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE,
-               parameters.TERRAIN_RATE)
+#: Parameters of type double. They accept integers too (`ros2 param set /rft_sim zeta 2`,
+#: `-p zeta:=2`), taken as doubles (`_as_doubles`), so their type stays double.
+_DOUBLES = (parameters.ZETA, parameters.REAL_TIME_FACTOR, parameters.PUBLISH_RATE,
+            parameters.TERRAIN_RATE)
+
+
+def _as_doubles(changes):
+    """The rclpy Parameters `changes`, those of `_DOUBLES` with an integer value made
+    doubles of the same value (a pre-set parameters callback)."""
+    return [Parameter(change.name, Parameter.Type.DOUBLE, float(change.value))
+            if change.name in _DOUBLES and change.type_ == Parameter.Type.INTEGER else change
+            for change in changes]
 
 
 class SimNode(Node):
@@ -58,6 +64,10 @@ class SimNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.add_pre_set_parameters_callback(_as_doubles)
+        # rclpy declares a parameter from its start-up value without the pre-set callbacks
+        self._parameter_overrides.update(
+            (change.name, change) for change in _as_doubles(self._parameter_overrides.values()))
         self.runtime = None
         self._factory = RclpyFactory()
         self._robot = {name: self._declare(name, '') for name in (
@@ -115,14 +125,15 @@ class SimNode(Node):
         self._plates = self._declare(parameters.PLATES, False)
         terrain = TerrainFeed(sim.engine.surface,
                               self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE))
-        # a subscriber joining the terrain topics gets the whole grid at the next publication
+        # a subscriber joining the cloud gets the whole grid at the next publication (the
+        # marker shows the whole deformation every time)
         joined = PublisherEventCallbacks(
             matched=lambda info: terrain.resend() if info.current_count_change > 0 else None)
         self._topic_publishers = {
             topic: self.create_publisher(
                 self._factory.message_class(msgtype), topics.relative(topic),
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
-                event_callbacks=joined if topic in TERRAIN_TOPICS else None)
+                event_callbacks=joined if topic == topics.TERRAIN else None)
             for topic, msgtype in topics.published_topics(
                 list(sim.legs), plates=self._plates, terrain=terrain.active).items()}
         logger = self.get_logger()
@@ -193,8 +204,7 @@ class SimNode(Node):
         """Declare parameter `name` from its spec; returns its value (None if unset)."""
         spec = parameters.SPECS[name]
         descriptor = ParameterDescriptor(description=spec.description,
-                                         read_only=not spec.dynamic,
-                                         dynamic_typing=name in _ANY_NUMBER)
+                                         read_only=not spec.dynamic)
         return self.declare_parameter(name, default, descriptor).value
 
     # --- sink of SimRuntime -----------------------------------------------------------------

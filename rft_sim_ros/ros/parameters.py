@@ -62,7 +62,8 @@ PARAMETERS = (
     ParameterSpec(PAUSED, 'stop stepping (sim time and /clock stand still)', True),
     ParameterSpec(PLATES, 'publish the active plates as markers on /rft/plates', False),
     ParameterSpec(TERRAIN_RATE, 'sand surface publications (/rft/terrain, /rft/terrain/marker) '
-                                'per second of sim time at most; only when it changed', False),
+                                'per second of sim time, on average; only when it changed',
+                  False),
     ParameterSpec(TRAJECTORY_CONTROLLER, 'name of the joint_trajectory_controller served: '
                                          'topic /NAME/joint_trajectory, action '
                                          '/NAME/follow_joint_trajectory', False),
@@ -128,11 +129,30 @@ def trajectory_controller(value):
     return value.lstrip('/')
 
 
+#: rcl's error for a parameter rule (`-p NAME:=VALUE`) whose value is not YAML.
+_RULE_ERROR = re.compile(r"Couldn't parse parameter override rule: '(?P<rule>.*?)'\. Error")
+#: The source locations rcl appends to its error messages.
+_RCL_SOURCE = re.compile(r', at /\S+:\d+')
+
+
+def arguments_problem(rcl_error):
+    """One line saying why the command line's ROS arguments cannot be read, from rcl's error
+    message `rcl_error`: for a parameter rule, the rule and how to quote a value (ROS 2 reads
+    -p values as YAML); for anything else, rcl's message without its source locations."""
+    match = _RULE_ERROR.search(rcl_error)
+    if match is None:
+        return _RCL_SOURCE.sub('', rcl_error)
+    return (f"the parameter rule '{match['rule']}' is not valid YAML (ROS 2 reads -p values "
+            "as YAML): quote such a value, -p \"sand_bodies:='*_foot'\", and a list item that "
+            "holds brackets, -p \"scene_overrides:=[sand.surface.type=grid, "
+            "'sand.surface.size=[2,2]']\"")
+
+
 def scene_overrides(assignments):
     """{key: value} from 'key=value' strings (values read as YAML; relative files from the
     working directory, `anchor_paths`); raises SceneError."""
     if isinstance(assignments, str):
         raise SceneError(f"scene_overrides must be a list of 'key=value' strings, "
                          f'got the string {assignments!r}')
-    overrides = dict(parse_assignment(str(text)) for text in assignments or ())
+    overrides = dict(parse_assignment(str(text), SCENE_OVERRIDES) for text in assignments or ())
     return anchor_paths(overrides, Path.cwd())  # files it names: from the working directory

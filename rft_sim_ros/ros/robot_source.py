@@ -18,6 +18,7 @@ import hashlib
 from pathlib import Path
 
 from rft_sim_ros.robot.urdf import parse_xml
+from rft_sim_ros.ros.parameters import SCENE_OVERRIDES
 from rft_sim_ros.scenes.config import load_scene, robot_overrides
 
 #: Topic robot_state_publisher publishes the description on (latched: transient local).
@@ -45,12 +46,12 @@ def description_file(text, folder):
 
 def load_node_scene(scene, model, robot_description, sand_bodies, overrides, folder):
     """The SceneConfig the parameters ask for (see module docstring); `overrides` are the
-    node's scene_overrides, `folder` holds description files. Raises SceneError or
-    ValueError (urdf.UrdfError for a malformed string)."""
+    node's scene_overrides (errors name them so), `folder` holds description files. Raises
+    SceneError or ValueError (urdf.UrdfError for a malformed string)."""
     if model and robot_description:
         raise ValueError('set one of the parameters model and robot_description, not both')
     robot = str(description_file(robot_description, folder)) if robot_description else model
     overrides = {**overrides, **robot_overrides(sand_bodies or None)}
     if scene and robot:
-        return load_scene(scene, {**overrides, 'model': str(Path(robot).expanduser().resolve())})
-    return load_scene(scene or robot, overrides)
+        overrides = {**overrides, 'model': str(Path(robot).expanduser().resolve())}
+    return load_scene(scene or robot, overrides, SCENE_OVERRIDES)

@@ -26,7 +26,8 @@ rclpy node only forwards events to it:
   `ServiceResult`.
 
 With a `terrain.TerrainFeed`, each state publication is followed by the sand surface when it
-is due and changed (the sink's `write_terrain(TerrainUpdate)`).
+is due and changed (the sink's `write_terrain(TerrainUpdate)`); `reset()` and
+`reset_terrain()` publish the surface's change at once, paused or not.
 
 A diverging simulation (SimulationDiverged) is logged as an error, reported on /diagnostics
 (level ERROR) and pauses the runtime; nothing is published for the failed cycle, and it can
@@ -184,12 +185,16 @@ class SimRuntime:
     def _publish_state(self):
         self.last_state = self.sim.state(with_plates=self.plates)
         self._sink.write_state(self.last_state)
-        update = self._terrain.update(self.sim.time) if self._terrain is not None else None
-        if update is not None:
-            self._sink.write_terrain(update)
+        self._publish_terrain()
         for line in self.sim.run_warnings():
             self._warn_once(line)
         self._check_goal()
+
+    def _publish_terrain(self, due=False):
+        """Publish the sand surface if it changed and is due (`due`: whatever the rate)."""
+        update = self._terrain.update(self.sim.time, due) if self._terrain is not None else None
+        if update is not None:
+            self._sink.write_terrain(update)
 
     def _diagnostics(self, now):
         status = self.status()
@@ -393,19 +398,23 @@ class SimRuntime:
 
     def reset(self):
         """std_srvs/Trigger `reset`: back to the scene's initial state; sim time keeps
-        running forward; commands are dropped; paused stays as it is."""
+        running forward; commands are dropped; paused stays as it is. The sand surface, if
+        that changed, is published at once; the state with the next cycle."""
         self.sim.reset()
         self._end_goal(goals.aborted('the simulation was reset'))
         self.diverged = None
         self._pacer.restart(self._clock(), self.sim.time)
+        self._publish_terrain(due=True)
         return ServiceResult(True, f'reset at sim time {self.sim.time:.6f} s '
                                    f'({"paused" if self.paused else "running"})')
 
     def reset_terrain(self):
         """std_srvs/Trigger `reset_terrain`: deformable sand back to its pristine surface,
-        nothing else changes (sim time, robot, commands); published with the next state."""
+        nothing else changes (sim time, robot, commands); the change is published at once,
+        paused or not, stamped with the current sim time."""
         if not self.sim.engine.deformable:
             return ServiceResult(True, 'the sand of this scene is not deformable: nothing to '
                                        'reset')
         self.sim.reset_terrain()
+        self._publish_terrain(due=True)
         return ServiceResult(True, f'sand surface reset at sim time {self.sim.time:.6f} s')

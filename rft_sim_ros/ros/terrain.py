@@ -4,11 +4,14 @@ share it).
 `TerrainFeed` watches a simulation's sand surface. Only grid surfaces are published (a
 height grid, an MJCF hfield, deformable sand); a plane or a slope is the same analytic surface
 all run long and publishes nothing, at no cost. The first call publishes every node of the
-grid; later calls, at most `rate` per second of sim time, publish the nodes whose height
-changed since the last publication (footprints, piles, a terrain reset) and nothing when none
-did. `resend()` (the node calls it when a subscriber joins) makes the next publication carry
-every node again, so that a late subscriber gets the whole surface. Heights in m, world z;
-x, y in m in the odom frame (the MuJoCo world frame).
+grid; later calls publish the nodes whose height changed since the last publication
+(footprints, piles, a terrain reset) and nothing when none did, at `rate` per second of sim
+time on average: publications fall on a fixed grid of sim time, one `rate` period apart,
+each at the first call at or after its grid time, at most one per grid time (so publish
+cycles that do not divide the period keep the mean rate). `resend()` (the node calls
+it when a subscriber of the cloud joins) makes the next publication carry every node again, so
+that a late subscriber gets the whole surface. Heights in m, world z; x, y in m in the odom
+frame (the MuJoCo world frame).
 """
 import math
 from dataclasses import dataclass
@@ -26,12 +29,15 @@ DEFAULT_RATE = 2.0
 class TerrainUpdate:
     """One publication of the surface at sim time `time` (s).
 
-    points: (N, 3) float32 x, y, z (m, odom) of the nodes changed since the last publication
-    (every node the first time). deformed: (M, 3) float32 nodes whose height differs from
+    points: (N, 3) float32 x, y, z (m, odom) of the nodes changed since the last publication,
+    or of every node (the first time, and after `TerrainFeed.resend`) row-major in the grid's
+    [iy, ix] order. shape: (rows, columns) of `points`: the grid's (ny, nx) when it is every
+    node, (1, N) for the changed nodes. deformed: (M, 3) float32 nodes whose height differs from
     the pristine surface; change: (M,) their height change, m (negative: dug, positive:
     piled). spacing: the grid's node spacing, m (the smaller of x and y)."""
     time: float
     points: np.ndarray
+    shape: tuple
     deformed: np.ndarray
     change: np.ndarray
     spacing: float
@@ -74,13 +80,24 @@ class TerrainFeed:
             changed = grid != self._published
             if not changed.any():
                 return None
+        whole = self._published is None
         self._published = grid.copy()
-        self._next = time + self._period
+        self._schedule(time)
         if pristine is None:
             pristine = grid
         deformed = grid != pristine
-        return TerrainUpdate(float(time), self._points(changed), self._points(deformed),
-                             (grid - pristine)[deformed], float(min(self._surface.spacing)))
+        points = self._points(changed)
+        return TerrainUpdate(float(time), points, grid.shape if whole else (1, len(points)),
+                             self._points(deformed), (grid - pristine)[deformed],
+                             float(min(self._surface.spacing)))
+
+    def _schedule(self, time):
+        """The next publication's sim time after one at `time` (s): the next time of the
+        fixed grid of periods; restarted from `time` if the grid fell more than a period
+        behind (the surface stood still, or the publications come less often than the rate)."""
+        self._next += self._period
+        if self._next <= time:
+            self._next = time + self._period
 
     def _points(self, nodes):
         """(N, 3) float32 x, y, z of the grid nodes where `nodes` is True."""

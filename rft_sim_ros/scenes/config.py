@@ -92,17 +92,18 @@ def _is_scene_file(path):
     return isinstance(content, dict) and 'scenario' in content
 
 
-def load_scene(name_or_path, overrides=None):
+def load_scene(name_or_path, overrides=None, given_by='--set'):
     """Load a bundled scene by name, a scene YAML by path, or a robot file (MJCF, URDF,
     xacro: the scene `robot_scene` makes for it), apply `overrides` ({key: value}, see
-    module docstring) and validate it. Raises SceneError."""
+    module docstring) and validate it. Raises SceneError; given_by: how the overrides were
+    given, as errors name them (`Locator`)."""
     path = Path(name_or_path)
     overrides = overrides or {}
     if is_robot_file(path):
         if not path.is_file():
             raise SceneError(f'robot file {path} not found')
         raw = apply_overrides(robot_scene(path), overrides)
-        return _validate(raw, path, Locator(path, {}, overridden=overrides))
+        return _validate(raw, path, Locator(path, {}, overrides, given_by))
     if path.suffix in ('.yaml', '.yml') or len(path.parts) > 1:
         if not path.is_file():
             raise SceneError(f'scene file {path} not found')
@@ -121,7 +122,7 @@ def load_scene(name_or_path, overrides=None):
         raise SceneError(f'{path}: a scene file must hold a mapping')
     _refuse_glued_keys(raw, str(path))
     raw = apply_overrides(raw, overrides)
-    return _validate(raw, path, Locator(path, lines, overridden=overrides))
+    return _validate(raw, path, Locator(path, lines, overrides, given_by))
 
 
 def robot_scene(model_path):
@@ -139,17 +140,18 @@ def robot_scene(model_path):
             'robot': {'spawn': 'rest'}}
 
 
-def parse_assignment(text):
+def parse_assignment(text, given_by='--set'):
     """'key=value' -> (key, value), the value read as YAML (numbers, lists, booleans; 1e6
-    counts as a number, in lists too: `load_yaml`)."""
+    counts as a number, in lists too: `load_yaml`). given_by: how it was given, as errors
+    name it."""
     key, sep, value = text.partition('=')
     if not sep or not key.strip():
-        raise SceneError(f'--set expects key=value, got {text!r}')
+        raise SceneError(f'{given_by} expects key=value, got {text!r}')
     try:
         parsed = load_yaml(value)
     except yaml.YAMLError:
         parsed = value
-    _refuse_glued_keys(parsed, f'--set {key.strip()}')
+    _refuse_glued_keys(parsed, f'{given_by} {key.strip()}')
     return key.strip(), parsed
 
 

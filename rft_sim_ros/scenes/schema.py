@@ -430,15 +430,17 @@ def load_with_lines(text, source='<scene>'):
 
 
 class Locator:
-    """Where a scene value came from, for error messages: file and line, or an override."""
+    """Where a scene value came from, for error messages: file and line, or an override;
+    given_by: how the overrides were given ('--set', the ROS node's 'scene_overrides')."""
 
-    def __init__(self, source, lines=None, overridden=()):
+    def __init__(self, source, lines=None, overridden=(), given_by='--set'):
         self.source, self.lines, self.overridden = str(source), lines or {}, set(overridden)
+        self.given_by = given_by
 
     def where(self, path):
-        """'file:line: path' (or 'file: --set path' for an overridden value)."""
+        """'file:line: path' (or 'file: --set path' for an overridden value, as given_by)."""
         if path in self.overridden:
-            return f'{self.source}: --set {path}'
+            return f'{self.source}: {self.given_by} {path}'
         parts = path.split('.')
         for end in range(len(parts), 0, -1):  # the key's own line, else its section's
             line = self.lines.get('.'.join(parts[:end]))
