@@ -32,18 +32,25 @@ def ros():
     session.close()
 
 
-def points(cloud):
-    return np.frombuffer(bytes(cloud.data), dtype='<f4').reshape(-1, 3)
-
-
-def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(ros):
+def _bed_node(ros, *parameters):
+    """A node dropping a plate into a small deformable bed (with `parameters` besides), its
+    terrain topics watched: (node, clouds, markers, a reset_terrain client)."""
     clouds, markers = [], []
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 100)
     ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
     reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
         Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
-        Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=5.0)]))
+        Parameter('real_time_factor', value=1.0), *parameters]))
+    return sim, clouds, markers, reset_terrain
+
+
+def points(cloud):
+    return np.frombuffer(bytes(cloud.data), dtype='<f4').reshape(-1, 3)
+
+
+def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(ros):
+    sim, clouds, markers, reset_terrain = _bed_node(ros, Parameter('terrain_rate', value=5.0))
     assert ros.spin_until(lambda: clouds and markers)
     first = clouds[0]
     assert first.header.frame_id == topics.ODOM_FRAME and (first.height, first.width) == (51, 51)
@@ -116,14 +123,8 @@ def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_p
 def test_a_terrain_reset_while_paused_is_published_at_once(ros):
     """reset_terrain and reset while paused: the pristine surface is published at once, no
     step needed, sim time standing still."""
-    clouds, markers = [], []
-    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 100)
-    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
-    reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
-    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
-        Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
-        Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=1000.0),
-        Parameter('paused', value=True)]))  # each step publishes the changes
+    sim, clouds, markers, reset_terrain = _bed_node(  # each step publishes the changes
+        ros, Parameter('terrain_rate', value=1000.0), Parameter('paused', value=True))
     assert ros.spin_until(lambda: clouds and markers)
     bed = sim.runtime.sim.engine.surface
     for service in (reset_terrain, ros.probe.reset):
