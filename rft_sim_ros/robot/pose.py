@@ -7,13 +7,14 @@ initial values come this way too).
 Spawn (`robot.spawn`), for a robot whose root body has a free joint:
   model       the pose as the model (or scenario) gives it;
   drop:H      turned to the sand surface under its sand bodies where that is not level (a
-              slope: `align_to`), moved vertically so that its sand bodies' geoms are H m or more above the sand
-              surface under each (slopes, grids: the surface's highest point under each geom's
-              bounding box), and one exactly H, at rest, then released;
-  rest        that lowest clearance 0 (on the surface), released, and settled before the run
-              starts: stepped (joints holding their initial targets) until the base moves
-              slower than REST_SPEED for REST_HOLD_S of sim time (at most SETTLE_LIMIT_S); the
-              run's clock then starts at 0 from that state.
+              slope: `align_to`), then moved vertically so that its sand bodies' geoms are
+              H m or more above the sand surface under each (slopes, grids: the surface's
+              highest point under each geom's bounding box), and one exactly H, at rest,
+              then released;
+  rest        as drop:0 (turned, the lowest clearance 0: on the surface), released, and
+              settled before the run starts: stepped (joints holding their initial targets)
+              until the base moves slower than REST_SPEED for REST_HOLD_S of sim time (at
+              most SETTLE_LIMIT_S); the run's clock then starts at 0 from that state.
 """
 import mujoco
 import numpy as np
