@@ -369,6 +369,31 @@ def test_spawn_clears_the_surface_under_every_sand_body(surface, tmp_path):
         assert height - 1e-9 <= lowest < height + 0.03
 
 
+def test_spawn_turns_the_robot_to_the_plane_of_the_surface_under_its_sand_bodies():
+    """`align_to`: the smallest rotation taking world z to the normal of the least-squares
+    plane under the sand bodies: on a slope that is the slope's normal (a body upright before
+    stands along it after, turned about its origin); on a plane nothing is touched, bit for
+    bit."""
+    from rft_sim_ros.robot.pose import align_to, surface_gradient
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="base" pos="0.3 -0.2 0.5"><freejoint/>'
+        '<geom type="box" size="0.2 0.1 0.02"/><body name="foot" pos="0.15 0 -0.1">'
+        '<geom type="sphere" size="0.02"/></body></body></worldbody></mujoco>')
+    data = mujoco.MjData(model)
+    base, foot = model.body('base').id, model.body('foot').id
+    slope = Slope(0.05, angle_deg=14.0, downhill_deg=120.0)
+    assert surface_gradient(slope.height, (-1.0, 1.0, -0.5, 0.5)) == pytest.approx(
+        slope.gradient, abs=1e-12)
+    before = data.qpos.copy()
+    assert align_to(model, data, base, [base, foot], Plane(0.2).height) == 0.0
+    assert np.array_equal(data.qpos, before)
+    turned = align_to(model, data, base, [base, foot], slope.height)
+    assert np.degrees(turned) == pytest.approx(14.0)
+    up = data.xmat[base].reshape(3, 3)[:, 2]
+    np.testing.assert_allclose(up, slope.normal(0.0, 0.0), atol=1e-12)
+    np.testing.assert_array_equal(data.qpos[:3], before[:3])  # turned about its origin
+
+
 def test_mjcf_hfield_heights_match_mujocos_own_ray_casts():
     model = mujoco.MjModel.from_xml_string(HFIELD)
     data = mujoco.MjData(model)
