@@ -5,6 +5,7 @@ keeps the unit of the RFT literature, N/cm^3, at every interface (scene YAML, CL
 parameter, summary.json). It is converted to SI here and nowhere else.
 """
 import math
+import numbers
 
 #: 1 N/cm^3 expressed in N/m^3.
 N_PER_CM3_IN_SI = 1.0e6
@@ -23,12 +24,9 @@ def zeta_problem(zeta_n_per_cm3):
 
     zeta must be a finite real number with 0 < zeta <= ZETA_MAX_N_PER_CM3 (N/cm^3).
     """
-    if isinstance(zeta_n_per_cm3, bool):
+    if isinstance(zeta_n_per_cm3, bool) or not isinstance(zeta_n_per_cm3, numbers.Real):
         return f'zeta must be a number in N/cm^3, got {zeta_n_per_cm3!r}'
-    try:
-        value = float(zeta_n_per_cm3)
-    except (TypeError, ValueError):
-        return f'zeta must be a number in N/cm^3, got {zeta_n_per_cm3!r}'
+    value = float(zeta_n_per_cm3)
     if not math.isfinite(value):
         return f'zeta must be finite, got {value}'
     if value <= 0.0:

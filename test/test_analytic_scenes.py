@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rft_sim_ros.cli import main
-from rft_sim_ros.sim.runner import run_scene
+from rft_sim_ros.sim.runner import SettingChange, run_scene
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.scenes.scenarios.plate_drop import expected_impact_depth
 
@@ -44,6 +44,22 @@ def test_plate_drop_from_10_cm_stops_at_the_energy_balance_depth_and_rests():
     # the implicit treatment settles in about one solve per step, without anti-cycling
     assert 0.5 < summary['implicit_solves_per_step'] < 2.0
     assert summary['implicit_unsettled_steps'] == 0
+
+
+def test_expected_values_use_the_zeta_the_plate_met():
+    """A zeta map of factor 0.5 under the plate: the press's slope is 0.5 zeta A, as
+    expected; a drop whose zeta changes after the impact: the expected impact depth is the
+    one at the impact's zeta, the static depth the one at the end's."""
+    half = {'sand.zeta_map.regions': [{'x': [-1, 1], 'y': [-1, 1], 'factor': 0.5}]}
+    press = run_scene(load_scene('plate_press', {'speed': 0.05, **half}), duration=0.5,
+                      progress=False)['metrics']
+    assert press['expected_force_per_depth_N_per_m'] == pytest.approx(0.5 * 3.75e6 * 0.01)
+    assert abs(press['force_per_depth_error']) < 0.01
+    changed = run_scene(load_scene('plate_drop'), duration=1.0, progress=False,
+                        schedule=[(0.6, SettingChange('zeta', 1.0))])['metrics']
+    assert changed['expected_max_depth_m'] == pytest.approx(
+        expected_impact_depth(1.0, 0.01, 3.75, 0.1))
+    assert changed['static_depth_m'] == pytest.approx(1.0 * 9.81 / (1e6 * 0.01))
 
 
 def test_expected_impact_depth_solves_the_energy_balance():

@@ -29,6 +29,20 @@ def test_a_reset_between_control_ticks_replays_a_fresh_start(method):
     np.testing.assert_allclose(reset.data.qvel, fresh.data.qvel, rtol=0, atol=1e-7)
 
 
+@pytest.mark.parametrize('scene', ['plate_drop', 'plate_press'])
+def test_a_scenarios_metrics_after_a_reset_are_a_fresh_starts(scene):
+    """What a scenario records for its metrics starts afresh at a reset (a run at another
+    zeta before it leaves nothing behind)."""
+    fresh, reset = Simulation(load_scene(scene)), Simulation(load_scene(scene))
+    fresh.step(600)
+    reset.zeta = 1.0
+    reset.step(300)
+    reset.zeta = 3.75
+    reset.reset()
+    reset.step(600)
+    assert reset.scenario.metrics(reset) == fresh.scenario.metrics(fresh)
+
+
 STILT = """<mujoco><worldbody>
   <body name="trunk" pos="0 0 1"><freejoint/>
     <geom type="box" size="0.1 0.1 0.1" pos="0.05 0 0" mass="5"/>

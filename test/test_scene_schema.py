@@ -124,6 +124,14 @@ def test_a_colon_without_a_space_is_named_not_read_as_a_key(tmp_path):
         == [{'x': [0, 1], 'y': [0, 1], 'factor': 0.3}]
 
 
+def test_a_map_key_without_regions_or_file_is_not_called_the_other_kinds(tmp_path):
+    """With neither regions nor a file the map's kind is unknown: the key is not refused as
+    the other kind's; the missing map is said when the map is built."""
+    scene = load_scene(write(tmp_path, MINIMAL), {'sand.zeta_map.cell': 0.02})
+    with pytest.raises(SceneError, match='sand.zeta_map needs regions, or file and size'):
+        Simulation(scene)
+
+
 def test_an_unknown_override_names_the_closest_setting(tmp_path):
     with pytest.raises(SceneError, match=r"unknown setting 'sand.deformable.enabeld' \(did you "
                        r'mean sand.deformable.enabled\?\): a setting is a scene key'):

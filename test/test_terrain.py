@@ -646,6 +646,14 @@ def test_zeta_map_multiplies_zeta_where_the_plates_are():
     assert np.allclose(half.factor([-0.5, 0.25, 0.75, 2.0], 0.0), [1.0, 3.0, 0.5, 1.0])
     with pytest.raises(ValueError, match='regions'):
         zeta_map_from_settings({'regions': [{'x': [1, 0], 'y': [0, 1], 'factor': 2}]})
+    with pytest.raises(ValueError, match=r'regions\[0\]: factor must be finite and > 0, got nan'):
+        zeta_map_from_settings({'regions': [{'x': [0, 1], 'y': [0, 1], 'factor': np.nan}]})
+    engine = Simulation(load_scene('plate_drop', {'sand.zeta_map.regions': [
+        {'x': [-1, 1], 'y': [-1, 1], 'factor': 8.0}]})).engine
+    assert engine.zeta_at([0.0, 2.0], 0.0).tolist() == [30.0, 3.75]
+    from rft_sim_ros.sand.timestep import timestep_problem
+    assert "at zeta 3.75 N/cm^3 x the zeta map's largest factor 8;" in timestep_problem(
+        engine, 0.01, 3.75)
 
 
 def test_zeta_map_from_a_file(tmp_path):
@@ -653,6 +661,10 @@ def test_zeta_map_from_a_file(tmp_path):
     zmap = zeta_map_from_settings({'file': str(tmp_path / 'z.npy'), 'size': [2.0, 2.0]})
     assert np.allclose(zmap.factor([-0.5, 0.5, -0.5, 0.5], [-0.5, -0.5, 0.5, 0.5]),
                        [1, 2, 3, 4])
+    np.save(tmp_path / 'z3.npy', np.ones((2, 2, 2)))
+    with pytest.raises(ValueError, match=r'a zeta map is a 2-D array of factors \[rows \(y\), '
+                                         r'columns \(x\)\], got 3 dimension'):
+        zeta_map_from_settings({'file': str(tmp_path / 'z3.npy'), 'size': [2.0, 2.0]})
 
 
 def test_scene_keys_select_the_surface_and_bad_ones_are_refused(tmp_path):

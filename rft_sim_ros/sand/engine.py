@@ -427,6 +427,12 @@ class SandEngine:
         self._zeta = validated_zeta(value)
         self._settings[coupling.ZETA] = zeta_to_si(self._zeta)
 
+    def zeta_at(self, x, y):
+        """The zeta (N/cm^3) that plates meet at world (x, y) (m; arrays broadcast): `zeta`
+        times the zeta map's factor there (1 without a map, or outside it)."""
+        factor = 1.0 if self.zeta_map is None else self.zeta_map.factor(x, y)
+        return self._zeta * factor
+
     @property
     def surface_height(self):
         """z of the horizontal sand surface, m (world); a slope's at the world origin."""

@@ -29,11 +29,15 @@ RESOLVED_FRACTION = 1.0
 _AXES = np.vstack([np.eye(3), -np.eye(3)])
 
 
+def largest_factor(engine):
+    """The largest factor the engine's zeta map multiplies zeta by (1 without a map)."""
+    return 1.0 if engine.zeta_map is None else float(np.max(engine.zeta_map.factors))
+
+
 def sand_time_scales(engine, zeta):
     """{sand body name: tau = sqrt(m / (zeta A)) in s} at zeta (N/cm^3), see module
     docstring."""
-    factor = 1.0 if engine.zeta_map is None else float(np.max(engine.zeta_map.factors))
-    stiffness_per_area = zeta_to_si(zeta) * factor  # N/m^3
+    stiffness_per_area = zeta_to_si(zeta) * largest_factor(engine)  # N/m^3
     scales = {}
     for i, (name, body) in enumerate(zip(engine.body_names, engine.body_ids)):
         first, last = engine.plate_start[i], engine.plate_start[i + 1]
@@ -58,6 +62,8 @@ def timestep_problem(engine, timestep, zeta):
     bound, body = timestep_bound(engine, zeta)
     if timestep <= bound:
         return None
+    factor = largest_factor(engine)
+    scaled = f' x the zeta map\'s largest factor {factor:g}' if factor != 1.0 else ''
     return (f'timestep {timestep * 1e3:g} ms is longer than the {bound * 1e3:.3g} ms the sand '
-            f'coupling resolves (sqrt(m/k) of body {body!r} at zeta {zeta:g} N/cm^3; '
+            f'coupling resolves (sqrt(m/k) of body {body!r} at zeta {zeta:g} N/cm^3{scaled}; '
             'see rft_sim_ros/sand/timestep.py): results are not to be trusted')

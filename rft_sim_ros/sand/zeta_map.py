@@ -57,9 +57,12 @@ class ZetaMap:
             except (KeyError, TypeError, ValueError):
                 raise ValueError(f'sand.zeta_map.regions[{index}] must be {{x: [lo, hi], '
                                  f'y: [lo, hi], factor: f}}, got {region!r}') from None
-            if not (np.all(np.isfinite(box)) and box[1] > box[0] and box[3] > box[2]):
+            if not (np.all(np.isfinite(box[:4])) and box[1] > box[0] and box[3] > box[2]):
                 raise ValueError(f'sand.zeta_map.regions[{index}]: bounds must be finite with '
                                  f'lo < hi, got {region!r}')
+            if not (np.isfinite(box[4]) and box[4] > 0):
+                raise ValueError(f'sand.zeta_map.regions[{index}]: factor must be finite and > '
+                                 f'0, got {region["factor"]!r}')
             boxes.append(box)
         boxes = np.array(boxes)
         x_lo, y_lo = boxes[:, 0].min(), boxes[:, 2].min()
@@ -90,6 +93,10 @@ class ZetaMap:
             factors = low + (high - low) * grey_levels(path)
         else:
             raise ValueError(f'sand.zeta_map.file must be a .png or .npy, got {path.name!r}')
+        if factors.ndim != 2:
+            raise ValueError('sand.zeta_map.file: a zeta map is a 2-D array of factors [rows '
+                             f'(y), columns (x)], got {factors.ndim} dimension(s), shape '
+                             f'{factors.shape}')
         ny, nx = factors.shape
         cell_x, cell_y = float(size[0]) / nx, float(size[1]) / ny
         if not np.isclose(cell_x, cell_y, rtol=1e-6):

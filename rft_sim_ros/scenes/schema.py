@@ -453,13 +453,15 @@ class Locator:
 
 
 #: Sections whose keys belong to kinds (`Key.variants`): {section: (the kind a scene has,
-#: from its values and the dotted paths it gives; what a kind is called in a message)}.
+#: from its values and the dotted paths it gives, None where it gives none; what a kind is
+#: called in a message)}.
 VARIANTS = {
     'sand.surface': (lambda values, given: values['sand.surface.type'],
                      lambda kind: f'sand.surface.type {kind}'),
-    'sand.zeta_map': (lambda values, given: 'regions' if 'sand.zeta_map.regions' in given
-                      else 'file', lambda kind: {'regions': 'a map of sand.zeta_map.regions',
-                                                 'file': 'a map from sand.zeta_map.file'}[kind]),
+    'sand.zeta_map': (lambda values, given: next((kind for kind in ('regions', 'file')
+                                                   if f'sand.zeta_map.{kind}' in given), None),
+                      lambda kind: {'regions': 'a map of sand.zeta_map.regions',
+                                    'file': 'a map from sand.zeta_map.file'}[kind]),
 }
 
 
@@ -494,7 +496,7 @@ def _check_variants(given, values, locator):
             continue
         kind_of, name = VARIANTS[section]
         kind = kind_of(values, given)
-        if kind not in key.variants:
+        if kind is not None and kind not in key.variants:
             wanted = ' or '.join(name(v) for v in key.variants)
             raise locator.error(path, f'applies to {wanted}, and this scene has {name(kind)}: '
                                 'drop the key or change that')

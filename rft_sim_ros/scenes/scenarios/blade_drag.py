@@ -24,7 +24,6 @@ class Scenario(BaseScenario):
         self.move_time = self.number('move_time', positive=True)
         self.hold_time = self.number('hold_time', positive=True)
         self.start_time = self.number('start_time', minimum=0.0)
-        self._times, self._positions, self._speeds, self._forces = [], [], [], []
 
     def edit_model(self, spec):
         half_height = spec.geom('blade_geom').size[2]
@@ -32,6 +31,7 @@ class Scenario(BaseScenario):
 
     def initialize(self, sim):
         self._sent = False
+        self._times, self._positions, self._speeds, self._forces = [], [], [], []
 
     def control(self, sim):
         if not self._sent and sim.commands is not None:

@@ -5,12 +5,18 @@ bottom face at depth z, so the impact depth solves m g (h + z) = zeta A z^2 / 2 
 z = (m g + sqrt((m g)^2 + 2 zeta A m g h)) / (zeta A). After impact the plate must stay in
 the sand (no bounce) and come to rest. The plate starts `drop_height` above the sand surface
 under it when the scene starts (any surface shape; a second drop into deformable sand's
-crater starts there too), and its depth is measured from that surface.
+crater starts there too), and its depth is measured from that surface. The expected depths
+use the zeta the plate met (`SandEngine.zeta_at` under its centre: a zeta map's factor
+included): where the impact stops it for the impact, at the end for the static depth.
 """
 import numpy as np
 
 from ...units import zeta_to_si
 from . import BaseScenario
+
+
+#: m/s: the plate has stopped (the impact is over) once it is slower than this in the sand.
+STOPPED_SPEED = 1e-3
 
 
 def expected_impact_depth(mass, area, zeta, drop_height, gravity=9.81):
@@ -28,8 +34,6 @@ class Scenario(BaseScenario):
         self.thickness = self.number('thickness', positive=True)
         self.drop_height = self.number('drop_height', minimum=0.0)
         self.ground = None  # m: the sand surface under the plate when the scene starts
-        self.depths = []
-        self.speeds = []
 
     def edit_model(self, spec):
         geom = spec.geom('plate_geom')
@@ -42,30 +46,36 @@ class Scenario(BaseScenario):
         qpos = sim.data.joint('plate_free').qpos
         qpos[:3] = (0.0, 0.0, self.ground + self.drop_height + self.thickness / 2)
         qpos[3:] = (1.0, 0.0, 0.0, 0.0)
+        self.depths, self.speeds, self.zetas = [], [], []  # (a reset starts them afresh)
 
     def observe(self, sim):
-        bottom = sim.data.body('plate').xpos[2] - self.thickness / 2
-        self.depths.append(self.ground - bottom)
+        centre = sim.data.body('plate').xpos
+        self.depths.append(self.ground - (centre[2] - self.thickness / 2))
         self.speeds.append(float(np.linalg.norm(sim.data.joint('plate_free').qvel[:3])))
+        self.zetas.append(float(sim.engine.zeta_at(centre[0], centre[1])))
 
     def metrics(self, sim):
         depth = np.asarray(self.depths)
         speed = np.asarray(self.speeds)
         gravity = float(-sim.model.opt.gravity[2])
-        expected = expected_impact_depth(self.mass, self.side ** 2, sim.engine.zeta,
-                                         self.drop_height, gravity)
         touched = np.flatnonzero(depth > 0)
-        rebound = 0.0
+        rebound, impact = 0.0, int(np.argmax(depth))
         if touched.size:
             after = depth[touched[0]:]
             rebound = float(np.max(np.maximum.accumulate(after) - after))
+            stopped = np.flatnonzero(speed[touched[0]:] < STOPPED_SPEED)  # the impact's end
+            if stopped.size:
+                impact = int(touched[0] + stopped[0])
+        expected = expected_impact_depth(self.mass, self.side ** 2, self.zetas[impact],
+                                         self.drop_height, gravity)
         tail = max(1, int(round(0.5 / sim.timestep)))
         return {
             'max_depth_m': float(depth.max()),
             'expected_max_depth_m': float(expected),
             'max_depth_error': float(depth.max() / expected - 1.0),
             'final_depth_m': float(depth[-1]),
-            'static_depth_m': float(self.mass * gravity / (zeta_to_si(sim.engine.zeta) * self.side ** 2)),
+            'static_depth_m': float(self.mass * gravity
+                                    / (zeta_to_si(self.zetas[-1]) * self.side ** 2)),
             'rebound_m': rebound,
             'rest_speed_mps': float(speed[-tail:].mean()),
         }

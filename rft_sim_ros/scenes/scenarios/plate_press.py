@@ -3,7 +3,8 @@
 The vertical force on a horizontal plate pushed straight down is zeta A z (the definition
 of zeta), so the fitted slope of force against depth must equal zeta A (SI: N/m). The plate
 starts `start_height` above the sand surface under it (any surface shape), and its depth is
-measured from that surface.
+measured from that surface. The expected slope uses the zeta the plate met over the samples
+fitted (`SandEngine.zeta_at` under its centre, a zeta map's factor included; their mean).
 """
 import numpy as np
 
@@ -19,9 +20,6 @@ class Scenario(BaseScenario):
         self.speed = self.number('speed', positive=True)
         self.start_height = self.number('start_height', minimum=0.0)
         self.ground = None  # m: the sand surface under the plate when the scene starts
-        self.depths = []
-        self.forces = []
-        self.lateral = []
 
     def edit_model(self, spec):
         spec.geom('plate_geom').size = [self.side / 2, self.side / 2, self.thickness / 2]
@@ -34,23 +32,27 @@ class Scenario(BaseScenario):
         press = sim.data.joint('press')  # (a vertical slide: from sand.surface_height)
         press.qpos[:] = self.ground - self.scene.surface_height
         press.qvel[:] = -self.speed
+        self.depths, self.forces, self.lateral, self.zetas = [], [], [], []  # (after a reset
+        # too: the run that follows is a fresh start's)
 
     def control(self, sim):
         sim.data.actuator('press').ctrl[:] = -self.speed
 
     def observe(self, sim):
-        bottom = sim.data.body('plate').xpos[2] - self.thickness / 2
+        centre = sim.data.body('plate').xpos
         wrench = sim.engine.body_wrenches[0]
-        self.depths.append(self.ground - bottom)
+        self.depths.append(self.ground - (centre[2] - self.thickness / 2))
         self.forces.append(wrench[2])
         self.lateral.append(np.hypot(wrench[0], wrench[1]))
+        self.zetas.append(float(sim.engine.zeta_at(centre[0], centre[1])))
 
     def metrics(self, sim):
         depth = np.asarray(self.depths)
         force = np.asarray(self.forces)
         inside = depth > 0.2 * depth.max()
         slope = float(np.polyfit(depth[inside], force[inside], 1)[0]) if inside.sum() > 2 else 0.0
-        expected = zeta_to_si(sim.engine.zeta) * self.side ** 2
+        zeta = np.mean(np.asarray(self.zetas)[inside]) if inside.any() else self.zetas[-1]
+        expected = zeta_to_si(zeta) * self.side ** 2
         return {
             'force_per_depth_N_per_m': slope,
             'expected_force_per_depth_N_per_m': float(expected),
