@@ -461,6 +461,9 @@ def main(argv=None):
         release_quietly(interrupt)
         print('\nrft-sim: interrupted', file=sys.stderr)
         return 128 + signal.SIGINT
+    except BrokenPipeError:  # output piped into a reader that left (`rft-sim scenes | head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # (nothing left to
+        return 0  # flush at exit, which would raise again)
 
 
 if __name__ == '__main__':

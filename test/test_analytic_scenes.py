@@ -121,6 +121,18 @@ def test_cli_lists_the_bundled_scenes(capsys):
     assert {'plate_drop', 'plate_press'} <= set(names)
 
 
+def test_output_piped_into_a_reader_that_leaves_is_not_an_error():
+    """`rft-sim scenes hexapod | head -1`: the reader closes the pipe (here before the
+    command has written anything); no traceback, status 0."""
+    import subprocess
+    import sys
+    process = subprocess.Popen([sys.executable, '-m', 'rft_sim_ros', 'scenes', 'hexapod'],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    process.stdout.close()
+    assert process.wait(timeout=60) == 0
+    assert b'Traceback' not in process.stderr.read()
+
+
 def test_zeta_change_mid_run_changes_the_resting_depth():
     from rft_sim_ros.sim.simulation import Simulation
     sim = Simulation(load_scene('plate_drop', {'drop_height': 0.0}))
