@@ -26,3 +26,12 @@ def ctrl_c_raises():
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, previous)
+
+
+@pytest.fixture(autouse=True, scope='session')
+def mujoco_log_of_the_test_run(tmp_path_factory):
+    """MuJoCo's warnings from simulations the tests step themselves (some diverge on
+    purpose) go to a file of the test run's, not to MUJOCO_LOG.TXT in the working folder."""
+    from rft_sim_ros.sim.runner import mujoco_log
+    with mujoco_log(tmp_path_factory.mktemp('mujoco') / 'mujoco.log'):
+        yield

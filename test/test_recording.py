@@ -114,7 +114,8 @@ def test_plates_flag_records_the_plate_markers(tmp_path):
 
 
 @pytest.mark.parametrize('bad, words', [
-    ('0.1:zeta=-1', 'zeta must be > 0'), ('0.1:zeta=nan', 'finite'),
+    ('0.1:zeta=-1', 'zeta must be > 0'), ('0.1:zeta=.nan', 'finite'),
+    ('0.1:zeta=soft', "zeta must be a number in N/cm^3, got 'soft'"),
     ('0.1:timestep=0.002', 'can change zeta'), ('soon:zeta=1', 'T:key=value'),
     ('-1:zeta=1', 'T >= 0'), ('0.1', 'T:key=value'), ('0.1:zeta', 'key=value')])
 def test_bad_set_at_is_one_error_line(tmp_path, capsys, bad, words):
