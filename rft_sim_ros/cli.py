@@ -41,6 +41,7 @@ from .interrupts import held_while_compiling, interrupts_never_lost, release_qui
 from .sim.summary import significant
 from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
                             parse_assignment, robot_overrides)
+from .scenes.schema import KEYS
 from .units import validated_zeta
 
 
@@ -146,10 +147,14 @@ def cmd_scenes(args):
     scene = load_scene(args.scene, dict(parse_assignment(text) for text in args.set or []))
     print(f'scene {scene.name}: effective values (--set KEY=VALUE overrides any of them; '
           'docs/scene-reference.md)')
-    for key, value in scene.values.items():
-        if key != 'params':
-            given = _given(scene.raw, key)
-            print(f'  {key} = {json.dumps(value, default=str)}{"" if given else "  (default)"}')
+    for key in KEYS:
+        if key.section or key.path == 'params':
+            continue
+        if key.path not in scene.values:  # a key of an optional section left out (null)
+            print(f'  {key.path}  (unset: {key.path.rpartition(".")[0]} is off)')
+            continue
+        value, given = scene.values[key.path], _given(scene.raw, key.path)
+        print(f'  {key.path} = {json.dumps(value, default=str)}{"" if given else "  (default)"}')
     print('scene values (params; --set NAME=VALUE):')
     for key, value in scene.params.items():
         print(f'  {key} = {json.dumps(value, default=str)}')

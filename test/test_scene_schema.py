@@ -162,6 +162,9 @@ def test_scenes_command_prints_effective_values_and_set_keys(capsys):
     assert '  rft.low_velocity.method = "implicit"\n' in out
     assert '  rft.plate_density_per_mm2 = null  (default)' in out
     assert '  drop_height = 0.1' in out  # a scene value (params)
+    assert '  sand.zeta_map.regions  (unset: sand.zeta_map is off)\n' in out  # every key
+    listed = {line.split()[0] for line in out.splitlines() if line.startswith('  ')}
+    assert {key.path for key in schema.KEYS if not key.section} - {'params'} <= listed
     assert cli.main(['scenes', 'plate_drop', '--set', 'timestep=-1']) == 2
 
 
