@@ -801,8 +801,8 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
         'robot.package_paths': {'a': str(there), 'b': 'nowhere'}}
     with pytest.raises(SceneError, match=r"sand.surface.file: 'lowered.npy' not found: no file "
                        f'{config_dir() / "lowered.npy"} \\(a relative file is read from the '
-                       "scene file's folder; given with --set, in scene_overrides or in a "
-                       f'study, from the working directory, here {here}, or'):
+                       "scene file's folder; one named with --set, in scene_overrides or in "
+                       f'a study is read from the working directory, here {here}, or'):
         load_scene('plate_drop', {**grid, 'sand.surface.file': 'lowered.npy'})
     with pytest.raises(SceneError, match=f"sand.surface.file: '{there}' is a folder, not a file"):
         load_scene('plate_drop', {**grid, 'sand.surface.file': str(there)})

@@ -194,6 +194,13 @@ class DeformableSand(HeightGrid):
         return float(max(0.0, (self.pristine - self.grid).max()))
 
     @property
+    def nodes_under_bodies(self):
+        """Nodes under a body still in the sand (pending, rule 1): their footprint is made
+        when the body leaves them, so a foot standing in the sand at the end of a run has
+        left none there yet."""
+        return int(self.state[COUNT])
+
+    @property
     def plates_outside(self):
         """Plates found in the sand outside the bed so far (each step each counts once):
         there the surface stays as it is and they leave no footprint."""
@@ -215,11 +222,13 @@ class DeformableSand(HeightGrid):
         return tuple(said)
 
     def metrics(self):
-        """Summary metrics of a deformable run (SI)."""
+        """Summary metrics of a deformable run (SI; the footprints made so far: nodes still
+        under a body, counted in `sand_nodes_under_bodies`, are not yet changed)."""
         return {'sand_volume_change_m3': self.volume_change(),
                 'max_footprint_depth_m': self.max_footprint_depth(),
                 'sand_displaced_m3': self.displaced_volume(),
                 'sand_piled_m3': self.piled_volume(),
+                'sand_nodes_under_bodies': self.nodes_under_bodies,
                 'plates_in_sand_outside_bed': self.plates_outside}
 
 

@@ -338,9 +338,11 @@ def _subsection(values, section, scene_path, locator):
             raise locator.error(f'{section}.file', f'{str(file)!r} is a folder, not a file')
         if not file.is_file():
             tried = ('' if Path(settings['file']).expanduser().is_absolute() else
-                     " (a relative file is read from the scene file's folder; given with "
-                     '--set, in scene_overrides or in a study, from the working directory, '
-                     f'here {Path.cwd()}, or the study file\'s folder, first)')
+                     " (a relative file is read from the scene file's folder; one named with "
+                     '--set, in scene_overrides or in a study is read from the working '
+                     f'directory, here {Path.cwd()}, or the study file\'s folder where it is '
+                     'there; in Python, give load_scene an absolute path or '
+                     'anchor_paths(overrides, folder))')
             raise locator.error(f'{section}.file', f'{settings["file"]!r} not found: no file '
                                 f'{file}{tried}')
         settings['file'] = str(file)
