@@ -70,6 +70,12 @@ def test_list_and_samples():
     ({'vary': {'zeta': [1.0]}, 'metrics': []}, 'metrics'),
     ({'vary': {'zeta': [1.0]}, 'repeat': 2}, 'unknown keys'),
     ({'vary': {'zeta': [1.0]}, 'scene': 'no_such_scene'}, 'unknown scene'),
+    # terrain read before any run starts: a bed too large for the machine, a map file
+    ({'vary': {'sand.deformable.cell': [0.01, 1e-4]},
+      'set': {'sand.deformable.enabled': True, 'sand.deformable.size': [100.0, 100.0]}},
+     r'a bed of 1000001 x 1000001 nodes'),
+    ({'vary': {'sand.zeta_map.file': ['missing.npy']}, 'set': {'sand.zeta_map.size': [1, 1]}},
+     'not found'),
 ])
 def test_bad_studies_are_refused_with_the_reason(changes, message):
     with pytest.raises(StudyError, match=message):
@@ -84,6 +90,17 @@ def test_the_contract_study_file_loads(tmp_path):
     assert len(study.runs) == 4 and study.keys == ('zeta', 'payload')
     path.write_text('scene: hexapod\nvary: {timestep: [5e-4, 1e-3]}\nmetrics: [steps]\n')
     assert [run.overrides['timestep'] for run in load_study(path).runs] == [5e-4, 1e-3]
+
+
+def test_list_values_are_written_to_the_table_as_json(tmp_path):
+    """A varied list (a surface size, zeta-map regions) reads back from results.csv and
+    results.npz as JSON, not as Python's repr."""
+    from rft_sim_ros.study.table import column_array, write_csv
+    regions = [{'x': [0.0, 0.2], 'y': [-1, 1], 'factor': 0.5}]
+    write_csv(tmp_path / 'r.csv', ['size', 'regions'], [{'size': [2, 2], 'regions': regions}])
+    [read] = read_csv(tmp_path / 'r.csv')
+    assert json.loads(read['size']) == [2, 2] and json.loads(read['regions']) == regions
+    assert json.loads(column_array([regions, None])[0]) == regions
 
 
 def test_a_run_that_raises_or_times_out_is_recorded():

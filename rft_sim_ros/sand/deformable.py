@@ -95,7 +95,7 @@ class DeformableSand(HeightGrid):
         if len(size) != 2 or min(size) < 2 * cell:
             raise ValueError(f'sand.deformable.size must be [x, y] m of at least two cells, '
                              f'got {list(size)}')
-        nx, ny = int(round(size[0] / cell)) + 1, int(round(size[1] / cell)) + 1
+        nx, ny = bed_nodes(size, cell)
         check_memory(nx, ny, cell)
         span = ((nx - 1) * cell, (ny - 1) * cell)  # whole cells
         x = center[0] - span[0] / 2 + cell * np.arange(nx)
@@ -230,6 +230,11 @@ class DeformableSand(HeightGrid):
                 'sand_piled_m3': self.piled_volume(),
                 'sand_nodes_under_bodies': self.nodes_under_bodies,
                 'plates_in_sand_outside_bed': self.plates_outside}
+
+
+def bed_nodes(size, cell):
+    """(nx, ny): the nodes of a bed of `size` [x, y] m in whole cells of `cell` m."""
+    return int(round(size[0] / cell)) + 1, int(round(size[1] / cell)) + 1
 
 
 def check_memory(nx, ny, cell):

@@ -141,6 +141,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         summary, series, sim = _run(scene, duration, recorders, progress, schedule, stop,
                                     log)
     if out is not None:
+        if sim.engine.deformable:  # where the nodes of terrain.npy (below) lie
+            summary['terrain_grid'] = sim.engine.surface.placement()
         (out / 'summary.json').write_text(
             json.dumps(significant(summary), indent=2, default=json_default))
         _write_series(out / 'timeseries.csv', series, scene)
@@ -280,8 +282,6 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'scene_values': scene.values,
         'machine': machine_info(),
     }
-    if sim.engine.deformable:  # where terrain.npy's nodes lie
-        summary['terrain_grid'] = sim.engine.surface.placement()
     return summary, series, sim
 
 

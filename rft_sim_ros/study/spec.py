@@ -25,6 +25,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..sand.deformable import bed_nodes, check_memory
+from ..sand.surface import surface_from_settings
+from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.config import SceneError, anchor_paths, load_scene
 from ..scenes.schema import load_yaml
 from .cost import run_cost
@@ -116,7 +119,9 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
         key = _frozen(overrides)
         if key not in costs:
             try:
-                costs[key] = run_cost(load_scene(scene, overrides), duration)
+                loaded = load_scene(scene, overrides)
+                check_terrain(loaded)
+                costs[key] = run_cost(loaded, duration)
             except (SceneError, ValueError) as error:
                 raise StudyError(f'{where}: run with {overrides}: {error}') from None
     runs = []
@@ -129,6 +134,18 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
     return Study(scene=scene, fixed=dict(fixed), duration=None if duration is None
                  else float(duration), keys=keys, runs=tuple(runs), repeats=repeats,
                  metrics=tuple(metrics), source=raw)
+
+
+def check_terrain(scene):
+    """Read the terrain files of `scene` (a SceneConfig) and check its deformable bed's size
+    as the Simulation will, so that a study refuses a bad one before any run starts (the
+    model's own hfield excepted: reading it needs the compiled model). Raises ValueError."""
+    if scene.surface.get('type', 'plane') != 'hfield':
+        surface_from_settings(scene.surface, scene.surface_height)
+    zeta_map_from_settings(scene.zeta_map)
+    bed = scene.deformable
+    if bed.get('enabled'):
+        check_memory(*bed_nodes(bed['size'], bed['cell']), bed['cell'])
 
 
 def expand(vary, where='study'):

@@ -9,6 +9,7 @@ Files are written to a temporary name and renamed, so a reader never sees half a
 """
 import csv
 import io
+import json
 import math
 import os
 from pathlib import Path
@@ -55,12 +56,18 @@ def write_atomic(path, data):
     os.replace(temporary, path)
 
 
+def _text(value):
+    """A table cell's text: lists and mappings (a varied `sand.surface.size`, zeta-map
+    regions) as JSON, which reads back as what they were; anything else as str."""
+    return json.dumps(value) if isinstance(value, (list, tuple, dict)) else str(value)
+
+
 def _cell(value):
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return ''
     if isinstance(value, float):
         return repr(value)  # shortest text that reads back to the same float
-    return str(value)
+    return _text(value)
 
 
 def write_csv(path, names, rows):
@@ -78,7 +85,7 @@ def column_array(values):
         return np.array(values, dtype=bool)
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in present):
         return np.array([math.nan if v is None else v for v in values], dtype=float)
-    return np.array(['' if v is None else str(v) for v in values], dtype=str)
+    return np.array(['' if v is None else _text(v) for v in values], dtype=str)
 
 
 def write_npz(path, names, rows):
