@@ -34,6 +34,7 @@ import shutil
 import signal
 import sys
 import threading
+from collections import Counter
 from pathlib import Path
 
 from . import __version__
@@ -178,6 +179,11 @@ def cmd_run(args):
         if args.duration is not None and not args.duration > 0:
             raise SceneError(f'--duration must be > 0 s, got {args.duration}')
         schedule = [parse_timed_assignment(text) for text in args.set_at or []]
+        twice = sorted(when for when, count in Counter(
+            (at, change.key) for at, change in schedule).items() if count > 1)
+        if twice:
+            raise SceneError(f'--set-at changes {twice[0][1]} twice at {twice[0][0]:g} s: give '
+                             'one value')
         duration = run_duration(scene, args.duration)
         for (at, change), text in zip(schedule, args.set_at or []):
             if at > duration:

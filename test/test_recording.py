@@ -127,6 +127,13 @@ def test_bad_set_at_is_one_error_line(tmp_path, capsys, bad, words):
     assert not out.exists()
 
 
+def test_two_changes_of_a_setting_at_one_time_are_refused(tmp_path, capsys):
+    assert main(['run', 'plate_press', '--duration', '0.02', '--out', str(tmp_path / 'run'),
+                 '--quiet', '--set-at', '0.01:zeta=1.0', '--set-at', '0.01:zeta=2.0']) == 2
+    assert capsys.readouterr().err.strip() == ('rft-sim: error: --set-at changes zeta twice at '
+                                               '0.01 s: give one value')
+
+
 # --- run_scene: schedule and recorder hooks -------------------------------------------------
 
 def test_scheduled_actions_run_once_at_their_step_before_the_next_step():

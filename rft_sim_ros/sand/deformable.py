@@ -129,7 +129,10 @@ class DeformableSand(HeightGrid):
         (x0, y0), (sx, sy) = self.origin, self.size
         inside = (x >= x0) & (x <= x0 + sx) & (y >= y0) & (y <= y0 + sy)
         bed = super().height(x, y)
-        return bed if inside.all() else np.where(inside, bed, self.base.height(x, y))
+        if inside.all():
+            return bed
+        beyond = np.where(inside, bed, self.base.height(x, y))
+        return beyond if beyond.ndim else float(beyond)
 
     def highest(self, x0, x1, y0, y1):
         top = super().highest(x0, x1, y0, y1)  # (the bed's edge nodes, where it reaches out)

@@ -344,7 +344,7 @@ class HeightGrid(Surface):
         grid_heights(self.grid, self.origin[0], self.origin[1], 1.0 / self.spacing[0],
                      1.0 / self.spacing[1], np.ascontiguousarray(x).ravel(),
                      np.ascontiguousarray(y).ravel(), out.reshape(-1))
-        return out
+        return out if out.ndim else float(out)  # (a point in, a number out, as on a plane)
 
     def highest(self, x0, x1, y0, y1):
         """The highest node of the cells the rectangle touches (the edge nodes outside)."""

@@ -531,9 +531,11 @@ class Simulation:
         return None
 
     def reset(self):
-        """Back to the scene's initial state (deformable sand: its pristine surface), the sand
-        engine's memory of the last step forgotten: the run that follows is a fresh start's;
-        sim time keeps counting forward."""
+        """Back to the scene's initial state (deformable sand: its pristine surface, on which
+        a spawn at rest then settles again, as at the start), the sand engine's memory of the
+        last step forgotten: the run that follows is a fresh start's; sim time keeps
+        counting forward, and settings changed while running (zeta) stay as set, as the ROS
+        node's parameters do."""
         self._time_offset += self.data.time
         mujoco.mj_resetData(self.model, self.data)
         self.engine.forget_last_step()
