@@ -78,7 +78,7 @@ def test_a_grids_height_is_bilinear_between_its_nodes_and_continues_its_edges():
     nodes_x = grid.origin[0] + grid.spacing[0] * np.arange(31)
     nodes_y = grid.origin[1] + grid.spacing[1] * np.arange(23)
     assert np.allclose(grid.height(*np.meshgrid(nodes_x, nodes_y)), grid.grid, atol=1e-14)
-    assert grid.height(0.2, -0.1).shape == ()
+    assert isinstance(grid.height(0.2, -0.1), float)  # a point in, a number out
 
 
 def _assert_reference_law(model, data, engine, wrenches, surface):
