@@ -55,9 +55,10 @@ STILT = """<mujoco><worldbody>
 
 def test_a_robot_that_falls_while_settling_starts_as_drop_0_would_have_started_it(tmp_path):
     """A trunk on one stilt topples while spawn rest settles it (only its foot is in the
-    sand, so its trunk falls into the sand, which does not hold it): it starts from the
-    state before the settling instead, exactly as spawn drop:0 starts it, and start-up says
-    so once, resets included."""
+    sand, so its trunk would fall into the sand, which does not hold it): once its base has
+    turned more than 45 deg it counts as fallen, and it starts from the state before the
+    settling instead, exactly as spawn drop:0 starts it; start-up says so once, resets
+    included."""
     path = tmp_path / 'stilt.xml'
     path.write_text(STILT)
     sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
@@ -71,7 +72,8 @@ def test_a_robot_that_falls_while_settling_starts_as_drop_0_would_have_started_i
     np.testing.assert_allclose(sim.data.qpos, dropped.data.qpos, rtol=0, atol=1e-12)
     sim.reset()
     [notice] = [n for n in sim.notices if 'spawn rest' in n]
-    assert notice.startswith('spawn rest: fell: its base (trunk) reached ')
+    assert notice.startswith('spawn rest: fell: its base (trunk) turned 4')  # 45 .. 50 deg
+    assert 'deg from how it was set down, onto its side or back' in notice
     assert 'it starts as spawn drop:0 starts it instead' in notice
 
 

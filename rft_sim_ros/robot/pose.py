@@ -30,6 +30,9 @@ REST_HOLD_S = 0.1
 SETTLE_LIMIT_S = 3.0
 #: Nodes per side of the lattice on which `align_to` samples the surface under the robot.
 ALIGN_SAMPLES = 9
+#: A fitted plane less steep than this (dz/dx, m/m) is level: the rounding of a fit over a
+#: level or symmetric surface (1e-16) turns nothing.
+LEVEL_GRADIENT = 1e-9
 
 
 def parse_spawn(text):
@@ -115,30 +118,35 @@ def surface_gradient(height, box, samples=ALIGN_SAMPLES):
 
 
 def align_to(model, data, base, bodies, height):
-    """Turn the free root of body `base` about its origin, at rest, by the smallest rotation
-    that takes world z to the normal of the surface's least-squares plane under the geoms of
-    `bodies` (ids; `surface_gradient` over the box that holds their bounding boxes), so that
-    a robot set down on a slope stands on it as it would on level sand. `height(x, y)`: the
-    surface height (m, world). Returns the angle turned (rad; 0 where the surface under the
-    bodies is level, and the pose is then untouched). Raises ValueError without a free
-    root."""
+    """Turn the free root of body `base`, at rest, by the smallest rotation that takes world
+    z to the normal of the surface's least-squares plane under the geoms of `bodies` (ids;
+    `surface_gradient` over the box that holds their bounding boxes), about the box's centre
+    at its lowest point (so those geoms stay over the ground the plane was fitted to), so
+    that a robot set down on a slope stands on it as it would on level sand. `height(x, y)`:
+    the surface height (m, world). Returns the angle turned (rad; 0 where the surface under
+    the bodies is level, its gradient below LEVEL_GRADIENT, and the pose is then untouched).
+    Raises ValueError without a free root."""
     joint = free_root_joint(model, base)
     if joint is None:
         raise ValueError('spawn needs a floating base (a free joint on the root body)')
     mujoco.mj_kinematics(model, data)
-    boxes = np.array([geom_footprint(model, data, geom)
-                      for body in bodies for geom in body_geoms(model, body)])
+    geoms = [geom for body in bodies for geom in body_geoms(model, body)]
+    boxes = np.array([geom_footprint(model, data, geom) for geom in geoms])
     box = (boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max())
     gx, gy = surface_gradient(height, box)
-    if gx == 0.0 and gy == 0.0:
+    if np.hypot(gx, gy) < LEVEL_GRADIENT:
         return 0.0
     axis = np.array([gy, -gx, 0.0])  # z x n for n ~ (-gx, -gy, 1)
     angle = float(np.arctan(np.hypot(gx, gy)))
-    turn, orientation = np.empty(4), np.empty(4)
+    turn, orientation, rotation = np.empty(4), np.empty(4), np.empty(9)
     mujoco.mju_axisAngle2Quat(turn, axis / np.linalg.norm(axis), angle)
-    adr = model.jnt_qposadr[joint] + 3
-    mujoco.mju_mulQuat(orientation, turn, data.qpos[adr:adr + 4])
-    data.qpos[adr:adr + 4] = orientation / np.linalg.norm(orientation)
+    mujoco.mju_quat2Mat(rotation, turn)
+    pivot = np.array([0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3]),
+                      min(geom_lowest_z(model, data, geom) for geom in geoms)])
+    adr = model.jnt_qposadr[joint]
+    data.qpos[adr:adr + 3] = pivot + rotation.reshape(3, 3) @ (data.qpos[adr:adr + 3] - pivot)
+    mujoco.mju_mulQuat(orientation, turn, data.qpos[adr + 3:adr + 7])
+    data.qpos[adr + 3:adr + 7] = orientation / np.linalg.norm(orientation)
     data.qvel[model.jnt_dofadr[joint]:model.jnt_dofadr[joint] + 6] = 0.0
     mujoco.mj_kinematics(model, data)
     return angle

@@ -60,6 +60,15 @@ def geom_lowest_z(model, data, geom):
     return float(data.geom_xpos[geom, 2] + rotation[2] @ center - np.abs(rotation[2]) @ half)
 
 
+def geom_lowest_point(model, data, geom):
+    """World (3,) position (m) of the lowest corner of geom `geom`'s bounding box in the
+    current pose (its z is `geom_lowest_z`'s; a level face: one of its corners)."""
+    rotation = data.geom_xmat[geom].reshape(3, 3)
+    center, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+    corner = center - np.where(rotation[2] >= 0.0, half, -half)  # z falls towards it
+    return data.geom_xpos[geom] + rotation @ corner
+
+
 def geom_footprint(model, data, geom):
     """World (x0, x1, y0, y1) (m): the horizontal extent of geom `geom`'s bounding box in the
     current pose."""

@@ -42,8 +42,13 @@ from ..rft.force_law import DynamicTerm
 RUNAWAY_SPEED = 1.0e3
 #: Hz of sim time at which the state is checked for a runaway speed and MuJoCo's warnings.
 CHECK_RATE = 100.0
-#: s of sim time between the looks for bodies without plates in the sand (`sand_entry`).
+#: s of sim time between the looks for bodies without plates in the sand (`sand_entry`), and
+#: for a fall while spawn rest settles the robot.
 ENTRY_CHECK_S = 0.1
+#: deg: spawn rest counts the robot fallen once its base has turned this far from how it was
+#: set down (a quadruped on its side, a humanoid on its back; standing robots settle within a
+#: few degrees).
+FALL_TILT_DEG = 45.0
 
 _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
                                   mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -204,7 +209,6 @@ class Simulation:
         self._set_legs(scene)
         self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
         self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
-        self._fall_watch = SandEntryWatch(self.model, self.engine.body_ids, self._base_id)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
@@ -392,15 +396,16 @@ class Simulation:
     def _settle(self):
         """Spawn 'rest': step, the joints holding their targets, until the base is at rest
         (robot/pose.py), then start the clock at 0 from there. A robot that does not come to
-        rest on its sand bodies (still moving after SETTLE_LIMIT_S, as one that cannot stand
-        without its controller; or fallen: its base, carrying no plates, into the sand, which
-        does not hold it: `sand_entry`) starts instead from the state before, at rest on the
+        rest standing (still moving after SETTLE_LIMIT_S, as one that cannot stand without its
+        controller; or fallen: its base turned more than FALL_TILT_DEG from how it was set
+        down, onto its side or back) starts instead from the state before, at rest on the
         sand, as spawn drop:0 would."""
         if self.commands is not None:
             self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
         kind = mujoco.mjtState.mjSTATE_INTEGRATION
         lowered = np.empty(mujoco.mj_stateSize(self.model, kind))
         mujoco.mj_getState(self.model, self.data, lowered, kind)
+        set_down = self.data.xmat[self._base_id].reshape(3, 3)[:, 2].copy()  # its up axis
         still, hold = 0, max(1, int(round(REST_HOLD_S / self.timestep)))
         check = max(1, int(round(ENTRY_CHECK_S / self.timestep)))
         failure = None
@@ -415,11 +420,11 @@ class Simulation:
                                  'settle (diverged)')
             still = still + 1 if speed < REST_SPEED else 0
             if still >= hold or step % check == 0:
-                fallen = self._fall_watch.deepest(self.data, self.engine.surface)
-                if fallen is not None:
-                    body, depth = fallen
-                    failure = (f'fell: its base ({body}) reached {depth * 100:.3g} cm into the '
-                               'sand, which does not hold it (it carries no plates)')
+                up = self.data.xmat[self._base_id].reshape(3, 3)[:, 2]
+                tilt = float(np.degrees(np.arccos(np.clip(up @ set_down, -1.0, 1.0))))
+                if tilt > FALL_TILT_DEG:
+                    failure = (f'fell: its base ({self.base_body}) turned {tilt:.3g} deg from '
+                               'how it was set down, onto its side or back')
                     break
             if still >= hold:
                 break
