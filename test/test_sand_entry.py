@@ -41,3 +41,31 @@ def test_a_body_without_plates_in_the_sand_is_said_once(tmp_path, reach):
 def test_nothing_is_said_of_a_body_within_the_margin_or_with_plates(tmp_path):
     assert _run(tmp_path, ENTRY_DEPTH / 2, ['plate'])[0] == []
     assert _run(tmp_path, 0.1, ['plate', 'probe'])[0] == []
+
+
+def test_the_sand_is_read_under_a_bodys_lowest_corner_not_its_centre():
+    """A 40 cm box turned with a 15 deg slope, 3 cm above it all along: its lowest corner
+    lies 5 cm below the sand at its centre, but it is over lower ground there (downhill),
+    so the box is not in the sand; lowered 5 cm, it is, 2 cm deep across the slope (2 /
+    cos 15 deg vertically, as depth is measured)."""
+    import mujoco
+    import numpy as np
+
+    from rft_sim_ros.sand.surface import Slope
+    from rft_sim_ros.sim.sand_entry import SandEntryWatch
+    slope = Slope(0.0, angle_deg=15.0)  # falling towards +x
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="chassis" pos="0 0 0.5"><freejoint/>'
+        '<geom type="box" size="0.2 0.1 0.02"/></body></worldbody></mujoco>')
+    data = mujoco.MjData(model)
+    watch = SandEntryWatch(model, sand_bodies=[])
+    tilt = np.radians(15.0)
+    data.qpos[3:7] = [np.cos(tilt / 2), 0.0, np.sin(tilt / 2), 0.0]  # pitched with the slope
+    for clearance, expected in ((0.03, None), (-0.02, 0.02 / np.cos(tilt))):
+        data.qpos[2] = (0.02 + clearance) / np.cos(tilt)  # its underside `clearance` above
+        mujoco.mj_kinematics(model, data)
+        found = watch.deepest(data, slope)
+        if expected is None:
+            assert found is None
+        else:
+            assert found[0] == 'chassis' and found[1] == pytest.approx(expected, abs=1e-9)
