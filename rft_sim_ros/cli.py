@@ -42,7 +42,7 @@ from .interrupts import held_while_compiling, interrupts_never_lost, release_qui
 from .sim.summary import significant
 from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
                             parse_assignment, robot_overrides)
-from .scenes.schema import KEYS
+from .scenes.schema import KEYS, given_paths
 from .units import validated_zeta
 
 
@@ -148,28 +148,19 @@ def cmd_scenes(args):
     scene = load_scene(args.scene, dict(parse_assignment(text) for text in args.set or []))
     print(f'scene {scene.name}: effective values (--set KEY=VALUE overrides any of them; '
           'docs/scene-reference.md)')
+    given = set(given_paths(scene.raw))
     for key in KEYS:
         if key.section or key.path == 'params':
             continue
         if key.path not in scene.values:  # a key of an optional section left out (null)
             print(f'  {key.path}  (unset: {key.path.rpartition(".")[0]} is off)')
             continue
-        value, given = scene.values[key.path], _given(scene.raw, key.path)
-        print(f'  {key.path} = {json.dumps(value, default=str)}{"" if given else "  (default)"}')
+        default = '' if key.path in given else '  (default)'
+        print(f'  {key.path} = {json.dumps(scene.values[key.path], default=str)}{default}')
     print('scene values (params; --set NAME=VALUE):')
     for key, value in scene.params.items():
         print(f'  {key} = {json.dumps(value, default=str)}')
     return 0
-
-
-def _given(raw, key):
-    """Whether dotted `key` is set in the scene mapping `raw` (not left to its default)."""
-    node = raw
-    for part in key.split('.'):
-        if not isinstance(node, dict) or part not in node:
-            return False
-        node = node[part]
-    return True
 
 
 def cmd_run(args):

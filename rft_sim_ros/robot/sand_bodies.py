@@ -55,14 +55,12 @@ def collision_geoms(model, body):
 
 def geom_lowest_z(model, data, geom):
     """World z (m) of the lowest point of geom `geom`'s bounding box in the current pose."""
-    rotation = data.geom_xmat[geom].reshape(3, 3)
-    center, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
-    return float(data.geom_xpos[geom, 2] + rotation[2] @ center - np.abs(rotation[2]) @ half)
+    return float(geom_lowest_point(model, data, geom)[2])
 
 
 def geom_lowest_point(model, data, geom):
     """World (3,) position (m) of the lowest corner of geom `geom`'s bounding box in the
-    current pose (its z is `geom_lowest_z`'s; a level face: one of its corners)."""
+    current pose (a level face: one of its corners)."""
     rotation = data.geom_xmat[geom].reshape(3, 3)
     center, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
     corner = center - np.where(rotation[2] >= 0.0, half, -half)  # z falls towards it

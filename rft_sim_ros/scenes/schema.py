@@ -473,17 +473,18 @@ def check_scene(raw, locator):
         raise SceneError(f'{locator.source}: a scene file must hold a mapping')
     values = {}
     _check_section(raw, '', locator, values)
-    _check_variants(set(_given(raw)), values, locator)
+    _check_variants(set(given_paths(raw)), values, locator)
     return values
 
 
-def _given(content, prefix=''):
-    """The dotted paths of the schema keys the scene mapping `content` gives."""
+def given_paths(content, prefix=''):
+    """The dotted paths of the schema keys the (checked) scene mapping `content` gives, not
+    left to their defaults."""
     for name, value in content.items():
         path = f'{prefix}{name}'
         yield path
         if isinstance(value, dict) and BY_PATH[path].section:
-            yield from _given(value, path + '.')
+            yield from given_paths(value, path + '.')
 
 
 def _check_variants(given, values, locator):
@@ -491,10 +492,9 @@ def _check_variants(given, values, locator):
     on a plane, a file's size beside regions): it would have no effect."""
     for path in sorted(given):
         key = BY_PATH[path]
-        section = path.rpartition('.')[0]
         if not key.variants:
             continue
-        kind_of, name = VARIANTS[section]
+        kind_of, name = VARIANTS[path.rpartition('.')[0]]
         kind = kind_of(values, given)
         if kind is not None and kind not in key.variants:
             wanted = ' or '.join(name(v) for v in key.variants)

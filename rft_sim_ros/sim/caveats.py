@@ -9,8 +9,14 @@ from ..robot.bearing import bearing
 from ..robot.sand_bodies import free_root_joint, geom_lowest_z, unheld_free_trees
 from ..units import zeta_to_si
 
-#: Free trees named in the notice before "and N more".
-SHOWN_TREES = 5
+#: Names a notice lists before "and N more".
+SHOWN_NAMES = 5
+
+
+def _first_few(names):
+    """'a, b, c and N more': the first SHOWN_NAMES of `names`, and how many are left."""
+    more = len(names) - SHOWN_NAMES
+    return ', '.join(names[:SHOWN_NAMES]) + (f' and {more} more' if more > 0 else '')
 
 
 def caveats(model, data, engine, scene, base):
@@ -21,10 +27,8 @@ def caveats(model, data, engine, scene, base):
         notices += _bearing_notice(model, data, engine, scene.zeta, base)
         unheld = unheld_free_trees(model, engine.body_ids)
         if unheld:
-            shown = ', '.join(unheld[:SHOWN_TREES]) + (
-                f' and {len(unheld) - SHOWN_TREES} more' if len(unheld) > SHOWN_TREES else '')
             notices.append(f'free bodies without a sand body, which the sand does not hold: '
-                           f'{shown}; they fall through its surface unless other rigid ground '
+                           f'{_first_few(unheld)}; they fall through its surface unless other rigid ground '
                            'holds them (name their bodies in rft.bodies; beside auto: '
                            f'[auto, {unheld[0]}])')
     if engine.deformable:
@@ -54,10 +58,9 @@ def _coarse_bed_notice(engine):
     if not narrow:
         return []
     return [f'sand.deformable.cell {cell:g} m is wider than sand bod'
-            f'{"ies" if len(narrow) > 1 else "y"} {", ".join(narrow[:SHOWN_TREES])}'
-            f'{f" and {len(narrow) - SHOWN_TREES} more" if len(narrow) > SHOWN_TREES else ""}: '
-            'footprints are whole cells, so their craters and the sand displaced grow with the '
-            'cell, not with the body (sand.deformable.cell: a cell well below that width)']
+            f'{"ies" if len(narrow) > 1 else "y"} {_first_few(narrow)}: footprints are whole '
+            'cells, so their craters and the sand displaced grow with the cell, not with the '
+            'body (sand.deformable.cell: a cell well below that width)']
 
 
 def _bearing_notice(model, data, engine, zeta, base):

@@ -174,9 +174,10 @@ class Simulation:
         if scene.deformable.get('enabled'):
             surface = self._bed(surface, scene.deformable)
             self.notices.extend(surface.notices)
-        if surface.steepest_deg() > CHECKED_SLOPE_DEG:
+        steepest = surface.steepest_deg()
+        if steepest > CHECKED_SLOPE_DEG:
             self.notices.append(
-                f'the sand surface is {surface.steepest_deg():.3g} deg steep at its steepest: '
+                f'the sand surface is {steepest:.3g} deg steep at its steepest: '
                 f'beyond the slopes checked (up to {CHECKED_SLOPE_DEG:g} deg) and near dry '
                 "sand's angle of repose (about 30 deg), where real sand fails and flows; the "
                 'model knows nothing of that failure (docs/terrain.md, "Stated limit")')
