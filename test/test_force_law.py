@@ -182,6 +182,25 @@ def test_normals_that_are_not_unit_vectors_are_refused():
             plate_forces(normals=bad, **args)
 
 
+@pytest.mark.parametrize('change, reason', [
+    ({'positions': [[0.0, 0.0, np.nan]]}, r'positions must be finite: positions\[0, 2\] is nan'),
+    ({'velocities': [[0.0, np.inf, -0.1]]}, r'velocities\[0, 1\] is inf'),
+    ({'areas': [np.nan]}, r'areas must be finite'),
+    ({'areas': [-1e-4]}, r'areas must be >= 0 m\^2: area 0 is -0.0001'),
+    ({'surface_height': np.inf}, 'surface_height must be finite'),
+    ({'positions': [[0.0, 0.0, -0.1]] * 2}, 'one position, normal, velocity and area per '
+                                            'plate: got 2, 1, 1 and 1'),
+])
+def test_inputs_that_are_no_plates_are_refused_with_the_reason(change, reason):
+    """A NaN position would feel nothing and a negative area the opposite force, silently:
+    both are refused, as are plate counts that differ."""
+    args = dict(positions=[[0.0, 0.0, -0.1]], normals=[[0.0, 0.0, -1.0]], areas=[1e-4],
+                velocities=[[0.0, 0.0, -0.1]], zeta=ZETA)
+    assert plate_forces(**args)[0, 2] == pytest.approx(zeta_to_si(ZETA) * 1e-4 * 0.1)
+    with pytest.raises(ValueError, match=reason):
+        plate_forces(**{**args, **change})
+
+
 @pytest.mark.parametrize('rounding', [1e-17, -1e-17, 0.0])
 def test_a_plate_sliding_in_its_own_plane_trails_whatever_the_rounding(rounding):
     """One leading rule (force_law.TANGENTIAL) in the reference, the compiled law and the

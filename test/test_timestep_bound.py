@@ -6,7 +6,7 @@ import math
 import pytest
 
 from rft_sim_ros.cli import main
-from rft_sim_ros.sand.timestep import sand_time_scales, timestep_bound
+from rft_sim_ros.sand.timestep import sand_time_scales, timestep_bound, timestep_problem
 from rft_sim_ros.scenes.config import bundled_scenes, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
@@ -55,3 +55,14 @@ def test_a_zeta_raised_during_the_run_counts(tmp_path):
     assert main(['run', 'plate_drop', '--timestep', '0.004', '--duration', '0.1',
                  '--set-at', '0.05:zeta=15', '--out', str(out), '--quiet', '--no-bag']) == 1
     assert 'at zeta 15 N/cm^3' in json.loads((out / 'summary.json').read_text())['reason']
+
+
+def test_a_timestep_at_the_bound_is_within_it_and_one_past_it_says_by_how_much():
+    """plate_drop at zeta 100 has its bound at 1 ms, computed as 0.9999999999999996 ms: its
+    own 1 ms timestep is within it (rounding), not 'longer than the 1 ms'; a timestep past
+    it is told with the digits that tell the two apart."""
+    engine = Simulation(load_scene('plate_drop')).engine
+    assert timestep_bound(engine, 100.0)[0] == pytest.approx(1e-3, rel=1e-12)
+    assert timestep_problem(engine, 1e-3, 100.0) is None
+    assert timestep_problem(engine, 1.0001e-3, 100.0).startswith(
+        'timestep 1.0001 ms is longer than the 1 ms the sand coupling resolves')

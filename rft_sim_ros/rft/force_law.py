@@ -60,17 +60,28 @@ def plate_forces(positions, normals, areas, velocities, zeta, surface_height=0.0
 
     positions: (N, 3) plate centroids, m. normals: (N, 3) outward unit normals.
     areas: (N,) m^2. velocities: (N, 3) plate velocities, m/s. zeta: N/cm^3.
-    surface_height: z of the horizontal sand surface, m (depth is measured from it).
+    surface_height: z of the horizontal sand surface, m (depth is measured from it), or the
+    surface's z above each plate, (N,) m.
     normalisation: 'treers' (f1(1) = f23(1) = 1) or 'rft_sim' (the RFT-SiM code's values).
     dynamic: a DynamicTerm to add the rate-dependent stress, or None (rate independent).
     Returns (N, 3) forces, N. Plates above the surface, trailing or sliding in their own
     plane (n . v <= TANGENTIAL |v|) feel zero. Raises ValueError for normals that are not
-    unit vectors (within NORMAL_LENGTH_TOLERANCE).
+    unit vectors (within NORMAL_LENGTH_TOLERANCE), values that are not finite, negative
+    areas, and arrays of different plate counts.
     """
-    positions = np.asarray(positions, dtype=float).reshape(-1, 3)
+    positions = _finite('positions', positions).reshape(-1, 3)
     normals = unit_normals(normals)
-    velocities = np.asarray(velocities, dtype=float).reshape(-1, 3)
-    areas = np.asarray(areas, dtype=float).reshape(-1)
+    velocities = _finite('velocities', velocities).reshape(-1, 3)
+    areas = _finite('areas', areas).reshape(-1)
+    if not len(positions) == len(normals) == len(velocities) == len(areas):
+        raise ValueError(f'one position, normal, velocity and area per plate: got '
+                         f'{len(positions)}, {len(normals)}, {len(velocities)} and '
+                         f'{len(areas)}')
+    if np.any(areas < 0.0):
+        raise ValueError(f'areas must be >= 0 m^2: area {int(np.argmax(areas < 0.0))} is '
+                         f'{areas[np.argmax(areas < 0.0)]:g}')
+    if not np.all(np.isfinite(surface_height)):
+        raise ValueError(f'surface_height must be finite (m), got {surface_height!r}')
     norm = co.normalisation(normalisation)
     zeta_si = zeta_to_si(validated_zeta(zeta))
 
@@ -105,6 +116,18 @@ def plate_forces(positions, normals, areas, velocities, zeta, surface_height=0.0
         stress = dynamic.lam * dynamic.density * vn_speed ** 2
         forces[active] -= (stress * areas[active])[:, None] * n
     return forces
+
+
+def _finite(name, values):
+    """`values` as a float array, checked to hold only finite numbers (ValueError naming the
+    first that is not: a NaN position would silently feel no force)."""
+    values = np.asarray(values, dtype=float)
+    bad = ~np.isfinite(values)
+    if np.any(bad):
+        index = tuple(int(i) for i in np.unravel_index(int(np.argmax(bad)), values.shape))
+        raise ValueError(f'{name} must be finite: {name}{list(index)} is '
+                         f'{float(values[index])}')
+    return values
 
 
 def unit_normals(normals):

@@ -27,6 +27,9 @@ from ..units import zeta_to_si
 RESOLVED_FRACTION = 1.0
 
 _AXES = np.vstack([np.eye(3), -np.eye(3)])
+#: A timestep within this relative rounding of the bound is within it (a scene's 1 ms at a
+#: bound computed as 0.9999999999999996 ms).
+ROUNDING = 1e-9
 
 
 def largest_factor(engine):
@@ -60,10 +63,21 @@ def timestep_bound(engine, zeta):
 def timestep_problem(engine, timestep, zeta):
     """Why `timestep` (s) is too long for the sand at zeta (N/cm^3), or None."""
     bound, body = timestep_bound(engine, zeta)
-    if timestep <= bound:
+    if timestep <= bound * (1.0 + ROUNDING):
         return None
     factor = largest_factor(engine)
     scaled = f' x the zeta map\'s largest factor {factor:g}' if factor != 1.0 else ''
-    return (f'timestep {timestep * 1e3:g} ms is longer than the {bound * 1e3:.3g} ms the sand '
+    given, resolved = _apart(timestep * 1e3, bound * 1e3)
+    return (f'timestep {given} ms is longer than the {resolved} ms the sand '
             f'coupling resolves (sqrt(m/k) of body {body!r} at zeta {zeta:g} N/cm^3{scaled}; '
             'see rft_sim_ros/sand/timestep.py): results are not to be trusted')
+
+
+def _apart(value, bound):
+    """value (6 or more significant digits) and bound (3 or more) as texts, with as many
+    digits as tell them apart."""
+    for digits in range(3, 18):
+        texts = f'{value:.{max(digits, 6)}g}', f'{bound:.{digits}g}'
+        if texts[0] != texts[1]:
+            return texts
+    return texts
