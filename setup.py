@@ -41,6 +41,9 @@ setup(
         'numba>=0.59',
         'rosbags>=0.10',
         'matplotlib>=3.7',
+        # PNG height fields and zeta maps read exactly at every bit depth (sand/grid_files.py;
+        # matplotlib's imread mis-scales 2- and 4-bit greys); matplotlib needs it anyway
+        'pillow>=9.0',
         'scipy>=1.10',      # trimesh's optional mesh operations (hulls, repairs) on users' meshes
         'xacro>=2.0',       # ROS's xacro, from PyPI: robot descriptions without ROS
         'pycollada>=0.8',   # COLLADA (.dae) collision meshes, converted by trimesh

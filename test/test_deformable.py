@@ -153,6 +153,13 @@ def test_deformable_keys_are_checked():
     with pytest.raises(ValueError, match=r'a bed of 1000001 x 1000001 nodes \(0.01 m cells\) '
                        r'needs about 8.38e\+04 GiB, more than half of this machine'):
         DeformableSand(Plane(), size=(1e4, 1e4), cell=0.01)
+    for size, cell in (((1e300, 1e300), 0.01), ((1.0, 1.0), 1e-300)):  # (counted as floats)
+        with pytest.raises(ValueError, match=r'needs about inf GiB, more than half'):
+            DeformableSand(Plane(), size=size, cell=cell)
+    # a bed where float64 coordinates cannot tell its nodes apart
+    with pytest.raises(ValueError, match=r'a height grid reaching 1e\+300 m from the world origin '
+                       r'with nodes 0.01 m apart: world coordinates \(float64\) do not resolve'):
+        DeformableSand(Plane(), size=(1.0, 1.0), cell=0.01, center=(1e300, 0.0))
 
 
 def test_cells_wider_than_a_sand_body_are_said_at_start_up():
@@ -163,6 +170,19 @@ def test_cells_wider_than_a_sand_body_are_said_at_start_up():
     assert said.startswith('sand.deformable.cell 0.12 m is wider than sand body plate (10 cm): ')
     fine = Simulation(load_scene('plate_drop', BED))
     assert not [n for n in fine.notices if 'is wider than' in n]
+
+
+def test_cells_narrower_than_half_the_plate_spacing_are_said_at_start_up():
+    """plate_drop's 500 plates on its 10 x 10 cm plate's faces lie about 9 mm apart: at 2 mm
+    cells a plate marks the cell under its centre and leaves the cells between unmarked, said
+    with the spacing; 1 cm cells are not."""
+    fine = Simulation(load_scene('plate_drop', {**BED, 'sand.deformable.cell': 0.002}))
+    [said] = [n for n in fine.notices if 'narrower than half' in n]
+    side = np.median(np.sqrt(fine.engine.areas))
+    assert said.startswith("sand.deformable.cell 0.002 m is narrower than half the sand bodies' "
+                           f'plate spacing ({side * 1e3:.3g} mm, the median plate): ')
+    assert not [n for n in Simulation(load_scene('plate_drop', BED)).notices
+                if 'narrower than half' in n]
 
 
 def test_start_up_says_where_the_bed_lies_and_what_it_rounded():

@@ -285,7 +285,7 @@ def test_slope_heights_and_normal():
 def test_a_surfaces_steepest_inclination():
     """A slope's angle; a grid's steepest point of its bilinear surface, at a cell corner
     (z = x y over a unit cell: gradient (1, 1) at (1, 1), 54.7 deg; a tilted plane sampled on
-    a grid: its own angle); a plane 0."""
+    a grid: its own angle); a plane 0; deformable sand, its bed's or its base's."""
     assert Slope(0.0, 12.5, 40.0).steepest_deg() == 12.5 and Plane(0.3).steepest_deg() == 0.0
     x, y = np.meshgrid(np.linspace(0, 1, 2), np.linspace(0, 1, 2))
     assert HeightGrid(x * y, (1.0, 1.0)).steepest_deg() == pytest.approx(
@@ -293,6 +293,12 @@ def test_a_surfaces_steepest_inclination():
     x, y = np.meshgrid(np.linspace(-1, 1, 21), np.linspace(-0.5, 0.5, 11))
     assert HeightGrid(0.3 * x - 0.4 * y, (2.0, 1.0)).steepest_deg() == pytest.approx(
         np.degrees(np.arctan(0.5)))
+    # deformable sand: the steeper of its bed and the base beyond it (a bed on a level
+    # patch of a 25 deg slope's grid is 25 deg steep at its steepest, beyond the bed)
+    ramp = HeightGrid(np.tan(np.radians(25.0)) * np.maximum(x - 0.5, 0.0), (2.0, 1.0))
+    bed = DeformableSand(ramp, size=(0.4, 0.4), cell=0.02, center=(-0.5, 0.0))
+    assert HeightGrid(bed.grid, bed.size).steepest_deg() == 0.0
+    assert bed.steepest_deg() == pytest.approx(25.0)
 
 
 @pytest.mark.parametrize('angle, said', [(15.0, False), (25.0, True)])
@@ -314,24 +320,33 @@ HFIELD = """
 </mujoco>"""
 
 
-def test_highest_surface_point_over_a_rectangle():
-    """`highest`: exact on the plane and the slope (a corner), and on a grid the highest node
-    of the cells the rectangle touches: never below the surface inside it, exact on nodes."""
+def test_lowest_and_highest_surface_point_over_a_rectangle():
+    """`bounds` (lowest, highest) and `highest`: exact on the plane and the slope (corners),
+    and on a grid the lowest and highest node of the cells the rectangle touches: never
+    above / below the surface inside it, exact on nodes, equal where the grid is level."""
     rng = np.random.default_rng(3)
     grid = HeightGrid(rng.uniform(0.0, 0.05, (9, 12)), (1.1, 0.8), (0.2, -0.1))
     slope = Slope(0.1, angle_deg=12.0, downhill_deg=200.0)
     assert Plane(0.3).highest(-1.0, 2.0, -3.0, 4.0) == 0.3
+    assert Plane(0.3).bounds(-1.0, 2.0, -3.0, 4.0) == (0.3, 0.3)
     for x0, y0, wx, wy in rng.uniform([-0.8, -0.6, 0.0, 0.0], [0.8, 0.4, 0.3, 0.3], (30, 4)):
         xs, ys = np.meshgrid(np.linspace(x0, x0 + wx, 41), np.linspace(y0, y0 + wy, 41))
         for surface in (slope, grid):
-            top = surface.highest(x0, x0 + wx, y0, y0 + wy)
+            low, top = surface.bounds(x0, x0 + wx, y0, y0 + wy)
+            assert top == surface.highest(x0, x0 + wx, y0, y0 + wy)
             assert top >= surface.height(xs, ys).max() - 1e-15
-        assert slope.highest(x0, x0 + wx, y0, y0 + wy) == pytest.approx(
-            slope.height(xs, ys).max(), abs=1e-15)
-    # a rectangle from node (2, 3) to node (5, 6): exactly its nodes' highest
+            assert low <= surface.height(xs, ys).min() + 1e-15
+        assert slope.bounds(x0, x0 + wx, y0, y0 + wy) == pytest.approx(
+            (slope.height(xs, ys).min(), slope.height(xs, ys).max()), abs=1e-15)
+    # a rectangle from node (2, 3) to node (5, 6) (a hair inside, against rounding): exactly
+    # its nodes' lowest and highest
     (ox, oy), (dx, dy) = grid.origin, grid.spacing
-    assert grid.highest(ox + 2 * dx, ox + 5 * dx, oy + 3 * dy, oy + 6 * dy) == \
-        grid.grid[3:7, 2:6].max()
+    hair = 1e-9
+    assert grid.bounds(ox + 2 * dx + hair, ox + 5 * dx - hair, oy + 3 * dy + hair,
+                       oy + 6 * dy - hair) == \
+        (grid.grid[3:7, 2:6].min(), grid.grid[3:7, 2:6].max())
+    level = HeightGrid(np.full((4, 4), 0.07), (0.3, 0.3))
+    assert level.bounds(-0.1, 0.1, -0.1, 0.1) == (0.07, 0.07)
     assert grid.highest(-9.0, -8.0, -9.0, -8.0) == grid.grid[0, 0]  # outside: edge continued
     # deformable sand: its bed, and beyond the bed its base (a slope rising to -x here)
     bed = DeformableSand(slope, size=(0.4, 0.4), cell=0.02)
@@ -339,6 +354,7 @@ def test_highest_surface_point_over_a_rectangle():
     assert bed.highest(-0.05, 0.05, -0.05, 0.05) == pytest.approx(bed.grid[10, 10])
     assert bed.highest(0.5, 0.6, 0.0, 0.1) == pytest.approx(slope.highest(0.5, 0.6, 0.0, 0.1))
     assert bed.highest(0.1, 0.5, 0.0, 0.1) >= slope.highest(0.1, 0.5, 0.0, 0.1)
+    assert bed.bounds(0.1, 0.5, 0.0, 0.1)[0] <= slope.bounds(0.1, 0.5, 0.0, 0.1)[0]
 
 
 @pytest.mark.parametrize('surface', [{'type': 'slope', 'angle_deg': 15.0, 'downhill_deg': 30.0},
@@ -550,50 +566,101 @@ TURNED_RAMP = """
 </mujoco>"""
 
 
-@pytest.mark.parametrize('deg', [30.0, -89.954, 135.0])
-def test_hfield_turned_by_any_angle_is_resampled_onto_the_world_grid(deg):
-    """An hfield turned about z by an angle that is not a quarter turn (a generator's
-    euler -1.57 is -89.954 deg) is resampled at its node spacing onto a world-aligned grid:
-    a ramp (heights linear in the geom's x, y) is read as it is inside it, where bilinear
-    interpolation of a linear field is that field, and a bumpy field agrees with MuJoCo's
-    own ray casts within a cell's node range; the grid says so in a notice."""
-    rows, cols = 9, 13
-    u, v = np.meshgrid(np.linspace(-1, 1, cols), np.linspace(-1, 1, rows))
-    ramp = 0.5 + 0.3 * u - 0.2 * v  # (0..1, as MuJoCo normalises the data)
-    model = mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
-        name='ramp', rows=rows, cols=cols, deg=deg,
-        elevation=' '.join(f'{h:.17g}' for h in ramp.ravel())))
-    grid = HeightGrid.from_mjcf_hfield(model)
-    assert len(grid.notices) == 1 and f'turned {deg:.6g} deg about z' in grid.notices[0]
-    unturned = HeightGrid.from_mjcf_hfield(mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
-        name='ramp', rows=rows, cols=cols, deg=0.0,
-        elevation=' '.join(f'{h:.17g}' for h in ramp.ravel()))))
-    turn = np.radians(deg)
-    rng = np.random.default_rng(4)
-    # (a diagonal of the world grid's 0.1 m cells inside the edges: their nodes on the field)
-    local = rng.uniform([-0.45, -0.25], [0.45, 0.25], size=(200, 2))
-    world = np.array([0.2, -0.1]) + local @ np.array([[np.cos(turn), -np.sin(turn)],
-                                                      [np.sin(turn), np.cos(turn)]]).T
+def _turned_field(name, values, deg):
+    """TURNED_RAMP's model with the hfield data `values` (9 x 13, 0..1) turned `deg`."""
+    rows, cols = values.shape
+    return mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
+        name=name, rows=rows, cols=cols, deg=deg,
+        elevation=' '.join(f'{h:.17g}' for h in values.ravel())))
+
+
+def _ray_heights(model, points):
+    """MuJoCo's own height of the ground under each world (x, y) (ray casts from z = 1 m)."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
+    geomid = np.zeros(1, dtype=np.int32)
+    heights = []
+    for x, y in points:
+        distance = mujoco.mj_ray(model, data, np.array([x, y, 1.0]), np.array([0, 0, -1.0]),
+                                 None, 1, -1, geomid)
+        assert geomid[0] == 0
+        heights.append(1.0 - distance)
+    return np.array(heights)
+
+
+def _turn(deg, local):
+    """World (x, y) of points `local` ((n, 2), m) in TURNED_RAMP's geom frame, turned deg."""
+    turn = np.radians(deg)
+    return np.array([0.2, -0.1]) + local @ np.array([[np.cos(turn), -np.sin(turn)],
+                                                     [np.sin(turn), np.cos(turn)]]).T
+
+
+#: TURNED_RAMP's field: 13 x 9 nodes 0.1 m apart, heights 0 .. 0.08 m.
+RAMP_VALUES = 0.5 + 0.3 * np.linspace(-1, 1, 13)[None, :] - 0.2 * np.linspace(-1, 1, 9)[:, None]
+BUMPS = np.random.default_rng(5).uniform(0.0, 1.0, (9, 13))
+FIELD_NODES = np.array([[-0.6 + 0.1 * i, -0.4 + 0.1 * j] for j in range(9) for i in range(13)])
+
+
+@pytest.mark.parametrize('deg', [30.0, 135.0, -60.0])
+def test_hfield_turned_by_any_angle_is_resampled_onto_the_world_grid(deg):
+    """An hfield turned about z by an angle that is not (near) a quarter turn is resampled
+    at a quarter of its node spacing onto a world-aligned grid: a ramp (heights linear in
+    the geom's x, y) is read as it is up to a resampled cell (25 mm) from its edge, where
+    bilinear interpolation of a linear field is that field; a bumpy field agrees with
+    MuJoCo's own ray casts within a cell's node range, and at the field's own nodes within
+    15 % of its relief (a node's peak falls between the resampled nodes); the grid says so
+    in a notice."""
+    grid = HeightGrid.from_mjcf_hfield(_turned_field('ramp', RAMP_VALUES, deg))
+    assert len(grid.notices) == 1 and f'turned {deg:.6g} deg about z' in grid.notices[0]
+    assert '25 mm apart (1/4 of its node spacing' in grid.notices[0]
+    unturned = HeightGrid.from_mjcf_hfield(_turned_field('ramp', RAMP_VALUES, 0.0))
+    local = np.random.default_rng(4).uniform([-0.56, -0.36], [0.56, 0.36], size=(400, 2))
+    world = _turn(deg, local)
     expected = unturned.height(0.2 + local[:, 0], -0.1 + local[:, 1])
     assert np.ptp(expected) > 0.04  # (a ramp, not a level)
     # (linear to MuJoCo's float32 storage of the data: 1e-9 m here)
     assert np.allclose(grid.height(world[:, 0], world[:, 1]), expected, rtol=0, atol=1e-8)
-    # a bumpy field: within its node range of MuJoCo's triangles
-    bumps = np.random.default_rng(5).uniform(0.0, 1.0, (rows, cols))
-    model = mujoco.MjModel.from_xml_string(TURNED_RAMP.format(
-        name='bumps', rows=rows, cols=cols, deg=deg,
-        elevation=' '.join(f'{h:.17g}' for h in bumps.ravel())))
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    model = _turned_field('bumps', BUMPS, deg)
     grid = HeightGrid.from_mjcf_hfield(model, 'bumps')
-    geomid = np.zeros(1, dtype=np.int32)
-    for x, y in world[:40]:
-        distance = mujoco.mj_ray(model, data, np.array([x, y, 1.0]), np.array([0, 0, -1.0]),
-                                 None, 1, -1, geomid)
-        assert geomid[0] == 0
-        assert abs((1.0 - distance) - grid.height(x, y)) < 0.08
+    assert np.all(np.abs(_ray_heights(model, world[:40]) - grid.height(*world[:40].T)) < 0.08)
+    inner = FIELD_NODES[(np.abs(FIELD_NODES[:, 0]) < 0.55) & (np.abs(FIELD_NODES[:, 1]) < 0.35)]
+    nodes = _turn(deg, inner)
+    assert np.max(np.abs(_ray_heights(model, nodes) - grid.height(*nodes.T))) < 0.15 * 0.08
+
+
+def test_hfield_turned_within_a_tenth_of_a_node_spacing_of_a_quarter_turn_is_read_as_it():
+    """A generator's euler -1.57 (-89.954 deg) is read as -90 deg, exactly, as the notice
+    says: the field's nodes move under a tenth of their spacing (0.58 mm here), far less than
+    resampling would smooth it; so the sand agrees with MuJoCo's own ray casts at the field's
+    nodes to that move times the field's slope."""
+    model = _turned_field('bumps', BUMPS, -89.954)
+    grid = HeightGrid.from_mjcf_hfield(model)
+    assert grid.notices == ("hfield geom 'bumps' is turned -89.954 deg about z: read as -90 "
+                            'deg, exactly (its nodes move at most 0.58 mm, 0.0058 of its node '
+                            'spacing)',)
+    exact = HeightGrid.from_mjcf_hfield(_turned_field('bumps', BUMPS, -90.0))
+    assert np.array_equal(grid.grid, exact.grid) and grid.origin == exact.origin
+    steepest = np.tan(np.radians(grid.steepest_deg()))
+    inner = FIELD_NODES[(np.abs(FIELD_NODES[:, 0]) < 0.55) & (np.abs(FIELD_NODES[:, 1]) < 0.35)]
+    nodes = _turn(-89.954, inner)
+    assert np.max(np.abs(_ray_heights(model, nodes) - grid.height(*nodes.T))) < \
+        0.58e-3 * steepest * 1.01
+
+
+@pytest.mark.parametrize('deg', [45.0, -89.954])
+def test_a_turned_hfield_within_the_plane_is_the_plane_a_cell_beyond_its_edges(deg):
+    """`beyond: plane` around a turned hfield: the plane at sand.surface_height from one field
+    cell (0.1 m) and one resampled cell (25 mm) outside the field's own turned edges on, also
+    at the corners of its world-aligned bounding box; the field itself inside."""
+    model = _turned_field('ramp', RAMP_VALUES, deg)
+    patch = surface_from_settings({'type': 'hfield', 'beyond': 'plane'}, -0.2, model)
+    edge = surface_from_settings({'type': 'hfield'}, -0.2, model)
+    ring = np.random.default_rng(8).uniform(-1.0, 1.0, (4000, 2))
+    outside = ring[(np.abs(ring[:, 0]) > 0.6 + 0.1 + 0.036) | (np.abs(ring[:, 1]) > 0.4 + 0.136)]
+    assert np.allclose(patch.height(*_turn(deg, outside).T), -0.2, rtol=0, atol=1e-15)
+    inside = ring[(np.abs(ring[:, 0]) < 0.56) & (np.abs(ring[:, 1]) < 0.36)]
+    assert np.allclose(patch.height(*_turn(deg, inside).T), edge.height(*_turn(deg, inside).T),
+                       rtol=0, atol=1e-8)
 
 
 def test_grid_files_png_and_npy(tmp_path):
@@ -662,6 +729,10 @@ def test_zeta_map_multiplies_zeta_where_the_plates_are():
         zeta_map_from_settings({'regions': [{'x': [1, 0], 'y': [0, 1], 'factor': 2}]})
     with pytest.raises(ValueError, match=r'regions\[0\]: factor must be finite and > 0, got nan'):
         zeta_map_from_settings({'regions': [{'x': [0, 1], 'y': [0, 1], 'factor': np.nan}]})
+    with pytest.raises(ValueError, match=r'regions\[1\] \(x 0.5 .. 0.504, y -0.5 .. 0 m\) holds no '
+                                         'cell centre of the 0.01 m cells'):  # (it vanished)
+        ZetaMap.from_regions([{'x': [0, 1], 'y': [-1, 1], 'factor': 3.0},
+                              {'x': [0.5, 0.504], 'y': [-0.5, 0], 'factor': 0.1}])
     engine = Simulation(load_scene('plate_drop', {'sand.zeta_map.regions': [
         {'x': [-1, 1], 'y': [-1, 1], 'factor': 8.0}]})).engine
     assert engine.zeta_at([0.0, 2.0], 0.0).tolist() == [30.0, 3.75]
@@ -737,8 +808,10 @@ def test_plate_drop_on_a_flat_height_grid_is_the_plane_drop_at_that_height(tmp_p
 
 def test_plate_press_on_a_raised_grid_and_on_a_slope_feels_zeta_a_per_depth(tmp_path):
     """plate_press starts above the surface under the plate, whatever its shape: on a grid
-    raised 5 cm it is the plane's press at 5 cm; on a 10 deg slope a horizontal plate's force
-    is still zeta A times the depth at its centre once it is wholly in (depth linear across)."""
+    raised 5 cm it is the plane's press at 5 cm; on a 10 and a 30 deg slope a horizontal
+    plate's force is still zeta A times the depth at its centre once it is wholly in (depth
+    linear across), which the fit then holds to rounding; a press that never takes the plate
+    wholly in (30 deg: 2.9 cm of the 10 cm plate's rise) has no force per depth to report."""
     def press(overrides):
         sim = Simulation(load_scene('plate_press', overrides))
         sim.step(int(round(sim.scene.duration / sim.timestep)))
@@ -749,8 +822,24 @@ def test_plate_press_on_a_raised_grid_and_on_a_slope_feels_zeta_a_per_depth(tmp_
                     'sand.surface.size': [2.0, 2.0]})
     assert raised == pytest.approx(plane, rel=1e-12, abs=1e-12)  # (the slide offset rounds)
     slope = press({'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0})
-    assert abs(slope['force_per_depth_error']) < 0.02
+    assert abs(slope['force_per_depth_error']) < 1e-9
     assert slope['max_depth_m'] == pytest.approx(plane['max_depth_m'], rel=1e-3)
+    steep = {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 30.0}
+    assert press(steep)['force_per_depth_error'] is None  # (2.5 cm deep: not wholly in)
+    assert abs(press({**steep, 'duration': 6.0})['force_per_depth_error']) < 1e-9
+
+
+def test_plate_drop_on_a_slope_has_no_energy_balance_to_hold():
+    """The impact depth's energy balance assumes sand level under the plate: on a slope the
+    expected impact depth and its error are None (not a false error), the static depth
+    stays."""
+    sim = Simulation(load_scene('plate_drop', {'sand.surface.type': 'slope',
+                                               'sand.surface.angle_deg': 10.0,
+                                               'duration': 0.3}))
+    sim.step(int(round(sim.scene.duration / sim.timestep)))
+    metrics = sim.scenario.metrics(sim)
+    assert metrics['expected_max_depth_m'] is None and metrics['max_depth_error'] is None
+    assert metrics['static_depth_m'] == pytest.approx(1.0 * 9.81 / (3.75e6 * 0.01), rel=1e-3)
 
 
 @pytest.mark.parametrize('angle', [10.0, 20.0])

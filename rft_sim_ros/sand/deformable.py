@@ -95,8 +95,8 @@ class DeformableSand(HeightGrid):
         if len(size) != 2 or min(size) < 2 * cell:
             raise ValueError(f'sand.deformable.size must be [x, y] m of at least two cells, '
                              f'got {list(size)}')
+        check_memory(size, cell)
         nx, ny = bed_nodes(size, cell)
-        check_memory(nx, ny, cell)
         span = ((nx - 1) * cell, (ny - 1) * cell)  # whole cells
         x = center[0] - span[0] / 2 + cell * np.arange(nx)
         y = center[1] - span[1] / 2 + cell * np.arange(ny)
@@ -134,12 +134,17 @@ class DeformableSand(HeightGrid):
         beyond = np.where(inside, bed, self.base.height(x, y))
         return beyond if beyond.ndim else float(beyond)
 
-    def highest(self, x0, x1, y0, y1):
-        top = super().highest(x0, x1, y0, y1)  # (the bed's edge nodes, where it reaches out)
+    def steepest_deg(self):
+        """The steepest inclination (deg) of the bed and of its base beyond it."""
+        return max(super().steepest_deg(), self.base.steepest_deg())
+
+    def bounds(self, x0, x1, y0, y1):
+        low, top = super().bounds(x0, x1, y0, y1)  # (the bed's edge nodes where it reaches out)
         (bx, by), (sx, sy) = self.origin, self.size
         if x0 < bx or y0 < by or x1 > bx + sx or y1 > by + sy:
-            top = max(top, self.base.highest(x0, x1, y0, y1))
-        return top
+            base_low, base_top = self.base.bounds(x0, x1, y0, y1)
+            low, top = min(low, base_low), max(top, base_top)
+        return low, top
 
     @property
     def cell_area(self):
@@ -240,20 +245,23 @@ def bed_nodes(size, cell):
     return int(round(size[0] / cell)) + 1, int(round(size[1] / cell)) + 1
 
 
-def check_memory(nx, ny, cell):
-    """Refuse (ValueError) a bed of nx x ny nodes that would take more than half of this
-    machine's memory (`BED_BYTES_PER_NODE`), before any of it is allocated."""
+def check_memory(size, cell):
+    """Refuse (ValueError) a bed of `size` [x, y] m in `cell` m cells that would take more
+    than half of this machine's memory (`BED_BYTES_PER_NODE`), before any of it is
+    allocated (its nodes counted as floats, so that any size and cell is told)."""
     try:
         memory = os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
     except (AttributeError, ValueError, OSError):  # not a POSIX system: not checked
         return
+    nx, ny = (float(np.rint(float(s) / cell)) + 1.0 for s in size)  # (inf: an absurd bed)
     need = nx * ny * BED_BYTES_PER_NODE
     if need > memory / 2:
-        raise ValueError(f'sand.deformable: a bed of {nx} x {ny} nodes ({cell:g} m cells) needs '
-                         f'about {need / 2**30:.3g} GiB, more than half of this machine\'s '
-                         f'{memory / 2**30:.3g} GiB: make sand.deformable.size smaller or '
-                         'sand.deformable.cell larger (the bed need only cover where the robot '
-                         'goes)')
+        nodes = ' x '.join(f'{n:.0f}' if n < 1e15 else f'{n:.3g}' for n in (nx, ny))
+        raise ValueError(f'sand.deformable: a bed of {nodes} nodes ({cell:g} m '
+                         f'cells) needs about {need / 2**30:.3g} GiB, more than half of this '
+                         f'machine\'s {memory / 2**30:.3g} GiB: make sand.deformable.size '
+                         'smaller or sand.deformable.cell larger (the bed need only cover '
+                         'where the robot goes)')
 
 
 @njit(cache=True, inline='always')

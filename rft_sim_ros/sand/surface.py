@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .grid_files import file_format, grey_levels, read_npy
+
 #: Kind codes read by the kernels.
 FLAT, SLOPE, GRID = 0, 1, 2
 #: Nodes per side of a block of the grid's block maximum.
@@ -156,11 +158,15 @@ class Surface:
         """World z of the free surface at world (x, y) (m; arrays broadcast)."""
         raise NotImplementedError
 
-    def highest(self, x0, x1, y0, y1):
-        """World z (m) of the highest surface point over the rectangle x0 <= x <= x1,
-        y0 <= y <= y1 (m), or (a grid) an upper bound of it within that of the grid cells
-        the rectangle touches."""
+    def bounds(self, x0, x1, y0, y1):
+        """(lowest, highest) world z (m) of the surface over the rectangle x0 <= x <= x1,
+        y0 <= y <= y1 (m), or (a grid) bounds of them within those of the grid cells the
+        rectangle touches; equal where the surface is level there (exactly, on a grid)."""
         raise NotImplementedError
+
+    def highest(self, x0, x1, y0, y1):
+        """World z (m) of the highest surface point over the rectangle (`bounds`)."""
+        return self.bounds(x0, x1, y0, y1)[1]
 
     def steepest_deg(self):
         """The surface's steepest inclination (deg): a plane's 0, a slope's angle, a grid's
@@ -195,8 +201,8 @@ class Plane(Surface):
         return np.full(np.broadcast(x, y).shape, self.level) if np.ndim(x) or np.ndim(y) \
             else self.level
 
-    def highest(self, x0, x1, y0, y1):
-        return self.level
+    def bounds(self, x0, x1, y0, y1):
+        return self.level, self.level
 
     @property
     def data(self):
@@ -218,8 +224,9 @@ class Slope(Surface):
     def height(self, x, y):
         return self.level + self.gradient[0] * np.asarray(x) + self.gradient[1] * np.asarray(y)
 
-    def highest(self, x0, x1, y0, y1):
-        return float(np.max(self.height(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))))
+    def bounds(self, x0, x1, y0, y1):
+        corners = self.height(np.array([x0, x1, x0, x1]), np.array([y0, y0, y1, y1]))
+        return float(np.min(corners)), float(np.max(corners))
 
     def steepest_deg(self):
         return float(self.angle_deg)
@@ -230,6 +237,13 @@ class Slope(Surface):
                            _NO_GRID, _NO_GRID)
 
 
+#: A height grid may reach at most this many of its node spacings from the world origin, so
+#: that float64 coordinates resolve a node spacing to 2e-7 of it.
+RESOLVED_SPACINGS = 1e9
+#: A height grid and its values, as errors name them.
+GRID_VALUES = ('a height grid', 'heights')
+
+
 class HeightGrid(Surface):
     """Height field on a regular grid of nodes: heights[iy, ix] (m, world z; row 0 at the
     lowest y), spanning size = (x, y) m centred on center = (x, y) m; bilinear between nodes,
@@ -238,8 +252,8 @@ class HeightGrid(Surface):
     def __init__(self, heights, size, center=(0.0, 0.0)):
         grid = np.array(heights, dtype=float)
         if grid.ndim != 2:
-            raise ValueError('a height grid is a 2-D array of heights [rows (y), columns (x)], '
-                             f'got {grid.ndim} dimension(s), shape {grid.shape}')
+            raise ValueError(f'{GRID_VALUES[0]} is a 2-D array of {GRID_VALUES[1]} [rows (y), '
+                             f'columns (x)], got {grid.ndim} dimension(s), shape {grid.shape}')
         if min(grid.shape) < 2:
             raise ValueError(f'a height grid needs at least 2 x 2 nodes, got shape {grid.shape}')
         if not np.all(np.isfinite(grid)):
@@ -252,6 +266,12 @@ class HeightGrid(Surface):
         ny, nx = grid.shape
         self.spacing = (size[0] / (nx - 1), size[1] / (ny - 1))
         self.origin = (self.center[0] - size[0] / 2, self.center[1] - size[1] / 2)
+        far = max(abs(self.center[0]) + size[0] / 2, abs(self.center[1]) + size[1] / 2)
+        if not far <= RESOLVED_SPACINGS * min(self.spacing):
+            raise ValueError(f'a height grid reaching {far:.3g} m from the world origin with '
+                             f'nodes {min(self.spacing):.3g} m apart: world coordinates '
+                             '(float64) do not resolve its cells there; centre it nearer the '
+                             'origin')
         self.block_max = block_maximum(self.grid)
         self.block_min = block_minimum(self.grid)
 
@@ -272,58 +292,67 @@ class HeightGrid(Surface):
         given, rescales its values onto that range) or a PNG (grey levels 0..1 mapped onto
         `height_range`, which is then required; the image's top row is the +y edge, as a map
         seen from above)."""
+        key = 'sand.surface.file'
         path = Path(path)
-        if not path.is_file():
-            raise ValueError(f'sand.surface.file {str(path)!r} not found')
-        if path.suffix.lower() == '.npy':
-            values = np.load(path, allow_pickle=False).astype(float)
+        if file_format(path, key) == 'npy':
+            values = read_npy(path, key, GRID_VALUES)
             if height_range is not None:
                 values = _rescale(values, height_range)
-        elif path.suffix.lower() == '.png':
+        else:
             if height_range is None:
                 raise ValueError('sand.surface.height_range [low, high] m is needed for a '
                                  'PNG height field')
             low, high = _range(height_range)
-            values = low + (high - low) * grey_levels(path)
-        else:
-            raise ValueError(f'sand.surface.file must be a .png or .npy, got {path.name!r}')
+            values = low + (high - low) * grey_levels(path, key, GRID_VALUES)
         return cls(base + values, size, center)
 
     @classmethod
-    def from_mjcf_hfield(cls, model, geom=None):
+    def from_mjcf_hfield(cls, model, geom=None, beyond=None):
         """The height field of the MuJoCo model's hfield geom `geom` (`hfield_geom`: its name,
         its <hfield>'s, or its id; None: the model's only one), world frame, as MuJoCo places
         it: heights pos_z + data x size_z over the geom's local x in +-size_x and y in
         +-size_y. The geom must be fixed to the world (in the world body, or a body welded to
         it) and level; it may be turned about world z by any angle. A multiple of 90 deg is
-        read exactly (the data's rows and columns turned with it); any other turn is
-        resampled (`_resampled`, said in `notices`). A tilt is refused with its angle."""
+        read exactly (the data's rows and columns turned with it), and so is a turn whose
+        farthest node lies within SNAP_SPACINGS node spacings of a quarter turn's (said in
+        `notices`); any other turn is resampled (`_resampled`, said in `notices`). A tilt is
+        refused with its angle. beyond: None, the field's edge heights continue beyond it;
+        or the world z (m) of a plane around it (`within_plane`, in the field's own frame, so
+        that a turned field's plane is met over one of its cells outside its own edges)."""
         import mujoco
         g = hfield_geom(model, geom)
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)  # the pose of a geom fixed to the world
         rotation, pos = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g].copy()
         yaw = np.arctan2(rotation[1, 0], rotation[0, 0])
+        label = f'hfield geom {hfield_label(model, g)!r}'
         if abs(rotation[2, 2] - 1.0) > 1e-9:
             tilt = np.degrees(np.arccos(np.clip(rotation[2, 2], -1.0, 1.0)))
-            raise ValueError(f'sand.surface.geom: hfield geom {hfield_label(model, g)!r} is '
-                             f'tilted {tilt:.6g} deg: only level hfields (turned about z '
-                             'alone) are read')
+            raise ValueError(f'sand.surface.geom: {label} is tilted {tilt:.6g} deg: only level '
+                             'hfields (turned about z alone) are read')
         h = int(model.geom_dataid[g])
         rows, cols = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
         start = int(model.hfield_adr[h])
         heights = pos[2] + model.hfield_size[h][2] * \
             model.hfield_data[start:start + rows * cols].reshape(rows, cols)
-        size = 2.0 * model.hfield_size[h][:2]
+        field = cls(heights, 2.0 * model.hfield_size[h][:2])  # (the geom's frame)
+        if beyond is not None:
+            field = field.within_plane(beyond)
         turns = int(np.rint(yaw / (np.pi / 2)))
-        if abs(yaw / (np.pi / 2) - turns) > 1e-9:
-            return _resampled(cls(heights, size), yaw, (pos[0], pos[1]),
-                              f'hfield geom {hfield_label(model, g)!r}')
+        off = yaw - turns * np.pi / 2
+        move = abs(off) * 0.5 * np.hypot(*field.size)  # m: its farthest node's, were it snapped
+        if move > SNAP_SPACINGS * min(field.spacing):
+            return _resampled(field, yaw, (pos[0], pos[1]), label)
         # rows are y (row 0 lowest), so a turn counterclockwise seen from above is rot90's
         # clockwise one
-        heights = np.rot90(heights, -turns)
-        size = size if turns % 2 == 0 else size[::-1]
-        return cls(heights, size, (pos[0], pos[1]))
+        grid = cls(np.rot90(field.grid, -turns),
+                   field.size if turns % 2 == 0 else field.size[::-1], (pos[0], pos[1]))
+        if off:
+            grid.notices = (f'{label} is turned {np.degrees(yaw):.6g} deg about z: read as '
+                            f'{90 * turns} deg, exactly (its nodes move at most '
+                            f'{move * 1e3:.2g} mm, {move / min(field.spacing):.2g} of its node '
+                            'spacing)',)
+        return grid
 
     def within_plane(self, level):
         """This grid in a plane at `level` (m): one ring of nodes at that level around it, so
@@ -346,15 +375,17 @@ class HeightGrid(Surface):
                      np.ascontiguousarray(y).ravel(), out.reshape(-1))
         return out if out.ndim else float(out)  # (a point in, a number out, as on a plane)
 
-    def highest(self, x0, x1, y0, y1):
-        """The highest node of the cells the rectangle touches (the edge nodes outside)."""
+    def bounds(self, x0, x1, y0, y1):
+        """The lowest and highest node of the cells the rectangle touches (the edge nodes
+        outside)."""
         ny, nx = self.grid.shape
         (ox, oy), (dx, dy) = self.origin, self.spacing
         i0, i1 = (int(np.clip(np.floor((x0 - ox) / dx), 0, nx - 1)),
                   int(np.clip(np.ceil((x1 - ox) / dx), 0, nx - 1)))
         j0, j1 = (int(np.clip(np.floor((y0 - oy) / dy), 0, ny - 1)),
                   int(np.clip(np.ceil((y1 - oy) / dy), 0, ny - 1)))
-        return float(self.grid[j0:j1 + 1, i0:i1 + 1].max())
+        nodes = self.grid[j0:j1 + 1, i0:i1 + 1]
+        return float(nodes.min()), float(nodes.max())
 
     @property
     def data(self):
@@ -362,25 +393,43 @@ class HeightGrid(Surface):
                            self.block_max, self.block_min)
 
 
+#: A turn about z that would move an hfield's farthest node by at most this many node
+#: spacings from a quarter turn's place is read as that quarter turn: resampling would
+#: smooth the field by more.
+SNAP_SPACINGS = 0.1
+#: Any other turn is resampled at the field's finer node spacing / RESAMPLE_REFINE, or a
+#: coarser fraction of it where that grid would pass RESAMPLE_NODES nodes (32 MB of heights).
+RESAMPLE_REFINE = 4
+RESAMPLE_NODES = 4_000_000
+
+
 def _resampled(field, yaw, center, what):
     """`field` (a HeightGrid in its own frame, centred on its origin) turned by `yaw` (rad)
     about z and moved to `center` (world x, y), resampled onto a world-aligned grid over the
-    turned field's bounding box at the field's finer node spacing: each node takes the
-    field's bilinear height at its place (so the sand equals the field there, and inside a
-    cell lies within the cell's node range), a node beyond the turned field its nearest
-    edge point's. `what` names the field in the notice the grid carries."""
-    spacing = min(field.spacing)
+    turned field's bounding box at a fraction of the field's finer node spacing
+    (RESAMPLE_REFINE): each node takes the field's bilinear height at its place, a node
+    beyond the turned field its nearest edge point's. So the sand equals the field at the
+    nodes, reads a field linear across a cell as it is, and lies within a cell's node range
+    inside it, except within one resampled cell of the field's edge, where the field's
+    heights blend with those continued beyond it. `what` names the field in the notice the
+    grid carries."""
     c, s = np.cos(yaw), np.sin(yaw)
     sx, sy = field.size
-    nodes = [int(np.ceil((abs(c) * sx + abs(s) * sy) / spacing - 1e-9)) + 1,
-             int(np.ceil((abs(s) * sx + abs(c) * sy) / spacing - 1e-9)) + 1]
+    extent = (abs(c) * sx + abs(s) * sy, abs(s) * sx + abs(c) * sy)
+    refine = RESAMPLE_REFINE
+    while refine > 1 and np.prod([e * refine / min(field.spacing) + 1 for e in extent]) > \
+            RESAMPLE_NODES:
+        refine -= 1
+    spacing = min(field.spacing) / refine
+    nodes = [int(np.ceil(e / spacing - 1e-9)) + 1 for e in extent]
     size = ((nodes[0] - 1) * spacing, (nodes[1] - 1) * spacing)
     dx, dy = np.meshgrid(spacing * np.arange(nodes[0]) - size[0] / 2,  # from the centre;
                          spacing * np.arange(nodes[1]) - size[1] / 2)  # row 0: lowest y
     grid = HeightGrid(field.height(c * dx + s * dy, c * dy - s * dx), size, center)
     grid.notices = (f'{what} is turned {np.degrees(yaw):.6g} deg about z: resampled onto a '
                     f'world-aligned grid of {nodes[0]} x {nodes[1]} nodes '
-                    f'{spacing * 1e3:.3g} mm apart (bilinear; a quarter turn is read exactly)',)
+                    f'{spacing * 1e3:.3g} mm apart (1/{refine} of its node spacing; '
+                    'bilinear; a quarter turn is read exactly)',)
     return grid
 
 
@@ -445,16 +494,6 @@ def hfield_label(model, g):
     return str(g)
 
 
-def grey_levels(path):
-    """A PNG's grey levels 0..1 as a (rows, columns) array with row 0 the image's bottom
-    row (lowest y: the image is a map seen from above); RGB(A): the colour channels' mean."""
-    from matplotlib.image import imread
-    image = np.asarray(imread(path), dtype=float)
-    if image.ndim == 3:
-        image = image[..., :3].mean(axis=2)
-    return image[::-1]
-
-
 def _range(height_range):
     try:
         low, high = (float(v) for v in height_range)
@@ -495,15 +534,15 @@ def surface_from_settings(settings, base_height=0.0, model=None):
     if kind == 'slope':
         return Slope(base_height, float(settings.get('angle_deg', 0.0)),
                      float(settings.get('downhill_deg', 0.0)))
-    if kind == 'hfield':
-        grid = HeightGrid.from_mjcf_hfield(model, settings.get('geom'))
-    elif 'file' not in settings or 'size' not in settings:
-        raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
-    else:
-        grid = HeightGrid.from_file(settings['file'], settings['size'],
-                                    settings.get('center', (0.0, 0.0)),
-                                    settings.get('height_range'), base_height)
     beyond = settings.get('beyond', 'edge')
     if beyond not in ('edge', 'plane'):
         raise ValueError(f"sand.surface.beyond must be 'edge' or 'plane', got {beyond!r}")
+    if kind == 'hfield':  # (a turned field meets its plane in its own frame)
+        return HeightGrid.from_mjcf_hfield(model, settings.get('geom'),
+                                           base_height if beyond == 'plane' else None)
+    if 'file' not in settings or 'size' not in settings:
+        raise ValueError('a grid surface needs sand.surface.file and sand.surface.size [x, y] m')
+    grid = HeightGrid.from_file(settings['file'], settings['size'],
+                                settings.get('center', (0.0, 0.0)),
+                                settings.get('height_range'), base_height)
     return grid.within_plane(base_height) if beyond == 'plane' else grid

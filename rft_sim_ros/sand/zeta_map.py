@@ -15,7 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .surface import grey_levels
+from .grid_files import file_format, grey_levels, read_npy
+
+#: A zeta map and its values, as errors name them.
+MAP_VALUES = ('a zeta map', 'factors')
 
 
 class ZetaMap:
@@ -71,8 +74,13 @@ class ZetaMap:
         xc = x_lo + (np.arange(nx) + 0.5) * cell
         yc = y_lo + (np.arange(ny) + 0.5) * cell
         factors = np.ones((ny, nx))
-        for x0, x1, y0, y1, f in boxes:
+        for index, (x0, x1, y0, y1, f) in enumerate(boxes):
             inside = ((yc >= y0) & (yc < y1))[:, None] & ((xc >= x0) & (xc < x1))[None, :]
+            if not inside.any():
+                raise ValueError(f'sand.zeta_map.regions[{index}] (x {x0:g} .. {x1:g}, y {y0:g} '
+                                 f'.. {y1:g} m) holds no cell centre of the {cell:g} m cells '
+                                 'the regions are rasterised on, so it would change nothing: '
+                                 'widen it or make sand.zeta_map.cell smaller')
             factors[inside] = f
         return cls(factors, (x_lo, y_lo), cell)
 
@@ -81,22 +89,18 @@ class ZetaMap:
         """Factors from a .npy, or from a PNG's grey levels mapped onto value_range [low,
         high] (required for a PNG; top image row = +y edge), over `size` [x, y] m centred on
         `center`. Cells must be square."""
+        key = 'sand.zeta_map.file'
         path = Path(path)
-        if not path.is_file():
-            raise ValueError(f'sand.zeta_map.file {str(path)!r} not found')
-        if path.suffix.lower() == '.npy':
-            factors = np.load(path, allow_pickle=False).astype(float)
-        elif path.suffix.lower() == '.png':
+        if file_format(path, key) == 'npy':
+            if value_range is not None:
+                raise ValueError('sand.zeta_map.range maps a PNG\'s grey levels; a .npy holds '
+                                 'the factors themselves: leave the range out')
+            factors = read_npy(path, key, MAP_VALUES)
+        else:
             if value_range is None:
                 raise ValueError('sand.zeta_map.range [low, high] is needed for a PNG zeta map')
             low, high = (float(v) for v in value_range)
-            factors = low + (high - low) * grey_levels(path)
-        else:
-            raise ValueError(f'sand.zeta_map.file must be a .png or .npy, got {path.name!r}')
-        if factors.ndim != 2:
-            raise ValueError('sand.zeta_map.file: a zeta map is a 2-D array of factors [rows '
-                             f'(y), columns (x)], got {factors.ndim} dimension(s), shape '
-                             f'{factors.shape}')
+            factors = low + (high - low) * grey_levels(path, key, MAP_VALUES)
         ny, nx = factors.shape
         cell_x, cell_y = float(size[0]) / nx, float(size[1]) / ny
         if not np.isclose(cell_x, cell_y, rtol=1e-6):

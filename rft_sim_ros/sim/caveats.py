@@ -2,7 +2,7 @@
 with the key that changes it: bear the robot on sand bodies too small for its weight
 (robot/bearing.py), hold free bodies that have no sand body (another robot, a loose crate),
 run MuJoCo's noslip iterations on the constraints the sand solve takes, resolve footprints
-finer than the deformable bed's cells."""
+finer than the deformable bed's cells, or mark cells finer than its plates."""
 import numpy as np
 
 from ..robot.bearing import bearing
@@ -32,7 +32,7 @@ def caveats(model, data, engine, scene, base):
                            'holds them (name their bodies in rft.bodies; beside auto: '
                            f'[auto, {unheld[0]}])')
     if engine.deformable:
-        notices += _coarse_bed_notice(engine)
+        notices += _coarse_bed_notice(engine) + _fine_bed_notice(engine)
     noslip = int(model.opt.noslip_iterations)
     if noslip and scene.low_velocity['method'] == 'implicit':
         notices.append(f"MuJoCo's noslip iterations ({noslip}) do not act on the constraints "
@@ -61,6 +61,26 @@ def _coarse_bed_notice(engine):
             f'{"ies" if len(narrow) > 1 else "y"} {_first_few(narrow)}: footprints are whole '
             'cells, so their craters and the sand displaced grow with the cell, not with the '
             'body (sand.deformable.cell: a cell well below that width)']
+
+
+#: A deformable bed's cells narrower than this fraction of its plates' spacing are said.
+FINE_CELL_FRACTION = 0.5
+
+
+def _fine_bed_notice(engine):
+    """[notice] where the deformable bed's cells are narrower than FINE_CELL_FRACTION of the
+    sand bodies' plates' spacing (the median plate's side, the square root of its area): a
+    plate marks the cell under its centre, so cells between the plates stay unmarked, and a
+    footprint becomes pits with the sand they displaced piled between them, under the foot
+    (a hexapod's feet sank 5x deeper at 1 mm cells than at 2 to 20 mm); else []."""
+    cell, side = engine.surface.cell, float(np.median(np.sqrt(engine.areas)))
+    if cell >= FINE_CELL_FRACTION * side:
+        return []
+    return [f"sand.deformable.cell {cell:g} m is narrower than half the sand bodies' plate "
+            f'spacing ({side * 1e3:.3g} mm, the median plate): a plate marks the cell under its '
+            'centre, so the cells between plates stay unmarked and a footprint becomes pits '
+            'with sand piled between them, under the foot (sand.deformable.cell at least '
+            'half the plate spacing, or more plates: rft.plates_per_body)']
 
 
 def _bearing_notice(model, data, engine, zeta, base):

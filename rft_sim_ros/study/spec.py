@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..sand.deformable import bed_nodes, check_memory
+from ..sand.deformable import check_memory
 from ..sand.surface import surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.config import SceneError, anchor_paths, load_scene
@@ -145,7 +145,7 @@ def check_terrain(scene):
     zeta_map_from_settings(scene.zeta_map)
     bed = scene.deformable
     if bed.get('enabled'):
-        check_memory(*bed_nodes(bed['size'], bed['cell']), bed['cell'])
+        check_memory(bed['size'], bed['cell'])
 
 
 def expand(vary, where='study'):
