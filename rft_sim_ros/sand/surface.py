@@ -398,9 +398,10 @@ class HeightGrid(Surface):
 #: smooth the field by more.
 SNAP_SPACINGS = 0.1
 #: Any other turn is resampled at the field's finer node spacing / RESAMPLE_REFINE, or a
-#: coarser fraction of it where that grid would pass RESAMPLE_NODES nodes (32 MB of heights).
+#: coarser fraction of it where that grid would pass RESAMPLE_NODES nodes (8 MB of heights, a
+#: 12 MB cloud where the node publishes the whole grid).
 RESAMPLE_REFINE = 4
-RESAMPLE_NODES = 4_000_000
+RESAMPLE_NODES = 1_000_000
 
 
 def _resampled(field, yaw, center, what):
