@@ -54,10 +54,10 @@ class TerrainUpdate:
     or of every node (the first time, and after `TerrainFeed.resend_cloud`) row-major in the
     grid's [iy, ix] order; None: no cloud in this publication (only the markers are re-sent).
     shape: (rows, columns) of `points`: the grid's (ny, nx) when it is every node, (1, N) for
-    the changed nodes. clear: the markers are sent whole (the first time, and after
-    `TerrainFeed.resend_markers`): every earlier tile is to be deleted first and `tiles` holds
-    every deformed tile. tiles: the `TerrainTile`s to (re)build, by index. spacing: the grid's
-    node spacing, m (the smaller of x and y)."""
+    the changed nodes (None without points). clear: the markers are sent whole (the first
+    time, and after `TerrainFeed.resend_markers`): every earlier tile is to be deleted first
+    and `tiles` holds every deformed tile. tiles: the `TerrainTile`s to (re)build, by index.
+    spacing: the grid's node spacing, m (the smaller of x and y)."""
     time: float
     points: np.ndarray
     shape: tuple
