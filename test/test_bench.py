@@ -54,7 +54,7 @@ def test_hexapod_trial_with_its_bag_records_the_run(tmp_path):
     from rft_sim_ros.ros.bag import bag_topics
     summary, _ = hexapod_trial({'cycles': 1, 'settle_time': 0.4, 'rft.plates_per_body': 100},
                                bag=tmp_path / 'bag')
-    assert bag_topics(tmp_path / 'bag')['/clock'].count == 140   # 1.4 s at 100 Hz
+    assert bag_topics(tmp_path / 'bag')['/clock'].count == 141   # 0 and 1.4 s at 100 Hz
     assert 0.0 < summary['recording_time_s'] < summary['wall_time_s']
 
 

@@ -7,11 +7,16 @@ import pytest
 
 from rft_sim_ros.cli import main
 from rft_sim_ros.ros import topics
-from rft_sim_ros.ros.bag import bag_topics, read_messages
+from rosbags.rosbag2 import Reader
+
+from rft_sim_ros.ros.bag import BagWriter, bag_topics, read_messages
 from rft_sim_ros.ros.recording import BagRecorder
+from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.ros.terrain import TerrainFeed
 from rft_sim_ros.ros.stamps import seconds_to_ns
 from rft_sim_ros.sim.runner import run_scene
 from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation
 from ros_test_support import SERVO_RIG
 
 DURATION = 0.3        # s
@@ -39,7 +44,7 @@ def press_run(tmp_path_factory):
 
 
 def test_bag_holds_the_node_topics_with_one_message_per_publish_period(press_run):
-    expected_count = round(RATE * DURATION)
+    expected_count = round(RATE * DURATION) + 1  # and the initial state, as the node
     recorded = bag_topics(press_run / 'bag')
     assert {t: i.msgtype for t, i in recorded.items()} == topics.published_topics(
         ['plate'], plates=False)
@@ -52,7 +57,7 @@ def test_bag_holds_the_node_topics_with_one_message_per_publish_period(press_run
 
 
 def test_stamps_increase_and_clock_is_sim_time(press_run):
-    expected = [seconds_to_ns((k + 1) / RATE) for k in range(round(RATE * DURATION))]
+    expected = [seconds_to_ns(k / RATE) for k in range(round(RATE * DURATION) + 1)]
     by_topic = {}
     for topic, time_ns, msg in read_messages(press_run / 'bag'):
         by_topic.setdefault(topic, []).append(time_ns)
@@ -108,7 +113,7 @@ def test_plates_flag_records_the_plate_markers(tmp_path):
     assert main(['run', 'plate_press', '--duration', '0.05', '--set', 'start_height=0',
                  '--out', str(out), '--quiet', '--plates', '--set-at', '0:zeta=2']) == 0
     recorded = bag_topics(out / 'bag')
-    assert recorded[topics.PLATES].count == 5
+    assert recorded[topics.PLATES].count == 6  # (sim time 0 and five cycles)
     markers = [m.markers[0] for _, _, m in read_messages(out / 'bag', [topics.PLATES])]
     assert len(markers[-1].points) > 0
 
@@ -164,7 +169,7 @@ def test_recorder_reports_a_divergence_and_finishes_the_bag(tmp_path):
     reason = summary['reason']
     assert not summary['stable'] and ('runaway' in reason or 'unstable' in reason)
     recorded = bag_topics(tmp_path / 'bag')
-    assert recorded[topics.JOINT_STATES].count == 10
+    assert recorded[topics.JOINT_STATES].count == 11  # (sim time 0 and ten cycles)
     last_time, last = list(read_messages(tmp_path / 'bag', [topics.DIAGNOSTICS]))[-1][1:]
     status, values = diagnostic_values(last)
     assert status.level == 2 and status.message == reason.removeprefix('diverged ')
@@ -172,6 +177,32 @@ def test_recorder_reports_a_divergence_and_finishes_the_bag(tmp_path):
     assert last_time == seconds_to_ns(0.1)
     js = [m for _, _, m in read_messages(tmp_path / 'bag', [topics.JOINT_STATES])]
     assert all(np.all(np.isfinite(m.velocity)) for m in js)
+
+
+def _recorded_at(path, time_ns):
+    """[(topic, CDR bytes)] of the rosbag2 at `path` at `time_ns`, in the bag's order."""
+    with Reader(path) as reader:
+        return [(connection.topic, bytes(data))
+                for connection, t, data in reader.messages() if t == time_ns]
+
+
+def test_the_bag_starts_with_what_the_node_publishes_at_sim_time_0(tmp_path):
+    """The node's first tick publishes the initial state at sim time 0 (/clock 0, the state
+    topics, the plates, the whole sand surface and its markers, /diagnostics with no
+    real-time factor measured yet): a headless run's bag holds the same messages, byte for
+    byte, at 0."""
+    deformable = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.5, 0.5]}
+    scene = load_scene('plate_drop', deformable)
+    run_scene(scene, duration=0.05, progress=False,
+              recorders=[BagRecorder(tmp_path / 'run', scene, plates=True)])
+    sim = Simulation(load_scene('plate_drop', deformable))
+    with BagWriter(tmp_path / 'node', list(sim.legs), plates=True, terrain=True) as sink:
+        SimRuntime(sim, sink, publish_rate=100.0, plates=True,
+                   terrain=TerrainFeed(sim.engine.surface), clock=lambda: 0.0).tick()
+    node = _recorded_at(tmp_path / 'node', 0)
+    assert {topic for topic, _ in node} == set(topics.published_topics(
+        ['plate'], plates=True, terrain=True))
+    assert sorted(_recorded_at(tmp_path / 'run', 0)) == sorted(node)
 
 
 def test_recorders_are_closed_when_the_scene_cannot_be_built(tmp_path):

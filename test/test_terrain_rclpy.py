@@ -55,7 +55,7 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
     first = clouds[0]
     assert first.header.frame_id == topics.ODOM_FRAME and (first.height, first.width) == (51, 51)
     assert np.all(points(first)[:, 2] == 0.0)           # the pristine bed at surface height 0
-    assert markers[0].action == Marker.DELETE            # nothing deformed yet
+    assert markers[0].action == Marker.DELETEALL         # nothing deformed yet
     assert ros.spin_until(lambda: sim.runtime.sim.time > 0.4, timeout=20.0)
     assert ros.call(ros.probe.pause, SetBool.Request(data=True)).success
     sim.runtime.sim.data.qpos[2] = 0.3                   # take the plate out of its footprint
@@ -77,7 +77,7 @@ def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(
 
 def test_a_late_subscriber_gets_the_whole_grid(ros):
     """A subscriber that joins after the first publication (RViz opened later, `ros2 topic
-    echo`) gets every node at the next terrain publication, and the deformation marker."""
+    echo`) gets every node at once, and the deformation markers."""
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
         Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
         Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=1.0)]))
@@ -87,13 +87,43 @@ def test_a_late_subscriber_gets_the_whole_grid(ros):
     ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 10)
     assert ros.spin_until(lambda: clouds and markers, timeout=20.0)
     assert (clouds[0].height, clouds[0].width) == (51, 51)
-    assert markers[0].action == Marker.DELETE  # (the plate still in its footprint: pristine)
+    assert markers[0].action == Marker.DELETEALL  # (the plate still in its footprint: pristine)
+
+
+def test_late_subscribers_get_the_surface_at_once_while_paused(ros):
+    """Paused (no publish cycle comes): a new subscriber of the cloud gets the whole grid at
+    once, and one of the markers every deformed tile (2 m bed of 1 cm cells: 7 x 7 tiles, all
+    deformed here) after a DELETEALL, without the cloud being sent again; sim time stands
+    still."""
+    sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
+        Parameter('scene', value='plate_drop'), Parameter('paused', value=True),
+        Parameter('scene_overrides', value=['sand.deformable.enabled=true',
+                                            'sand.deformable.size=[2.0, 2.0]'])]))
+    assert ros.spin_until(lambda: ros.probe.clocks)     # the initial publication
+    bed = sim.runtime.sim.engine.surface
+    assert bed.grid.shape == (201, 201)
+    bed.grid -= 0.001                                    # every node dug (no step: unpublished)
+    ticks = len(ros.probe.clocks)
+    clouds, markers = [], []
+    ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
+    assert ros.spin_until(lambda: clouds)
+    assert (clouds[0].height, clouds[0].width) == (201, 201)
+    np.testing.assert_allclose(points(clouds[0])[:, 2], -0.001, atol=1e-7)
+    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
+    assert ros.spin_until(lambda: len(markers) == 50)
+    assert markers[0].action == Marker.DELETEALL and markers[0].ns == 'rft_terrain'
+    assert sorted(m.id for m in markers[1:]) == list(range(49))
+    assert all(m.action == Marker.ADD for m in markers[1:])
+    assert sum(len(m.points) for m in markers[1:]) == 201 * 201
+    ros.spin_for(0.5)
+    assert len(clouds) == 1 and len(markers) == 50        # nothing more: nothing changed
+    assert len(ros.probe.clocks) == ticks                 # paused all along
 
 
 def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_path):
     """A rigid height grid never changes: its cloud is published whole at the start, as an
     organized cloud (rows x columns, row-major), and again only when a subscriber of the
-    cloud joins, not one of the marker (the marker shows the whole deformation every time)."""
+    cloud joins, not one of the markers (that one gets the markers alone)."""
     heights = np.add.outer(np.linspace(0.0, 0.02, 4), np.linspace(0.0, 0.01, 6))  # [iy, ix]
     np.save(tmp_path / 'grid.npy', heights)
     clouds, late = [], []
@@ -140,11 +170,11 @@ def test_a_terrain_reset_while_paused_is_published_at_once(ros):
         assert len(ros.probe.clocks) == ticks            # no step: sim time stood still
 
 
-def test_a_plane_publishes_no_terrain_and_reset_terrain_says_so(ros):
+def test_a_plane_publishes_no_terrain_and_reset_terrain_is_refused(ros):
     reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
         Parameter('scene', value=SERVO_RIG)]))
     assert ros.spin_until(lambda: ros.probe.clocks)
     assert sim.count_publishers(topics.TERRAIN) == 0
     answer = ros.call(reset_terrain, Trigger.Request())
-    assert answer.success and 'not deformable' in answer.message
+    assert not answer.success and 'not deformable' in answer.message

@@ -9,7 +9,7 @@ from rft_sim_ros.ros.bag import bag_topics, read_messages
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
 from rft_sim_ros.ros.recording import BagRecorder
 from rft_sim_ros.ros.runtime import SimRuntime
-from rft_sim_ros.ros.terrain import TerrainFeed
+from rft_sim_ros.ros.terrain import TILE, TerrainFeed
 from rft_sim_ros.sand.deformable import DeformableSand
 from rft_sim_ros.sand.surface import HeightGrid, Plane, Slope
 from rft_sim_ros.scenes.config import load_scene
@@ -35,6 +35,43 @@ def node_xyz(surface, j, i):
             surface.grid[j, i])
 
 
+def shown(markers):
+    """{id: Marker} that RViz shows after the terrain markers `markers` in order: a DELETEALL
+    of the namespace clears them, an ADD replaces its id's, a DELETE removes it."""
+    tiles = {}
+    for marker in markers:
+        assert marker.ns == messages.TERRAIN_MARKER_NS
+        if marker.action == messages.MARKER_DELETEALL:
+            tiles.clear()
+        elif marker.action == messages.MARKER_ADD:
+            tiles[marker.id] = marker
+        else:
+            assert marker.action == messages.MARKER_DELETE and not marker.points
+            tiles.pop(marker.id, None)
+    return tiles
+
+
+def shown_points(markers):
+    """(K, 3) x, y, z of every point RViz shows after `markers`, sorted by x, y, z."""
+    points = np.array([[p.x, p.y, p.z] for marker in shown(markers).values()
+                       for p in marker.points]).reshape(-1, 3)
+    return points[np.lexsort(points.T[::-1])]
+
+
+def deformed_points(bed):
+    """(K, 3) x, y, z of the nodes of `bed` that differ from its pristine surface, sorted
+    as `shown_points`."""
+    points = np.array([node_xyz(bed, j, i)
+                       for j, i in zip(*np.nonzero(bed.grid != bed.pristine))]).reshape(-1, 3)
+    return points[np.lexsort(points.T[::-1])]
+
+
+def markers_of(updates):
+    """The terrain markers of `updates` (TerrainUpdates), in order."""
+    return [marker for update in updates
+            for marker in messages.terrain_marker_messages(FACTORY, update)]
+
+
 @pytest.mark.parametrize('surface', [Plane(0.1), Slope(0.0, 10.0, 30.0)])
 def test_analytic_surfaces_publish_nothing(surface):
     feed = TerrainFeed(surface)
@@ -50,7 +87,7 @@ def test_a_static_grid_is_published_whole_once():
     assert update.shape == (3, 4)  # the whole grid: its rows and columns
     np.testing.assert_allclose(update.points[5], node_xyz(grid, 1, 1), atol=1e-6)
     np.testing.assert_allclose(update.points[:, 2], grid.grid.ravel(), atol=1e-7)
-    assert len(update.deformed) == 0 and update.spacing == pytest.approx(0.1)
+    assert update.clear and update.tiles == () and update.spacing == pytest.approx(0.1)
     assert feed.update(10.0) is None  # nothing changed: nothing more
 
 
@@ -65,16 +102,19 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 4), node_xyz(bed, 3, 5)],
                                atol=1e-6)
     assert update.shape == (1, 2)  # changed nodes: one row
-    np.testing.assert_allclose(update.change, [-0.01, 0.01])
-    np.testing.assert_allclose(update.deformed, update.points)
+    (tile,) = update.tiles  # 11 x 11 nodes: one tile
+    assert tile.index == 0 and not update.clear
+    np.testing.assert_allclose(tile.change, [-0.01, 0.01])
+    np.testing.assert_allclose(tile.deformed, update.points)
     bed.grid[3, 5] -= 0.01
     update = feed.update(1.2)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 5)], atol=1e-6)
-    np.testing.assert_allclose(update.deformed, [node_xyz(bed, 3, 4)], atol=1e-6)
+    np.testing.assert_allclose(update.tiles[0].deformed, [node_xyz(bed, 3, 4)], atol=1e-6)
     bed.reset()
     update = feed.update(1.7)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 4)], atol=1e-6)
-    assert update.points[0, 2] == pytest.approx(0.1) and len(update.deformed) == 0
+    assert update.points[0, 2] == pytest.approx(0.1)
+    assert len(update.tiles) == 1 and len(update.tiles[0].deformed) == 0  # pristine again
     bed.grid[0, 0] += 0.001
     assert feed.update(1.8) is None  # not due yet
     np.testing.assert_allclose(feed.update(1.8, due=True).points, [node_xyz(bed, 0, 0)],
@@ -91,12 +131,61 @@ def test_resend_publishes_the_whole_grid_at_once_for_a_late_subscriber(deformabl
     assert len(feed.update(0.0).points) == surface.grid.size
     assert feed.update(0.1) is None
     surface.grid[2, 3] -= 0.01
-    feed.resend()
+    feed.resend_cloud()
     update = feed.update(0.2)  # within 0.5 s of the last publication: due anyway
     assert len(update.points) == surface.grid.size and update.shape == surface.grid.shape
     np.testing.assert_allclose(update.points[:, 2], surface.grid.ravel(), atol=1e-7)
-    assert len(update.deformed) == (1 if deformable else 0)
+    assert not update.clear  # the markers: only the changed tile
+    assert [len(tile.deformed) for tile in update.tiles] == ([1] if deformable else [])
     assert feed.update(0.8) is None  # nothing changed since
+
+
+def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
+    """Markers per square tile of TILE nodes: a publication carries only the tiles where a
+    node changed (all its deformed nodes), an empty one where the tile is pristine again;
+    the markers shown, applied in order, are the deformation whatever it was before."""
+    bed = DeformableSand(Plane(0.0), size=(0.99, 0.69), cell=0.01)  # 100 x 70 nodes
+    assert bed.grid.shape == (70, 100) and TILE == 32  # tiles: 3 rows of 4
+    feed = TerrainFeed(bed, rate=2.0)
+    bed.grid[:40, :40] -= 0.001  # tiles 0, 1, 4 and 5
+    bed.grid[69, 99] += 0.002  # the last tile, 11
+    first = feed.update(0.0)
+    assert first.clear and [tile.index for tile in first.tiles] == [0, 1, 4, 5, 11]
+    assert len(first.tiles[0].deformed) == TILE * TILE and len(first.tiles[1].deformed) == 8 * 32
+    np.testing.assert_allclose(first.tiles[-1].deformed, [node_xyz(bed, 69, 99)], atol=1e-6)
+    np.testing.assert_allclose(first.tiles[-1].change, [0.002])
+    bed.grid[35, 3] -= 0.001  # in tile 4 (row 1, column 0)
+    bed.grid[69, 99] = 0.0  # tile 11 back to pristine
+    update = feed.update(0.5)
+    assert not update.clear and [tile.index for tile in update.tiles] == [4, 11]
+    assert len(update.tiles[0].deformed) == 8 * 32 and len(update.tiles[1].deformed) == 0
+    np.testing.assert_allclose(update.tiles[0].change[TILE * 3 + 3], -0.002)  # [35, 3]
+    np.testing.assert_allclose(shown_points(markers_of([first, update])),
+                               deformed_points(bed), atol=1e-6)
+
+
+def test_a_marker_resend_publishes_every_tile_and_no_cloud_unless_it_changed():
+    """What the node does when a subscriber of the markers joins: the next update (at once)
+    clears the markers and carries every deformed tile; the cloud only holds what changed
+    since the last publication (nothing: no cloud)."""
+    bed = DeformableSand(Plane(0.0), size=(0.99, 0.69), cell=0.01)
+    feed = TerrainFeed(bed, rate=2.0)
+    feed.update(0.0)
+    bed.grid[5, 5] -= 0.001
+    bed.grid[50, 90] -= 0.001
+    feed.update(0.5)
+    feed.resend_markers()
+    update = feed.update(0.6)
+    assert update.points is None and update.shape is None  # nothing changed: no cloud
+    assert update.clear and [tile.index for tile in update.tiles] == [0, 6]
+    bed.grid[5, 5] = 0.0
+    feed.resend_markers()
+    update = feed.update(0.7)
+    np.testing.assert_allclose(update.points, [node_xyz(bed, 5, 5)], atol=1e-6)
+    assert update.clear and [tile.index for tile in update.tiles] == [6]
+    markers = messages.terrain_marker_messages(FACTORY, update)
+    assert [(m.action, m.id) for m in markers] == [(3, 0), (0, 6)]  # DELETEALL, ADD
+    assert feed.update(0.8) is None
 
 
 @pytest.mark.parametrize('cycle', [0.03, 0.01, 0.07])
@@ -149,6 +238,7 @@ def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
     (cloud_topic, cloud), (marker_topic, marker) = messages.terrain_messages(FACTORY, update)
     assert (cloud_topic, marker_topic) == (topics.TERRAIN, topics.TERRAIN_MARKER)
     cloud, marker = roundtrip(cloud), roundtrip(marker)
+    assert (marker.ns, marker.id) == (messages.TERRAIN_MARKER_NS, 0)  # the one tile
     assert cloud.header.frame_id == topics.ODOM_FRAME == marker.header.frame_id
     assert (cloud.header.stamp.sec, cloud.header.stamp.nanosec) == (1, 250_000_000)
     assert (cloud.height, cloud.width, cloud.point_step, cloud.row_step) == (1, 2, 12, 24)
@@ -157,14 +247,21 @@ def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
     assert not cloud.is_bigendian and cloud.is_dense
     np.testing.assert_array_equal(cloud_points(cloud), update.points)
     assert (marker.type, marker.action) == (8, 0)  # POINTS, ADD
-    np.testing.assert_allclose([[p.x, p.y, p.z] for p in marker.points], update.deformed)
+    np.testing.assert_allclose([[p.x, p.y, p.z] for p in marker.points],
+                               update.tiles[0].deformed)
     assert marker.scale.x == pytest.approx(0.02)
     dug, piled = marker.colors
     assert (dug.b, dug.r) == (1.0, 0.0)  # 3 cm down: past full scale, full blue
     assert piled.r > piled.b and piled.r < 1.0  # 5 mm up: partly red
     bed.reset()
-    marker = roundtrip(messages.terrain_marker_message(FACTORY, feed.update(2.0)))
-    assert marker.action == 2 and not marker.points  # pristine again: DELETE
+    (marker,) = messages.terrain_marker_messages(FACTORY, feed.update(2.0))
+    marker = roundtrip(marker)
+    assert (marker.action, marker.id) == (2, 0) and not marker.points  # pristine: DELETE
+    feed.resend_markers()
+    (marker,) = messages.terrain_marker_messages(FACTORY, feed.update(2.1))
+    marker = roundtrip(marker)  # pristine, sent whole: the namespace's markers deleted
+    assert (marker.action, marker.ns, marker.type) == (3, messages.TERRAIN_MARKER_NS, 8)
+    assert not marker.points and marker.header.frame_id == topics.ODOM_FRAME
 
 
 def _lift(sim):
@@ -203,10 +300,9 @@ def test_runtime_publishes_terrain_with_the_state_and_resets_it():
     assert (bed.grid < bed.pristine).any()  # the footprint
     times = [u.time for u in sink.terrain]
     assert np.all(np.diff(times) >= 0.25 - 1e-9)  # terrain_rate 4 Hz at most
-    last = sink.terrain[-1]
-    assert last.time > 0.2  # published after the lift
-    np.testing.assert_allclose(last.deformed[:, 2], bed.grid[bed.grid != bed.pristine],
-                               atol=1e-7)
+    assert sink.terrain[-1].time > 0.2  # published after the lift
+    np.testing.assert_allclose(shown_points(markers_of(sink.terrain)), deformed_points(bed),
+                               atol=1e-6)
     result = runtime.reset_terrain()
     assert result.success and 'reset' in result.message
     np.testing.assert_array_equal(bed.grid, bed.pristine)
@@ -214,7 +310,7 @@ def test_runtime_publishes_terrain_with_the_state_and_resets_it():
     for _ in range(30):
         runtime.step()
     assert sim.time > time  # sim time goes on
-    assert len(sink.terrain[-1].deformed) == 0  # the pristine surface was published
+    assert not shown(markers_of(sink.terrain))  # the pristine surface was published
 
 
 @pytest.mark.parametrize('service', ['reset_terrain', 'reset'])
@@ -228,14 +324,41 @@ def test_a_terrain_reset_is_published_at_once_while_paused(service):
     bed = sim.engine.surface
     bed.grid[10, 10] -= 0.01  # a footprint away from the plate
     assert runtime.step().success
-    assert len(sink.terrain) == 1 and len(sink.terrain[0].deformed) == 1
+    assert len(sink.terrain) == 1 and len(shown_points(markers_of(sink.terrain))) == 1
     assert getattr(runtime, service)().success
     assert len(sink.terrain) == 2  # at once: paused, 0.01 s after a publication at 0.5 Hz
     update = sink.terrain[-1]
-    assert update.time == sim.time and update.shape == (1, 1) and len(update.deformed) == 0
+    assert update.time == sim.time and update.shape == (1, 1)
+    assert not shown(markers_of(sink.terrain))
     np.testing.assert_allclose(update.points, [node_xyz(bed, 10, 10)], atol=1e-6)
     assert getattr(runtime, service)().success
     assert len(sink.terrain) == 2  # nothing changed: nothing published
+
+
+@pytest.mark.parametrize('cloud', [True, False])
+def test_a_new_subscriber_gets_the_surface_at_once_while_paused(cloud):
+    """resend_terrain (a subscriber of the cloud, or of the markers, joined) publishes at
+    once, paused: the whole grid for the cloud's, every deformed tile for the markers'; the
+    other part only with what changed (nothing here)."""
+    sim = Simulation(load_scene('plate_drop', BED))
+    sink = _Sink()
+    runtime = SimRuntime(sim, sink, publish_rate=100.0, paused=True,
+                         terrain=TerrainFeed(sim.engine.surface, rate=0.5))
+    runtime.resend_terrain(cloud=cloud, markers=not cloud)
+    assert sink.terrain == []  # before the initial publication: that one carries everything
+    bed = sim.engine.surface
+    bed.grid[10, 10] -= 0.01  # a footprint away from the plate
+    runtime.tick()  # the initial publication (paused)
+    assert len(sink.terrain) == 1
+    runtime.resend_terrain(cloud=cloud, markers=not cloud)
+    assert len(sink.terrain) == 2  # at once: paused, right after a publication at 0.5 Hz
+    update = sink.terrain[-1]
+    assert update.time == sim.time
+    if cloud:
+        assert update.shape == bed.grid.shape and not update.clear and update.tiles == ()
+    else:
+        assert update.points is None and update.clear
+        assert [len(tile.deformed) for tile in update.tiles] == [1]
 
 
 def test_runtime_warns_once_when_plates_are_in_the_sand_outside_the_bed():
@@ -253,10 +376,11 @@ def test_runtime_warns_once_when_plates_are_in_the_sand_outside_the_bed():
     assert len(warnings) == 2
 
 
-def test_reset_terrain_on_rigid_sand_says_there_is_nothing_to_reset():
+def test_reset_terrain_on_rigid_sand_is_refused_as_there_is_nothing_to_reset():
+    """std_srvs/Trigger's success says the action ran: on rigid sand it cannot."""
     runtime = SimRuntime(Simulation(load_scene('plate_drop')), _Sink(), publish_rate=100.0)
     result = runtime.reset_terrain()
-    assert result.success and 'not deformable' in result.message
+    assert not result.success and 'not deformable' in result.message
 
 
 def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
@@ -267,7 +391,10 @@ def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
     recorded = bag_topics(tmp_path / 'bag')
     assert recorded[topics.TERRAIN].msgtype == topics.POINT_CLOUD_TYPE
     # the whole bed at the start, then the footprint: at the rate or, the last, at the end
-    assert recorded[topics.TERRAIN_MARKER].count == recorded[topics.TERRAIN].count >= 2
+    assert recorded[topics.TERRAIN].count >= 2
+    markers = [(time_ns, marker) for _, time_ns, marker
+               in read_messages(tmp_path / 'bag', [topics.TERRAIN_MARKER])]
+    assert markers[0][0] == 0 and markers[0][1].action == messages.MARKER_DELETEALL
     heights = None
     bed = Simulation(scene).engine.surface  # the pristine bed: its node coordinates
     for _, _, cloud in read_messages(tmp_path / 'bag', [topics.TERRAIN]):
@@ -282,6 +409,9 @@ def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
         heights[j, i] = points[:, 2]
     assert not np.array_equal(final, bed.pristine)  # the plate left its mark
     np.testing.assert_allclose(heights, final.astype(np.float32), rtol=0, atol=1e-7)
+    bed.grid[:] = final
+    np.testing.assert_allclose(shown_points([marker for _, marker in markers]),
+                               deformed_points(bed), atol=1e-6)
 
 
 def test_a_rigid_runs_bag_has_no_terrain_topic(tmp_path):

@@ -65,10 +65,12 @@ class _Layout:
         return bytes(blob)
 
     def float64_sequence(self, count):
-        """A float64[] of `count` values: its length, then the values (`numbers`); returns
-        the length's bytes, one argument."""
+        """A float64[] of `count` values: its length, then the values (`numbers`; none, and
+        no alignment, when empty: CDR aligns elements); returns the length's bytes, one
+        argument."""
         length = self.constant(struct.pack('<I', count))
-        self.numbers('d', count)
+        if count:
+            self.numbers('d', count)
         return length
 
     def constant(self, data):

@@ -37,9 +37,9 @@ PLATE_STRESS_FULL_SCALE_DEPTH_M = 0.05
 PLATES_MARKER_NS = 'rft_plates'
 PLATES_MARKER_ID = 0
 
-#: Marker namespace and id of the deformed-sand marker on /rft/terrain/marker.
+#: Marker namespace of the deformed-sand markers on /rft/terrain/marker (one per tile, the
+#: tile's index as id: `terrain.TerrainTile`).
 TERRAIN_MARKER_NS = 'rft_terrain'
-TERRAIN_MARKER_ID = 0
 #: Height change shown full blue (dug) or full red (piled), m.
 TERRAIN_CHANGE_FULL_SCALE_M = 0.02
 #: sensor_msgs/PointField datatype of float32.
@@ -166,9 +166,16 @@ def leg_wrench_message(factory, state, leg):
                         wrench=wrench)
 
 
-def _marker(factory, t, ns, marker_id, marker_type, points, colors, scale):
+#: visualization_msgs/Marker actions.
+MARKER_ADD, MARKER_DELETE, MARKER_DELETEALL = 0, 2, 3
+
+
+def _marker(factory, t, ns, marker_id, marker_type, points, colors, scale, action=None):
     """visualization_msgs/Marker in odom at sim time `t` (s): `points` (m) with `colors`
-    (ColorRGBA each), `scale` (m); action ADD, or DELETE when there are no points."""
+    (ColorRGBA each), `scale` (m); `action`, by default ADD, or DELETE when there are no
+    points."""
+    if action is None:
+        action = MARKER_ADD if len(points) else MARKER_DELETE
     no_data = factory.uint8_sequence([])
     return factory.make(
         'visualization_msgs/msg/Marker',
@@ -176,7 +183,7 @@ def _marker(factory, t, ns, marker_id, marker_type, points, colors, scale):
         ns=ns,
         id=marker_id,
         type=marker_type,
-        action=0 if len(points) else 2,  # ADD, or DELETE when there is nothing to show
+        action=action,
         pose=factory.make('geometry_msgs/msg/Pose', position=_point(factory, (0.0, 0.0, 0.0)),
                           orientation=_quaternion(factory, _IDENTITY_WXYZ)),
         scale=_vector3(factory, scale),
@@ -253,19 +260,29 @@ def terrain_colors(change_m):
                             np.ones_like(s)]).astype(np.float32)
 
 
-def terrain_marker_message(factory, update):
-    """visualization_msgs/Marker (POINTS, odom) of the nodes of a `terrain.TerrainUpdate`
-    that differ from the pristine surface, coloured by height change (`terrain_colors`),
-    each a square one node spacing wide; DELETE when the surface is pristine."""
-    return _marker(factory, update.time, TERRAIN_MARKER_NS, TERRAIN_MARKER_ID, 8,  # POINTS
-                   update.deformed, _colors(factory, terrain_colors(update.change)),
-                   (update.spacing, update.spacing, 0.0))
+def terrain_marker_messages(factory, update):
+    """[visualization_msgs/Marker] (odom, namespace TERRAIN_MARKER_NS) of a
+    `terrain.TerrainUpdate`: a DELETEALL of the namespace first when the markers are sent
+    whole (`update.clear`), then per tile of `update.tiles` (id = the tile's index) a POINTS
+    marker of its nodes that differ from the pristine surface, coloured by height change
+    (`terrain_colors`), each a square one node spacing wide, or DELETE when the tile is
+    pristine."""
+    scale = (update.spacing, update.spacing, 0.0)
+    markers = [_marker(factory, update.time, TERRAIN_MARKER_NS, 0, 8, [], [], scale,
+                       MARKER_DELETEALL)] if update.clear else []
+    markers += [_marker(factory, update.time, TERRAIN_MARKER_NS, tile.index, 8,  # POINTS
+                        tile.deformed, _colors(factory, terrain_colors(tile.change)), scale)
+                for tile in update.tiles]
+    return markers
 
 
 def terrain_messages(factory, update):
-    """[(topic, message)] of a terrain publication: the cloud and the marker."""
-    return [(topics.TERRAIN, terrain_cloud_message(factory, update)),
-            (topics.TERRAIN_MARKER, terrain_marker_message(factory, update))]
+    """[(topic, message)] of a terrain publication: the cloud (unless `update` holds none),
+    then the markers."""
+    cloud = [] if update.points is None else [
+        (topics.TERRAIN, terrain_cloud_message(factory, update))]
+    return cloud + [(topics.TERRAIN_MARKER, marker)
+                    for marker in terrain_marker_messages(factory, update)]
 
 
 @dataclass(frozen=True)

@@ -125,15 +125,15 @@ class SimNode(Node):
         self._plates = self._declare(parameters.PLATES, False)
         terrain = TerrainFeed(sim.engine.surface,
                               self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE))
-        # a subscriber joining the cloud gets the whole grid at the next publication (the
-        # marker shows the whole deformation every time)
-        joined = PublisherEventCallbacks(
-            matched=lambda info: terrain.resend() if info.current_count_change > 0 else None)
+        # a subscriber joining the cloud gets the whole grid at once, one joining the
+        # markers every marker tile (paused too)
+        joined = {topics.TERRAIN: self._on_subscriber(cloud=True),
+                  topics.TERRAIN_MARKER: self._on_subscriber(markers=True)}
         self._topic_publishers = {
             topic: self.create_publisher(
                 self._factory.message_class(msgtype), topics.relative(topic),
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
-                event_callbacks=joined if topic == topics.TERRAIN else None)
+                event_callbacks=joined.get(topic))
             for topic, msgtype in topics.published_topics(
                 list(sim.legs), plates=self._plates, terrain=terrain.active).items()}
         logger = self.get_logger()
@@ -177,6 +177,16 @@ class SimNode(Node):
         logger.info(f'scene {sim.scene.name}: publishing every {self.runtime.publish_period:g} s '
                     f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
                     f'{" (paused)" if self.runtime.paused else ""}')
+
+    def _on_subscriber(self, **resend):
+        """Publisher events: a subscriber joining makes the runtime re-send the terrain
+        (`SimRuntime.resend_terrain(**resend)`) at once. The event handler is in the node's
+        default callback group, mutually exclusive like the timer, the services and the
+        subscriptions (and `rclpy.spin` runs one callback at a time), so it never runs
+        during a tick or another callback."""
+        return PublisherEventCallbacks(
+            matched=lambda info: self.runtime.resend_terrain(**resend)
+            if info.current_count_change > 0 else None)
 
     def _serve_follow_joint_trajectory(self):
         """The FollowJointTrajectory action server, where control_msgs is installed."""

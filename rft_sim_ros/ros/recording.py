@@ -1,7 +1,9 @@
 """Record a headless run (`rft_sim_ros.sim.runner.run_scene`) into a rosbag2 (MCAP) folder.
 
 `BagRecorder` is a run_scene recorder: every state it is given is one publish cycle of the
-node (the same `BagWriter.write_state` messages), and /diagnostics follows the node's rule
+node (the same `BagWriter.write_state` messages), the first the initial state at sim time 0
+that the node publishes at its first tick (with the whole sand surface and /diagnostics,
+its real-time factor nan: nothing measured yet), and /diagnostics follows the node's rule
 (`rft_sim_ros.ros.diagnostics`) counted in sim seconds, and the sand surface follows the
 node's rule (`rft_sim_ros.ros.terrain`, at its default rate), so a headless bag holds the topics
 and types that `ros2 bag record` of the node holds. If the run diverges, a last /diagnostics
@@ -58,8 +60,8 @@ class BagRecorder:
         wall = self._clock() - wall_start
         rejected = self._sim.commands.rejections if self._sim.commands is not None else {}
         return RunStatus(scene=self._scene,
-                         real_time_factor=(state.time - sim_start) / wall if wall > 0 else
-                         float('nan'),
+                         real_time_factor=(state.time - sim_start) / wall
+                         if wall > 0 and state.time > sim_start else float('nan'),
                          stable=self._sim.diverged is None, problem=self._sim.diverged or '',
                          commands_rejected=rejected)
 

@@ -24,10 +24,13 @@ rclpy node only forwards events to it:
 * `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused.
 * `pause(flag)`, `reset()`, `step()`, `reset_terrain()`: the services, each answering a
   `ServiceResult`.
+* `resend_terrain(cloud=..., markers=...)`: a subscriber of the terrain cloud or of its
+  markers joined.
 
 With a `terrain.TerrainFeed`, each state publication is followed by the sand surface when it
 is due and changed (the sink's `write_terrain(TerrainUpdate)`); `reset()` and
-`reset_terrain()` publish the surface's change at once, paused or not.
+`reset_terrain()` publish the surface's change at once, paused or not, and
+`resend_terrain` the whole cloud or the whole set of markers.
 
 A diverging simulation (SimulationDiverged) is logged as an error, reported on /diagnostics
 (level ERROR) and pauses the runtime; nothing is published for the failed cycle, and it can
@@ -195,6 +198,21 @@ class SimRuntime:
         update = self._terrain.update(self.sim.time, due) if self._terrain is not None else None
         if update is not None:
             self._sink.write_terrain(update)
+
+    def resend_terrain(self, *, cloud=False, markers=False):
+        """A subscriber of the terrain cloud (`cloud`) or of its markers (`markers`) joined:
+        publish the whole cloud, or every marker tile, at once, paused or not, stamped with
+        the current sim time (with the changes since the last publication, if any). Before
+        the initial publication, and after a divergence (until reset), nothing is
+        published: the next publication carries it."""
+        if self._terrain is None:
+            return
+        if cloud:
+            self._terrain.resend_cloud()
+        if markers:
+            self._terrain.resend_markers()
+        if self.last_state is not None and self.diverged is None:
+            self._publish_terrain(due=True)
 
     def _diagnostics(self, now):
         status = self.status()
@@ -411,10 +429,11 @@ class SimRuntime:
     def reset_terrain(self):
         """std_srvs/Trigger `reset_terrain`: deformable sand back to its pristine surface,
         nothing else changes (sim time, robot, commands); the change is published at once,
-        paused or not, stamped with the current sim time."""
+        paused or not, stamped with the current sim time. Refused (success False: nothing
+        was done) where the sand is not deformable."""
         if not self.sim.engine.deformable:
-            return ServiceResult(True, 'the sand of this scene is not deformable: nothing to '
-                                       'reset')
+            return ServiceResult(False, 'the sand of this scene is not deformable: nothing to '
+                                        'reset')
         self.sim.reset_terrain()
         self._publish_terrain(due=True)
         return ServiceResult(True, f'sand surface reset at sim time {self.sim.time:.6f} s')

@@ -112,10 +112,11 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
 
     out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
-    recorders: objects with record(SimState) and close(), fed at the publish rate (mean
-    rate exact, on whole steps: `PublishSchedule`) and at the end; an
-    optional start(sim) is called with the Simulation before the first step, and an optional
-    wants_plates attribute asks for the active plates in the states.
+    recorders: objects with record(SimState) and close(), fed the initial state (before the
+    first step, as the ROS node publishes it), then at the publish rate (mean rate exact, on
+    whole steps: `PublishSchedule`) and at the end; an optional start(sim) is called with
+    the Simulation before the initial state, and an optional wants_plates attribute asks for
+    the active plates in the states.
     schedule: (time_s, action) pairs; action(sim) runs once, when sim time first reaches
     time_s (rounded up to a whole step): after the state of that instant is recorded, before
     the next step (e.g. a zeta change, which then acts from that step on). SettingChange
@@ -191,8 +192,10 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         active_sum = 0
         reason = None
         done = 0
-        generic.observe(sim, sim.state())  # the initial state
+        initial = sim.state(with_plates=with_plates)  # (sim time 0, as the node's first)
+        generic.observe(sim, initial)
         loop_started = time.perf_counter()
+        recording += _record(recorders, initial)
         _run_due(actions, done, sim, changes)
         while done < steps:
             if stop is not None and stop.is_set():
@@ -211,10 +214,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
                 state = sim.state(with_plates=with_plates)
                 series.append(_series_row(state))
                 generic.observe(sim, state)
-                recording_started = time.perf_counter()
-                for recorder in recorders:
-                    recorder.record(state)
-                recording += time.perf_counter() - recording_started
+                recording += _record(recorders, state)
                 bar.update(done)
                 for line in sim.run_warnings():
                     sim.notices.append(line)
@@ -283,6 +283,14 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'machine': machine_info(),
     }
     return summary, series, sim
+
+
+def _record(recorders, state):
+    """Give `state` to every recorder; returns the wall time it took, s."""
+    started = time.perf_counter()
+    for recorder in recorders:
+        recorder.record(state)
+    return time.perf_counter() - started
 
 
 def _scheduled_steps(schedule, timestep):
