@@ -6,6 +6,7 @@ import numpy as np
 
 from rft_sim_ros.ros.factory import jazzy_typestore
 from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.ros.terrain import TerrainTile, TerrainUpdate
 from rft_sim_ros.sim.simulation import Simulation
 from rft_sim_ros.sim.state import ActivePlates, LegWrench, SimState
 
@@ -51,6 +52,17 @@ def make_state(time=12.3456789012, legs=('L1', 'R2'), plates=2, seed=0):
         zeta=3.75,
         plates_active=plates or 0,
         active_plates=active)
+
+
+def make_terrain_update(clear, time=2.5, cloud=True):
+    """A TerrainUpdate at `time` (s) on a grid of 1 cm: tile 3 holding two changed nodes
+    (m, odom; dug 1 cm, piled 5 mm), tile 7 pristine again; `cloud`: with a cloud of those
+    two nodes; `clear`: the markers sent whole (a DELETEALL first)."""
+    points = np.array([[0.1, 0.2, -0.01], [0.11, 0.2, 0.005]], dtype=np.float32)
+    tiles = (TerrainTile(3, points, np.array([-0.01, 0.005])),
+             TerrainTile(7, np.zeros((0, 3), np.float32), np.zeros(0)))
+    return TerrainUpdate(time, points if cloud else None, (1, 2) if cloud else None, clear,
+                         tiles, 0.01)
 
 
 def messages_equal(a, b):

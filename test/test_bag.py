@@ -14,7 +14,7 @@ from rft_sim_ros.ros import cdr
 from rft_sim_ros.ros.cdr import StateEncoder
 from rft_sim_ros.ros.factory import RosbagsFactory
 from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
-from ros_test_support import make_state, messages_equal
+from ros_test_support import make_state, make_terrain_update, messages_equal
 
 LEGS = ('L1', 'R1', 'L2')
 DT = 0.0125           # s of sim time between recorded states (publish rate 80 Hz)
@@ -134,6 +134,31 @@ def test_writer_refuses_foreign_topics_and_types(tmp_path):
         with pytest.raises(TypeError, match='Odometry'):
             writer.write(topics.ODOM, messages.clock_message(factory, state), 0)
     assert all(info.count == 0 for info in bag_topics(tmp_path / 'bag').values())
+
+
+def test_terrain_publications_are_recorded_as_a_cloud_and_one_marker_array(tmp_path):
+    """Each terrain publication: its cloud where it has one, and one MarkerArray of all its
+    markers (a whole re-send, DELETEALL included, in one message), read back by rosbags;
+    a bare Marker is refused on /rft/terrain/marker."""
+    updates = [make_terrain_update(clear=True, time=0.0),          # the first: whole
+               make_terrain_update(clear=False, time=0.5),         # changes
+               make_terrain_update(clear=True, time=0.6, cloud=False)]  # a marker re-send
+    with BagWriter(tmp_path / 'bag', [], terrain=True) as writer:
+        for update in updates:
+            writer.write_terrain(update)
+        marker = messages.terrain_markers(writer.factory, updates[0])[0]
+        with pytest.raises(TypeError, match='MarkerArray'):
+            writer.write(topics.TERRAIN_MARKER, marker, 0)
+    recorded_topics = bag_topics(tmp_path / 'bag')
+    assert recorded_topics[topics.TERRAIN] == TopicInfo(topics.POINT_CLOUD_TYPE, 2)
+    assert recorded_topics[topics.TERRAIN_MARKER] == TopicInfo(topics.MARKER_ARRAY_TYPE, 3)
+    arrays = list(read_messages(tmp_path / 'bag', [topics.TERRAIN_MARKER]))
+    assert [time_ns for _, time_ns, _ in arrays] == [0, 500_000_000, 600_000_000]
+    factory = RosbagsFactory()
+    for update, (_, _, array) in zip(updates, arrays):
+        expected = messages.terrain_markers(factory, update)
+        assert len(array.markers) == len(expected) == 2 + update.clear
+        assert all(messages_equal(a, b) for a, b in zip(array.markers, expected))
 
 
 def test_writer_refuses_an_existing_folder(tmp_path):

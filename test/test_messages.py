@@ -15,7 +15,7 @@ from rft_sim_ros.ros.factory import (MessageFactory, RclpyFactory, RosbagsFactor
 from rft_sim_ros.ros.stamps import ros_time_to_seconds, seconds_to_ns, split_ns
 from rft_sim_ros.sim.state import ActivePlates, LegWrench, SimState
 from rft_sim_ros.units import zeta_to_si
-from ros_test_support import make_state, messages_equal, rotation_from_xyzw
+from ros_test_support import make_state, make_terrain_update, messages_equal, rotation_from_xyzw
 
 TS = jazzy_typestore()
 FACTORY = RosbagsFactory(TS)
@@ -288,6 +288,20 @@ def test_state_messages_without_plate_data_skip_the_marker():
     assert topics.PLATES not in published and topics.CLOCK in published
 
 
+@pytest.mark.parametrize('clear', [True, False])
+def test_a_terrain_publication_is_a_cloud_and_one_marker_array(clear):
+    """The types of the topic table; every marker of the publication in one MarkerArray, in
+    the order RViz applies them (DELETEALL first when sent whole, then by tile)."""
+    published = messages.terrain_messages(FACTORY, make_terrain_update(clear))
+    table = topics.published_topics([], plates=False, terrain=True)
+    assert [topic for topic, _ in published] == [topics.TERRAIN, topics.TERRAIN_MARKER]
+    for topic, msg in published:
+        assert msg.__msgtype__ == table[topic]
+    markers = roundtrip(published[1][1]).markers
+    assert [(m.action, m.id) for m in markers] == ([(3, 0)] if clear else []) + [(0, 3), (2, 7)]
+    assert len(markers[-2].points) == 2 and not markers[-1].points
+
+
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
 leg_name = st.from_regex(r'[A-Za-z][A-Za-z0-9_]{0,8}', fullmatch=True)
 
@@ -368,6 +382,7 @@ def test_rclpy_backend_matches_rosbags_backend():
     rclpy_factory = RclpyFactory()
     built = [messages.state_messages(f, state, plates=True)
              + [(topics.DIAGNOSTICS, messages.diagnostics_message(f, state, run))]
+             + messages.terrain_messages(f, make_terrain_update(clear=True))
              for f in (rclpy_factory, FACTORY)]
     for (topic, ros_msg), (_, reference) in zip(*built):
         decoded = TS.deserialize_cdr(serialize_message(ros_msg), reference.__msgtype__)

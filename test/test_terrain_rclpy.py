@@ -1,5 +1,6 @@
-"""The sand surface over rclpy: /rft/terrain and /rft/terrain/marker of a deformable scene,
-the ~/reset_terrain service, and nothing published for a plane.
+"""The sand surface over rclpy: /rft/terrain (PointCloud2) and /rft/terrain/marker (one
+MarkerArray a publication) of a deformable scene, the ~/reset_terrain service, and nothing
+published for a plane.
 
 Runs where ROS 2 Jazzy is sourced; skipped with the reason everywhere else."""
 import numpy as np
@@ -12,7 +13,7 @@ for _package in ('std_srvs.srv', 'sensor_msgs.msg', 'visualization_msgs.msg'):
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
-from visualization_msgs.msg import Marker  # noqa: E402
+from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 from rft_sim_ros.ros import topics  # noqa: E402
 from rft_sim_ros.ros.node import SimNode  # noqa: E402
@@ -34,42 +35,47 @@ def ros():
 
 def _bed_node(ros, *parameters):
     """A node dropping a plate into a small deformable bed (with `parameters` besides), its
-    terrain topics watched: (node, clouds, markers, a reset_terrain client)."""
-    clouds, markers = [], []
+    terrain topics watched: (node, clouds, marker arrays, a reset_terrain client)."""
+    clouds, arrays = [], []
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 100)
-    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
+    ros.probe.create_subscription(MarkerArray, topics.TERRAIN_MARKER, arrays.append, 100)
     reset_terrain = ros.probe.create_client(Trigger, '/rft_sim/reset_terrain')
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
         Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
         Parameter('real_time_factor', value=1.0), *parameters]))
-    return sim, clouds, markers, reset_terrain
+    return sim, clouds, arrays, reset_terrain
 
 
 def points(cloud):
     return np.frombuffer(bytes(cloud.data), dtype='<f4').reshape(-1, 3)
 
 
+def last_marker(arrays):
+    """The last marker received: the last of the last MarkerArray of `arrays`."""
+    return arrays[-1].markers[-1]
+
+
 def test_deformable_sand_is_published_where_it_changed_and_reset_by_the_service(ros):
-    sim, clouds, markers, reset_terrain = _bed_node(ros, Parameter('terrain_rate', value=5.0))
-    assert ros.spin_until(lambda: clouds and markers)
+    sim, clouds, arrays, reset_terrain = _bed_node(ros, Parameter('terrain_rate', value=5.0))
+    assert ros.spin_until(lambda: clouds and arrays)
     first = clouds[0]
     assert first.header.frame_id == topics.ODOM_FRAME and (first.height, first.width) == (51, 51)
     assert np.all(points(first)[:, 2] == 0.0)           # the pristine bed at surface height 0
-    assert markers[0].action == Marker.DELETEALL         # nothing deformed yet
+    assert [m.action for m in arrays[0].markers] == [Marker.DELETEALL]  # nothing deformed yet
     assert ros.spin_until(lambda: sim.runtime.sim.time > 0.4, timeout=20.0)
     assert ros.call(ros.probe.pause, SetBool.Request(data=True)).success
     sim.runtime.sim.data.qpos[2] = 0.3                   # take the plate out of its footprint
     sim.runtime.sim.data.qvel[:] = 0.0
     assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
-    assert ros.spin_until(lambda: markers[-1].action == Marker.ADD, timeout=20.0)
+    assert ros.spin_until(lambda: last_marker(arrays).action == Marker.ADD, timeout=20.0)
     footprint = points(clouds[-1])
     assert clouds[-1].height == 1                        # changes: an unorganized cloud
     assert 0 < len(footprint) < 51 * 51 and footprint[:, 2].min() < -1e-3  # a crater
-    assert len(markers[-1].points) == len(markers[-1].colors) > 0
+    assert len(last_marker(arrays).points) == len(last_marker(arrays).colors) > 0
     count = len(clouds)
     answer = ros.call(reset_terrain, Trigger.Request())
     assert answer.success and 'reset' in answer.message
-    assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE, timeout=20.0)
+    assert ros.spin_until(lambda: last_marker(arrays).action == Marker.DELETE, timeout=20.0)
     restored = np.concatenate([points(c) for c in clouds[count:]])
     assert np.all(restored[:, 2] == 0.0)                 # the changed nodes back at 0
     assert ros.probe.clock_times()[-1] > 0.4             # sim time went on
@@ -82,19 +88,21 @@ def test_a_late_subscriber_gets_the_whole_grid(ros):
         Parameter('scene', value='plate_drop'), Parameter('scene_overrides', value=BED),
         Parameter('real_time_factor', value=1.0), Parameter('terrain_rate', value=1.0)]))
     assert ros.spin_until(lambda: sim.runtime.sim.time > 0.3, timeout=20.0)
-    clouds, markers = [], []
+    clouds, arrays = [], []
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
-    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 10)
-    assert ros.spin_until(lambda: clouds and markers, timeout=20.0)
+    ros.probe.create_subscription(MarkerArray, topics.TERRAIN_MARKER, arrays.append, 10)
+    assert ros.spin_until(lambda: clouds and arrays, timeout=20.0)
     assert (clouds[0].height, clouds[0].width) == (51, 51)
-    assert markers[0].action == Marker.DELETEALL  # (the plate still in its footprint: pristine)
+    # (the plate still in its footprint: pristine)
+    assert [m.action for m in arrays[0].markers] == [Marker.DELETEALL]
 
 
 def test_late_subscribers_get_the_surface_at_once_while_paused(ros):
     """Paused (no publish cycle comes): a new subscriber of the cloud gets the whole grid at
     once, and one of the markers every deformed tile (2 m bed of 1 cm cells: 7 x 7 tiles, all
     deformed here) after a DELETEALL, without the cloud being sent again; sim time stands
-    still."""
+    still. The 50 markers come in one MarkerArray, so that a subscriber keeping only the last
+    message (depth 1) gets them all."""
     sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
         Parameter('scene', value='plate_drop'), Parameter('paused', value=True),
         Parameter('scene_overrides', value=['sand.deformable.enabled=true',
@@ -104,19 +112,21 @@ def test_late_subscribers_get_the_surface_at_once_while_paused(ros):
     assert bed.grid.shape == (201, 201)
     bed.grid -= 0.001                                    # every node dug (no step: unpublished)
     ticks = len(ros.probe.clocks)
-    clouds, markers = [], []
+    clouds, arrays = [], []
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)
     assert ros.spin_until(lambda: clouds)
     assert (clouds[0].height, clouds[0].width) == (201, 201)
     np.testing.assert_allclose(points(clouds[0])[:, 2], -0.001, atol=1e-7)
-    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, markers.append, 100)
-    assert ros.spin_until(lambda: len(markers) == 50)
+    ros.probe.create_subscription(MarkerArray, topics.TERRAIN_MARKER, arrays.append, 1)
+    assert ros.spin_until(lambda: arrays)
+    markers = arrays[0].markers
+    assert len(markers) == 50
     assert markers[0].action == Marker.DELETEALL and markers[0].ns == 'rft_terrain'
-    assert sorted(m.id for m in markers[1:]) == list(range(49))
+    assert [m.id for m in markers[1:]] == list(range(49))  # by tile
     assert all(m.action == Marker.ADD for m in markers[1:])
     assert sum(len(m.points) for m in markers[1:]) == 201 * 201
     ros.spin_for(0.5)
-    assert len(clouds) == 1 and len(markers) == 50        # nothing more: nothing changed
+    assert len(clouds) == 1 and len(arrays) == 1          # nothing more: nothing changed
     assert len(ros.probe.clocks) == ticks                 # paused all along
 
 
@@ -141,7 +151,7 @@ def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_p
     np.testing.assert_allclose(grid[2, 5, :2], [0.25, 0.05], atol=1e-6)  # x along a row
     ros.spin_for(1.0)
     count = len(clouds)
-    ros.probe.create_subscription(Marker, topics.TERRAIN_MARKER, lambda m: None, 10)
+    ros.probe.create_subscription(MarkerArray, topics.TERRAIN_MARKER, lambda m: None, 10)
     assert ros.spin_until(lambda: sim.count_subscribers(topics.TERRAIN_MARKER) == 1)
     ros.spin_for(1.0)  # ten publication times at 10 Hz
     assert len(clouds) == count
@@ -153,17 +163,17 @@ def test_only_a_new_subscriber_of_the_cloud_gets_the_whole_grid_again(ros, tmp_p
 def test_a_terrain_reset_while_paused_is_published_at_once(ros):
     """reset_terrain and reset while paused: the pristine surface is published at once, no
     step needed, sim time standing still."""
-    sim, clouds, markers, reset_terrain = _bed_node(  # each step publishes the changes
+    sim, clouds, arrays, reset_terrain = _bed_node(  # each step publishes the changes
         ros, Parameter('terrain_rate', value=1000.0), Parameter('paused', value=True))
-    assert ros.spin_until(lambda: clouds and markers)
+    assert ros.spin_until(lambda: clouds and arrays)
     bed = sim.runtime.sim.engine.surface
     for service in (reset_terrain, ros.probe.reset):
         bed.grid[10, 10] -= 0.01                         # a footprint, away from the plate
         assert ros.call(ros.probe.step, Trigger.Request()).success
-        assert ros.spin_until(lambda: markers[-1].action == Marker.ADD)
+        assert ros.spin_until(lambda: last_marker(arrays).action == Marker.ADD)
         ticks, count = len(ros.probe.clocks), len(clouds)
         assert ros.call(service, Trigger.Request()).success
-        assert ros.spin_until(lambda: markers[-1].action == Marker.DELETE)
+        assert ros.spin_until(lambda: last_marker(arrays).action == Marker.DELETE)
         assert ros.spin_until(lambda: len(clouds) == count + 1)
         restored = points(clouds[-1])
         assert len(restored) >= 1 and np.all(restored[:, 2] == 0.0)  # back at the surface

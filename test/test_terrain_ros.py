@@ -1,5 +1,5 @@
 """The sand surface seen in ROS and in bags: which nodes are published when
-(`ros.terrain.TerrainFeed`), the PointCloud2 and Marker against the Jazzy definitions and CDR,
+(`ros.terrain.TerrainFeed`), the PointCloud2 and MarkerArray against the Jazzy definitions and CDR,
 the reset_terrain service of the runtime, and a deformable run's bag."""
 import numpy as np
 import pytest
@@ -66,10 +66,26 @@ def deformed_points(bed):
     return points[np.lexsort(points.T[::-1])]
 
 
+def published_markers(update):
+    """The MarkerArrays that the publication of `update` (a TerrainUpdate) sends on
+    /rft/terrain/marker, through CDR."""
+    arrays = [roundtrip(message) for topic, message in messages.terrain_messages(FACTORY, update)
+              if topic == topics.TERRAIN_MARKER]
+    assert all(array.__msgtype__ == topics.MARKER_ARRAY_TYPE for array in arrays)
+    return arrays
+
+
+def marker_array(update):
+    """The one MarkerArray that the publication of `update` sends."""
+    (array,) = published_markers(update)
+    return array
+
+
 def markers_of(updates):
-    """The terrain markers of `updates` (TerrainUpdates), in order."""
-    return [marker for update in updates
-            for marker in messages.terrain_marker_messages(FACTORY, update)]
+    """The terrain markers that the publications of `updates` (TerrainUpdates) send, in
+    order."""
+    return [marker for update in updates for array in published_markers(update)
+            for marker in array.markers]
 
 
 @pytest.mark.parametrize('surface', [Plane(0.1), Slope(0.0, 10.0, 30.0)])
@@ -88,6 +104,8 @@ def test_a_static_grid_is_published_whole_once():
     np.testing.assert_allclose(update.points[5], node_xyz(grid, 1, 1), atol=1e-6)
     np.testing.assert_allclose(update.points[:, 2], grid.grid.ravel(), atol=1e-7)
     assert update.clear and update.tiles == () and update.spacing == pytest.approx(0.1)
+    (deleteall,) = marker_array(update).markers  # nothing deformed: only the clearing
+    assert deleteall.action == messages.MARKER_DELETEALL
     assert feed.update(10.0) is None  # nothing changed: nothing more
 
 
@@ -137,6 +155,8 @@ def test_resend_publishes_the_whole_grid_at_once_for_a_late_subscriber(deformabl
     np.testing.assert_allclose(update.points[:, 2], surface.grid.ravel(), atol=1e-7)
     assert not update.clear  # the markers: only the changed tile
     assert [len(tile.deformed) for tile in update.tiles] == ([1] if deformable else [])
+    # no marker changed on a rigid grid: the cloud alone, no MarkerArray
+    assert len(published_markers(update)) == (1 if deformable else 0)
     assert feed.update(0.8) is None  # nothing changed since
 
 
@@ -151,6 +171,8 @@ def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
     bed.grid[69, 99] += 0.002  # the last tile, 11
     first = feed.update(0.0)
     assert first.clear and [tile.index for tile in first.tiles] == [0, 1, 4, 5, 11]
+    assert [(m.action, m.id) for m in marker_array(first).markers] == [  # one message
+        (messages.MARKER_DELETEALL, 0)] + [(messages.MARKER_ADD, k) for k in (0, 1, 4, 5, 11)]
     assert len(first.tiles[0].deformed) == TILE * TILE and len(first.tiles[1].deformed) == 8 * 32
     np.testing.assert_allclose(first.tiles[-1].deformed, [node_xyz(bed, 69, 99)], atol=1e-6)
     np.testing.assert_allclose(first.tiles[-1].change, [0.002])
@@ -158,6 +180,8 @@ def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
     bed.grid[69, 99] = 0.0  # tile 11 back to pristine
     update = feed.update(0.5)
     assert not update.clear and [tile.index for tile in update.tiles] == [4, 11]
+    assert [(m.action, m.id) for m in marker_array(update).markers] == [
+        (messages.MARKER_ADD, 4), (messages.MARKER_DELETE, 11)]
     assert len(update.tiles[0].deformed) == 8 * 32 and len(update.tiles[1].deformed) == 0
     np.testing.assert_allclose(update.tiles[0].change[TILE * 3 + 3], -0.002)  # [35, 3]
     np.testing.assert_allclose(shown_points(markers_of([first, update])),
@@ -183,7 +207,7 @@ def test_a_marker_resend_publishes_every_tile_and_no_cloud_unless_it_changed():
     update = feed.update(0.7)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 5, 5)], atol=1e-6)
     assert update.clear and [tile.index for tile in update.tiles] == [6]
-    markers = messages.terrain_marker_messages(FACTORY, update)
+    markers = marker_array(update).markers
     assert [(m.action, m.id) for m in markers] == [(3, 0), (0, 6)]  # DELETEALL, ADD
     assert feed.update(0.8) is None
 
@@ -235,9 +259,10 @@ def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
     bed.grid[2, 2] -= 0.03
     bed.grid[2, 3] += 0.005
     update = feed.update(1.25)
-    (cloud_topic, cloud), (marker_topic, marker) = messages.terrain_messages(FACTORY, update)
+    (cloud_topic, cloud), (marker_topic, array) = messages.terrain_messages(FACTORY, update)
     assert (cloud_topic, marker_topic) == (topics.TERRAIN, topics.TERRAIN_MARKER)
-    cloud, marker = roundtrip(cloud), roundtrip(marker)
+    assert array.__msgtype__ == topics.MARKER_ARRAY_TYPE
+    cloud, (marker,) = roundtrip(cloud), roundtrip(array).markers
     assert (marker.ns, marker.id) == (messages.TERRAIN_MARKER_NS, 0)  # the one tile
     assert cloud.header.frame_id == topics.ODOM_FRAME == marker.header.frame_id
     assert (cloud.header.stamp.sec, cloud.header.stamp.nanosec) == (1, 250_000_000)
@@ -254,12 +279,11 @@ def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
     assert (dug.b, dug.r) == (1.0, 0.0)  # 3 cm down: past full scale, full blue
     assert piled.r > piled.b and piled.r < 1.0  # 5 mm up: partly red
     bed.reset()
-    (marker,) = messages.terrain_marker_messages(FACTORY, feed.update(2.0))
-    marker = roundtrip(marker)
+    (marker,) = marker_array(feed.update(2.0)).markers
     assert (marker.action, marker.id) == (2, 0) and not marker.points  # pristine: DELETE
     feed.resend_markers()
-    (marker,) = messages.terrain_marker_messages(FACTORY, feed.update(2.1))
-    marker = roundtrip(marker)  # pristine, sent whole: the namespace's markers deleted
+    # pristine, sent whole: the namespace's markers deleted
+    (marker,) = marker_array(feed.update(2.1)).markers
     assert (marker.action, marker.ns, marker.type) == (3, messages.TERRAIN_MARKER_NS, 8)
     assert not marker.points and marker.header.frame_id == topics.ODOM_FRAME
 
@@ -390,11 +414,14 @@ def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
     final = np.load(tmp_path / 'terrain.npy')
     recorded = bag_topics(tmp_path / 'bag')
     assert recorded[topics.TERRAIN].msgtype == topics.POINT_CLOUD_TYPE
+    assert recorded[topics.TERRAIN_MARKER].msgtype == topics.MARKER_ARRAY_TYPE
     # the whole bed at the start, then the footprint: at the rate or, the last, at the end
     assert recorded[topics.TERRAIN].count >= 2
-    markers = [(time_ns, marker) for _, time_ns, marker
-               in read_messages(tmp_path / 'bag', [topics.TERRAIN_MARKER])]
-    assert markers[0][0] == 0 and markers[0][1].action == messages.MARKER_DELETEALL
+    arrays = [(time_ns, array) for _, time_ns, array
+              in read_messages(tmp_path / 'bag', [topics.TERRAIN_MARKER])]
+    times = [time_ns for time_ns, _ in arrays]
+    assert times[0] == 0 and times == sorted(set(times))  # one MarkerArray a publication
+    assert arrays[0][1].markers[0].action == messages.MARKER_DELETEALL
     heights = None
     bed = Simulation(scene).engine.surface  # the pristine bed: its node coordinates
     for _, _, cloud in read_messages(tmp_path / 'bag', [topics.TERRAIN]):
@@ -410,8 +437,9 @@ def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
     assert not np.array_equal(final, bed.pristine)  # the plate left its mark
     np.testing.assert_allclose(heights, final.astype(np.float32), rtol=0, atol=1e-7)
     bed.grid[:] = final
-    np.testing.assert_allclose(shown_points([marker for _, marker in markers]),
-                               deformed_points(bed), atol=1e-6)
+    np.testing.assert_allclose(
+        shown_points([marker for _, array in arrays for marker in array.markers]),
+        deformed_points(bed), atol=1e-6)
 
 
 def test_a_rigid_runs_bag_has_no_terrain_topic(tmp_path):

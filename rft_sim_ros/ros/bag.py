@@ -149,9 +149,10 @@ class BagWriter:
     """A rosbag2 folder at `path` (must not exist yet) recording the simulation's topics.
 
     leg_names: the scene's legs (one wrench topic each). plates: whether /rft/plates is
-    recorded (as the node's parameter of the same meaning). terrain: whether /rft/terrain and
-    /rft/terrain/marker are recorded (`write_terrain`). Use as a context manager or call
-    `close()`; the bag is only complete once closed.
+    recorded (as the node's parameter of the same meaning). terrain: whether /rft/terrain
+    (PointCloud2) and /rft/terrain/marker (one MarkerArray a publication) are recorded
+    (`write_terrain`). Use as a context manager or call `close()`; the bag is only complete
+    once closed.
     """
 
     def __init__(self, path, leg_names, *, plates=False, terrain=False):

@@ -37,8 +37,8 @@ PLATE_STRESS_FULL_SCALE_DEPTH_M = 0.05
 PLATES_MARKER_NS = 'rft_plates'
 PLATES_MARKER_ID = 0
 
-#: Marker namespace of the deformed-sand markers on /rft/terrain/marker (one per tile, the
-#: tile's index as id: `terrain.TerrainTile`).
+#: Marker namespace of the deformed-sand markers in the MarkerArrays on /rft/terrain/marker
+#: (one per tile, the tile's index as id: `terrain.TerrainTile`).
 TERRAIN_MARKER_NS = 'rft_terrain'
 #: Height change shown full blue (dug) or full red (piled), m.
 TERRAIN_CHANGE_FULL_SCALE_M = 0.02
@@ -229,7 +229,12 @@ def plates_message(factory, state):
         colors, size = [], 0.0
     marker = _marker(factory, state.time, PLATES_MARKER_NS, PLATES_MARKER_ID, 7,  # SPHERE_LIST
                      plates.positions, colors, (size, size, size))
-    return factory.make('visualization_msgs/msg/MarkerArray', markers=[marker])
+    return _marker_array(factory, [marker])
+
+
+def _marker_array(factory, markers):
+    """visualization_msgs/MarkerArray of `markers` (Marker), applied by RViz in this order."""
+    return factory.make(topics.MARKER_ARRAY_TYPE, markers=markers)
 
 
 def terrain_cloud_message(factory, update):
@@ -260,13 +265,13 @@ def terrain_colors(change_m):
                             np.ones_like(s)]).astype(np.float32)
 
 
-def terrain_marker_messages(factory, update):
+def terrain_markers(factory, update):
     """[visualization_msgs/Marker] (odom, namespace TERRAIN_MARKER_NS) of a
-    `terrain.TerrainUpdate`: a DELETEALL of the namespace first when the markers are sent
-    whole (`update.clear`), then per tile of `update.tiles` (id = the tile's index) a POINTS
-    marker of its nodes that differ from the pristine surface, coloured by height change
-    (`terrain_colors`), each a square one node spacing wide, or DELETE when the tile is
-    pristine."""
+    `terrain.TerrainUpdate`, in the order RViz is to apply them: a DELETEALL of the namespace
+    first when the markers are sent whole (`update.clear`), then per tile of `update.tiles`
+    (id = the tile's index) a POINTS marker of its nodes that differ from the pristine
+    surface (x, y, z in m), coloured by height change (`terrain_colors`), each a square one
+    node spacing wide, or DELETE when the tile is pristine. [] when no marker changed."""
     scale = (update.spacing, update.spacing, 0.0)
     markers = [_marker(factory, update.time, TERRAIN_MARKER_NS, 0, 8, [], [], scale,
                        MARKER_DELETEALL)] if update.clear else []
@@ -278,11 +283,14 @@ def terrain_marker_messages(factory, update):
 
 def terrain_messages(factory, update):
     """[(topic, message)] of a terrain publication: the cloud (unless `update` holds none),
-    then the markers."""
+    then one visualization_msgs/MarkerArray of all its markers (`terrain_markers`; none when
+    no marker changed), so that a subscriber gets a publication's markers whole or not at
+    all, whatever its queue depth."""
     cloud = [] if update.points is None else [
         (topics.TERRAIN, terrain_cloud_message(factory, update))]
-    return cloud + [(topics.TERRAIN_MARKER, marker)
-                    for marker in terrain_marker_messages(factory, update)]
+    markers = terrain_markers(factory, update)
+    array = [(topics.TERRAIN_MARKER, _marker_array(factory, markers))] if markers else []
+    return cloud + array
 
 
 @dataclass(frozen=True)

@@ -225,7 +225,8 @@ class SimNode(Node):
             self._topic_publishers[topic].publish(message)
 
     def write_terrain(self, update):
-        """Publish the sand surface of `update` (terrain.TerrainUpdate)."""
+        """Publish the sand surface of `update` (terrain.TerrainUpdate): its cloud and one
+        MarkerArray of its markers (`messages.terrain_messages`), each where it has one."""
         for topic, message in messages.terrain_messages(self._factory, update):
             self._topic_publishers[topic].publish(message)
 

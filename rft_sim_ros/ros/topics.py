@@ -47,7 +47,6 @@ TF_TYPE = 'tf2_msgs/msg/TFMessage'
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
 POINT_CLOUD_TYPE = 'sensor_msgs/msg/PointCloud2'
-MARKER_TYPE = 'visualization_msgs/msg/Marker'
 DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
 POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
@@ -98,7 +97,8 @@ def published_topics(leg_names, *, plates, terrain=False):
 
     leg_names: legs of the scene (one wrench topic each). plates: whether the active plates
     are published as markers on /rft/plates. terrain: whether the sand surface is published
-    (grid surfaces: `rft_sim_ros.ros.terrain`) on /rft/terrain and /rft/terrain/marker.
+    (grid surfaces: `rft_sim_ros.ros.terrain`) on /rft/terrain (a cloud) and
+    /rft/terrain/marker (one MarkerArray a publication).
     """
     topics = {
         CLOCK: CLOCK_TYPE,
@@ -116,5 +116,5 @@ def published_topics(leg_names, *, plates, terrain=False):
         topics[PLATES] = MARKER_ARRAY_TYPE
     if terrain:
         topics[TERRAIN] = POINT_CLOUD_TYPE
-        topics[TERRAIN_MARKER] = MARKER_TYPE
+        topics[TERRAIN_MARKER] = MARKER_ARRAY_TYPE
     return topics
