@@ -43,6 +43,21 @@ def test_a_scenarios_metrics_after_a_reset_are_a_fresh_starts(scene):
     assert reset.scenario.metrics(reset) == fresh.scenario.metrics(fresh)
 
 
+def test_the_leg_wrenches_after_a_reset_are_a_fresh_starts():
+    """The legs' mean wrenches (what a state reports) sum the steps since they were last
+    read: a reset starts that sum afresh, so an episode's steps left unread before the reset
+    do not show in the next one's first state."""
+    fresh, reset = Simulation(load_scene('hexapod')), Simulation(load_scene('hexapod'))
+    reset.step(1500)  # standing and walking in the sand, its wrenches never read
+    reset.reset()
+    for sim in (fresh, reset):
+        sim.step(20)  # falling towards the sand: no leg touches it yet
+    np.testing.assert_array_equal(reset.data.qpos, fresh.data.qpos)
+    forces = [np.array([leg.force for leg in sim.leg_wrenches()]) for sim in (fresh, reset)]
+    assert not np.any(forces[0])
+    np.testing.assert_array_equal(forces[1], forces[0])
+
+
 STILT = """<mujoco><worldbody>
   <body name="trunk" pos="0 0 1"><freejoint/>
     <geom type="box" size="0.1 0.1 0.1" pos="0.05 0 0" mass="5"/>

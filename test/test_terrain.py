@@ -1,4 +1,6 @@
 """Sand surfaces (plane, slope, height grid, MJCF hfield) and the zeta map."""
+import json
+
 import mujoco
 import numpy as np
 import pytest
@@ -10,11 +12,12 @@ from rft_sim_ros.sand.deformable import COUNT, DeformableSand
 from rft_sim_ros.sand.engine import LowVelocity
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,
-                                      surface_from_settings, tile_planes, window_extremes,
-                                      window_span)
+                                      heights_digest, surface_from_settings, tile_planes,
+                                      window_extremes, window_span)
 from rft_sim_ros.sand.surface_kernels import window_range
 from rft_sim_ros.sand.zeta_map import ZetaMap, zeta_map_from_settings
 from rft_sim_ros.scenes.config import SceneError, load_scene
+from rft_sim_ros.sim.runner import run_scene
 from rft_sim_ros.sim.simulation import Simulation
 
 
@@ -81,6 +84,24 @@ def test_a_grids_height_is_bilinear_between_its_nodes_and_continues_its_edges():
     assert isinstance(grid.height(0.2, -0.1), float)  # a point in, a number out
 
 
+def test_a_rigid_grid_is_read_only_and_refuses_a_size_or_centre_that_is_not_finite():
+    """The engine derives the grid's bounds once: a rigid grid's heights and bounds cannot be
+    changed in place (that gave forces of the old surface, silently); deformable sand's
+    can, as its own kernels keep its bounds. A NaN or infinite size or centre is said to be
+    one."""
+    grid = HeightGrid(np.zeros((5, 6)), size=(0.5, 0.4))
+    for array in (grid.grid, grid.block_max, grid.block_min):
+        with pytest.raises(ValueError, match='read-only'):
+            array[0, 0] = 0.03
+    bed = DeformableSand(grid, size=(0.2, 0.2), cell=0.02)
+    bed.grid[2, 3] -= 0.01
+    for size in ((np.nan, 2.0), (np.inf, 2.0)):
+        with pytest.raises(ValueError, match=r'sand.surface.size must be \[x, y\] > 0 m, finite'):
+            HeightGrid(np.zeros((5, 6)), size=size)
+    with pytest.raises(ValueError, match=r"a height grid's center must be \[x, y\] m, finite"):
+        HeightGrid(np.zeros((5, 6)), size=(0.5, 0.4), center=(np.nan, 0.0))
+
+
 def _assert_reference_law(model, data, engine, wrenches, surface):
     """Each body's engine wrench equals the reference law's (`rft.body_wrench`) with every
     plate's depth measured vertically below the surface's height at its own (x, y)
@@ -114,9 +135,9 @@ def test_a_flat_height_grid_gives_exactly_the_planes_forces(seed):
 def test_a_grid_level_under_the_bodies_only_gives_exactly_the_planes_forces(seed):
     """Blocks level at h under the bodies (read without a look-up), a hill elsewhere."""
     h = 0.0375
-    grid = HeightGrid(np.full((41, 31), h), size=(1.2, 1.6), center=(0.1, -0.05))
-    grid.grid[:4, :4] += 0.2
-    grid.block_max[:], grid.block_min[:] = block_maximum(grid.grid), block_minimum(grid.grid)
+    heights = np.full((41, 31), h)
+    heights[:4, :4] += 0.2
+    grid = HeightGrid(heights, size=(1.2, 1.6), center=(0.1, -0.05))
     assert (grid.block_max != grid.block_min).any()
     *_, plane = _wrenches(Plane(h), seed)
     *_, engine, level = _wrenches(grid, seed)
@@ -181,9 +202,9 @@ def test_far_from_its_deformable_bed_a_slope_acts_as_the_slope_itself(seed):
 
 
 def test_bodies_above_a_hill_are_skipped_but_not_bodies_in_it():
-    hill = HeightGrid(np.zeros((101, 101)), size=(2.0, 2.0))
-    hill.grid[45:56, 45:56] = 0.4  # a 0.2 m tower of sand around the origin
-    hill.block_max[:], hill.block_min[:] = block_maximum(hill.grid), block_minimum(hill.grid)
+    heights = np.zeros((101, 101))
+    heights[45:56, 45:56] = 0.4  # a 0.2 m tower of sand around the origin
+    hill = HeightGrid(heights, size=(2.0, 2.0))
     for x, inside in ((0.0, True), (0.8, False)):
         model, data, engine = _engine(hill, low_velocity=LowVelocity(method='none'))
         data.qpos[:3] = [x - 0.2, 0.0, 0.3]  # the lower leg hangs over (x, 0)
@@ -914,3 +935,28 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
         '  surface_height: 0.0  # m', '  surface: {type: grid, file: there/lowered.npy, '
         'size: [1, 1]}', 1))
     assert Simulation(load_scene(scene)).engine.surface.height(0.0, 0.0) == pytest.approx(-0.02)
+
+
+def test_a_surface_made_in_python_is_the_sand_and_the_summary_records_it(tmp_path):
+    """A HeightGrid of an array given to run_scene (Simulation) is the sand: a flat one at h
+    drops the plate exactly as the plane at h does; summary.json's `surface` records it, its
+    heights' SHA-256 telling it from another grid; a scene whose own sand.surface is not the
+    plane, or anything but a Surface, is refused."""
+    heights = np.full((21, 31), 0.03)
+    flat = HeightGrid(heights, size=(3.0, 2.0), center=(0.5, 0.0))
+    given = run_scene(load_scene('plate_drop', {'duration': 0.3}), tmp_path / 'given',
+                      progress=False, plots=False, surface=flat)
+    plane = run_scene(load_scene('plate_drop', {'duration': 0.3, 'sand.surface_height': 0.03}),
+                      progress=False, plots=False)
+    assert given['metrics'] == plane['metrics'] and given['metrics']['max_depth_m'] > 0.005
+    assert plane['surface'] == {'type': 'plane', 'height_m': 0.03}
+    saved = json.loads((tmp_path / 'given' / 'summary.json').read_text())['surface']
+    assert saved == {'type': 'grid', **flat.placement(), 'given_in_python': True,
+                     'heights_sha256': heights_digest(heights)}
+    assert heights_digest(heights + 1e-12) != heights_digest(heights)
+    assert heights_digest(heights.reshape(31, 21)) != heights_digest(heights)
+    with pytest.raises(SceneError, match="replaces the scene's sand.surface, which is a slope"):
+        Simulation(load_scene('plate_drop', {'sand.surface.type': 'slope'}), surface=flat)
+    with pytest.raises(SceneError, match=r'surface must be a rft_sim_ros.sand.surface.Surface '
+                                         r'\(a Plane, Slope or HeightGrid\), got ndarray'):
+        Simulation(load_scene('plate_drop'), surface=heights)

@@ -45,7 +45,7 @@ import numpy as np
 from numba import njit
 
 from ..kernel_cache import forget_stale
-from .surface import BLOCK, HeightGrid, block_maximum, block_minimum
+from .surface import BLOCK, HeightGrid, block_maximum, block_minimum, heights_digest
 
 #: Bytes a bed holds per node (its heights, the pristine copy, marks and work space: 82
 #: measured, 90 at the peak of building it); a bed is refused where that exceeds half the
@@ -85,6 +85,8 @@ class DeformableSand(HeightGrid):
 
     base: the pristine `surface.Surface`; size: [x, y] m; cell: m; repose_deg: angle of
     repose, degrees; center: [x, y] m."""
+
+    rigid = False
 
     def __init__(self, base, size=(2.0, 2.0), cell=0.01, repose_deg=30.0, center=(0.0, 0.0)):
         if not cell > 0:
@@ -133,6 +135,13 @@ class DeformableSand(HeightGrid):
             return bed
         beyond = np.where(inside, bed, self.base.height(x, y))
         return beyond if beyond.ndim else float(beyond)
+
+    def describe(self):
+        """The bed's placement, cell, angle of repose and its pristine heights' SHA-256, and
+        the base beyond it (`Surface.describe`)."""
+        return {'type': 'deformable', **self.placement(), 'cell_m': self.cell,
+                'repose_deg': self.repose_deg, 'heights_sha256': heights_digest(self.pristine),
+                'base': self.base.describe()}
 
     def steepest_deg(self):
         """The steepest inclination (deg) of the bed and of its base beyond it."""
@@ -216,13 +225,14 @@ class DeformableSand(HeightGrid):
 
     def _notices(self, base, asked, repose_deg):
         """Where the bed lies (its centre defaults to under the robot), its size rounded to
-        whole cells, and a base surface that starts steeper than the angle of repose."""
+        whole cells, and a base surface that starts steeper than the angle of repose, as the
+        avalanche measures it (`neighbour_slope_deg` of the bed's nodes on it)."""
         (x0, y0), (sx, sy), (ny, nx) = self.origin, self.size, self.grid.shape
         rounded = ('' if np.allclose(asked, self.size, rtol=0, atol=1e-9) else
                    f'; sand.deformable.size {list(asked)} m rounded to whole cells')
         said = [f'deformable bed: x {x0:.4g} .. {x0 + sx:.4g} m, y {y0:.4g} .. {y0 + sy:.4g} m, '
                 f'{nx} x {ny} nodes {self.cell:g} m apart{rounded}']
-        steepest = base.steepest_deg()
+        steepest = neighbour_slope_deg(self.grid, self.cell)
         if steepest > repose_deg:
             said.append(f'deformable bed: its base surface is steeper ({steepest:.3g} deg) than '
                         f'the angle of repose ({repose_deg:g} deg): it avalanches wherever the '
@@ -243,6 +253,21 @@ class DeformableSand(HeightGrid):
 def bed_nodes(size, cell):
     """(nx, ny): the nodes of a bed of `size` [x, y] m in whole cells of `cell` m."""
     return int(round(size[0] / cell)) + 1, int(round(size[1] / cell)) + 1
+
+
+def neighbour_slopes(grid, cell):
+    """(axis, diagonal): the largest |height difference| / distance (tan of the slope) between
+    axis and between diagonal neighbours of `grid` (m, nodes `cell` m apart): the pairs the
+    avalanche (rule 4) holds to the angle of repose."""
+    axis = max(np.abs(np.diff(grid, axis=0)).max(), np.abs(np.diff(grid, axis=1)).max()) / cell
+    diagonal = max(np.abs(grid[1:, 1:] - grid[:-1, :-1]).max(),
+                   np.abs(grid[1:, :-1] - grid[:-1, 1:]).max()) / (cell * np.sqrt(2.0))
+    return float(axis), float(diagonal)
+
+
+def neighbour_slope_deg(grid, cell):
+    """The steepest slope (deg) between neighbouring nodes of `grid` (`neighbour_slopes`)."""
+    return float(np.degrees(np.arctan(max(neighbour_slopes(grid, cell)))))
 
 
 def check_memory(size, cell):

@@ -93,7 +93,10 @@ class SandEngine:
     body_plates: {body name: Plates in that body's frame (xpos/xmat), m}.
     zeta: N/cm^3 (multiplied by `zeta_map`'s factor where it has one: a ZetaMap or None).
     surface_height: z of the horizontal sand surface, m; or `surface`: any `surface.Surface`
-    (slope, height grid), fixed for the engine's life (a grid may change in place).
+    (slope, height grid), fixed for the engine's life (`engine.surface`: its heights where
+    plates meet it, `height(x, y)`): a rigid grid's heights are read-only, as the bounds
+    the engine derives from them once are (another surface: another engine); deformable
+    sand changes its own grid, bounds included.
     normalisation: 'treers' or 'rft_sim'. dynamic: DynamicTerm or None.
     With the implicit law the engine takes over the model's joint friction (MJCF
     frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
@@ -434,11 +437,6 @@ class SandEngine:
         return self._zeta * factor
 
     @property
-    def surface_height(self):
-        """z of the horizontal sand surface, m (world); a slope's at the world origin."""
-        return float(self._settings[coupling.SURFACE])
-
-    @property
     def plates_active(self):
         """Plates in the sand and leading at the last step."""
         return int(self._counters[coupling.LEADING])
@@ -467,13 +465,15 @@ class SandEngine:
 
     def forget_last_step(self):
         """For a state that does not follow the last step (a reset): the plates' and
-        frictional joints' sets in it (the solve's start), the EMA's history and a hand-back's
-        held constraint force are forgotten, so the next step starts as the first did. The
-        counters keep counting."""
+        frictional joints' sets in it (the solve's start), the EMA's history, a hand-back's
+        held constraint force and the wrenches summed for `mean_wrenches` are forgotten, so
+        the next step starts as the first did. The counters keep counting."""
         self._plate_memory[:] = -1
         self._friction_memory[:] = -1
         self._ema_step[:] = -2
         self._counters[coupling.HANDED_BACK_AT] = 0
+        self._wrench_sum[:] = 0.0
+        self._sum_since = self._counters[coupling.STEPS]
 
     def step(self):
         """Advance the model one timestep with sand forces."""

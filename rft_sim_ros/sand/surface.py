@@ -26,6 +26,7 @@ grid the engine adds planes that bound the surface over tiles the size of its bo
 node's highest and lowest node over a window the size of its plate clusters
 (`window_extremes`): a cluster's square is bounded by the nodes it reaches, in two reads.
 """
+import hashlib
 from collections import namedtuple
 from pathlib import Path
 
@@ -168,6 +169,12 @@ class Surface:
         """World z (m) of the highest surface point over the rectangle (`bounds`)."""
         return self.bounds(x0, x1, y0, y1)[1]
 
+    def describe(self):
+        """What this surface is, JSON-ready (SI), for a run's record (`summary.json`'s
+        `surface`): its kind and parameters; a grid's placement and a SHA-256 of its heights,
+        which tells two grids apart however they were made."""
+        raise NotImplementedError
+
     def steepest_deg(self):
         """The surface's steepest inclination (deg): a plane's 0, a slope's angle, a grid's
         steepest cell (the gradient of the bilinear surface at the cell's corners)."""
@@ -204,6 +211,9 @@ class Plane(Surface):
     def bounds(self, x0, x1, y0, y1):
         return self.level, self.level
 
+    def describe(self):
+        return {'type': 'plane', 'height_m': self.level}
+
     @property
     def data(self):
         return SurfaceData(FLAT, self.level, (0.0, 0.0), _NO_GRID, (0.0, 0.0), (1.0, 1.0),
@@ -231,6 +241,10 @@ class Slope(Surface):
     def steepest_deg(self):
         return float(self.angle_deg)
 
+    def describe(self):
+        return {'type': 'slope', 'height_m': self.level, 'angle_deg': float(self.angle_deg),
+                'downhill_deg': float(self.downhill_deg)}
+
     @property
     def data(self):
         return SurfaceData(SLOPE, self.level, self.gradient, _NO_GRID, (0.0, 0.0), (1.0, 1.0),
@@ -247,7 +261,11 @@ GRID_VALUES = ('a height grid', 'heights')
 class HeightGrid(Surface):
     """Height field on a regular grid of nodes: heights[iy, ix] (m, world z; row 0 at the
     lowest y), spanning size = (x, y) m centred on center = (x, y) m; bilinear between nodes,
-    the edge values continued outside."""
+    the edge values continued outside. Its `grid` and the bounds derived from it are
+    read-only (`rigid`): the engine reads them as they were when it was built, so another
+    surface is another HeightGrid (deformable sand changes its own, bounds included)."""
+
+    rigid = True
 
     def __init__(self, heights, size, center=(0.0, 0.0)):
         grid = np.array(heights, dtype=float)
@@ -259,10 +277,13 @@ class HeightGrid(Surface):
         if not np.all(np.isfinite(grid)):
             raise ValueError('a height grid must hold finite heights')
         size = tuple(float(s) for s in size)
-        if len(size) != 2 or min(size) <= 0:
-            raise ValueError(f'sand.surface.size must be [x, y] > 0 m, got {size}')
+        if len(size) != 2 or not min(size) > 0 or not np.all(np.isfinite(size)):
+            raise ValueError(f'sand.surface.size must be [x, y] > 0 m, finite, got {size}')
+        center = tuple(float(c) for c in center)
+        if len(center) != 2 or not np.all(np.isfinite(center)):
+            raise ValueError(f"a height grid's center must be [x, y] m, finite, got {center}")
         self.grid = np.ascontiguousarray(grid)
-        self.size, self.center = size, tuple(float(c) for c in center)
+        self.size, self.center = size, center
         ny, nx = grid.shape
         self.spacing = (size[0] / (nx - 1), size[1] / (ny - 1))
         self.origin = (self.center[0] - size[0] / 2, self.center[1] - size[1] / 2)
@@ -274,6 +295,8 @@ class HeightGrid(Surface):
                              'origin')
         self.block_max = block_maximum(self.grid)
         self.block_min = block_minimum(self.grid)
+        for array in (self.grid, self.block_max, self.block_min):
+            array.flags.writeable = not self.rigid
 
     def steepest_deg(self):
         return float(np.degrees(np.arctan(np.sqrt(steepest_squared(self.grid,
@@ -285,6 +308,9 @@ class HeightGrid(Surface):
         ny, nx = self.grid.shape
         return {'origin_m': list(self.origin), 'spacing_m': list(self.spacing),
                 'nodes_xy': [nx, ny]}
+
+    def describe(self):
+        return {'type': 'grid', **self.placement(), 'heights_sha256': heights_digest(self.grid)}
 
     @classmethod
     def from_file(cls, path, size, center=(0.0, 0.0), height_range=None, base=0.0):
@@ -402,6 +428,12 @@ SNAP_SPACINGS = 0.1
 #: 12 MB cloud where the node publishes the whole grid).
 RESAMPLE_REFINE = 4
 RESAMPLE_NODES = 1_000_000
+
+
+def heights_digest(heights):
+    """SHA-256 (hex) of a grid of heights: its shape and its float64 values, row-major."""
+    heights = np.ascontiguousarray(heights, dtype=np.float64)
+    return hashlib.sha256(repr(heights.shape).encode() + heights.tobytes()).hexdigest()
 
 
 def _resampled(field, yaw, center, what):

@@ -232,8 +232,8 @@ KEYS = (
     Key('zeta', 'number in (0, 100]', 'N/cm^3', 3.75, 'Sand stiffness (the RFT literature '
         'unit; 3.75 = Quikrete play sand).', _zeta),
     Key('sand', 'mapping', '', {}, 'The sand bed.', _section),
-    Key('sand.surface_height', 'number', 'm', 0.0, 'z of the horizontal sand surface.',
-        _finite),
+    Key('sand.surface_height', 'number', 'm', 0.0, 'z of the horizontal sand surface (the '
+        "plane's; a slope's at the origin, a grid's offset; sand.surface).", _finite),
     Key('sand.keep_floor', 'true or false', '', False, "Keep the model's own floor planes "
         '(plane geoms fixed to the world that can touch the robot) as rigid MuJoCo floors; by '
         'default their collisions are switched off, since the sand carries the robot.', _flag),

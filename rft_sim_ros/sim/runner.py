@@ -108,8 +108,9 @@ def mujoco_log(path):
 
 
 def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True,
-              schedule=(), stop=None, log=None):
-    """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's).
+              schedule=(), stop=None, log=None, surface=None):
+    """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's), on its
+    sand surface or on `surface` (a `sand.surface.Surface` made in Python: `Simulation`).
 
     out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
     recorders: objects with record(SimState) and close(), fed the initial state (before the
@@ -140,7 +141,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         out.mkdir(parents=True, exist_ok=True)
     with mujoco_log(None if out is None else out / 'mujoco.log'):
         summary, series, sim = _run(scene, duration, recorders, progress, schedule, stop,
-                                    log)
+                                    log, surface)
     if out is not None:
         if sim.engine.deformable:  # where the nodes of terrain.npy (below) lie
             summary['terrain_grid'] = sim.engine.surface.placement()
@@ -158,7 +159,7 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     return summary
 
 
-def _run(scene, duration, recorders, progress, schedule, stop, log):
+def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
     """The run itself: (summary, time series rows, the Simulation)."""
     bar = None
     loop_started = None
@@ -171,7 +172,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
                     'applied': False} for step, action in actions
                    if isinstance(action, SettingChange)]
         started = time.perf_counter()
-        sim = Simulation(scene)
+        sim = Simulation(scene, surface)
         startup = time.perf_counter() - started
         for notice in sim.notices if log else ():
             log(notice)
@@ -280,6 +281,8 @@ def _run(scene, duration, recorders, progress, schedule, stop, log):
         'generic_metrics': finite(generic.result(stable=stable)),
         'scene_config': scene.raw,
         'scene_values': scene.values,
+        'surface': sim.engine.surface.describe() if surface is None else {
+            **sim.engine.surface.describe(), 'given_in_python': True},
         'machine': machine_info(),
     }
     return summary, series, sim

@@ -28,8 +28,8 @@ from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
-from ..sand.surface import (CHECKED_SLOPE_DEG, SURFACE_KINDS, hfield_geom, hfield_label,
-                            surface_from_settings)
+from ..sand.surface import (CHECKED_SLOPE_DEG, SURFACE_KINDS, Surface, hfield_geom,
+                            hfield_label, surface_from_settings)
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
@@ -121,9 +121,15 @@ def _dynamic_term(config):
 
 
 class Simulation:
-    """One scene, ready to step. Attributes: model, data, engine, scenario, scene."""
+    """One scene, ready to step. Attributes: model, data, engine, scenario, scene.
 
-    def __init__(self, scene):
+    surface: a `sand.surface.Surface` made in Python (a HeightGrid of an array of heights, a
+    Slope) that the sand takes instead of the scene's `sand.surface`, which must then be
+    left as the plane; deformable sand (sand.deformable) lays its bed over it as over the
+    scene's. summary.json's `surface` (`Surface.describe`) records which it was.
+    """
+
+    def __init__(self, scene, surface=None):
         self.scene = scene
         self.notices = []  # what start-up decided for the user (e.g. the auto sand bodies)
         self.scenario = load_scenario(scene)
@@ -157,8 +163,7 @@ class Simulation:
             self.notices.append(f"initial pose: the model's keyframe {self._keyframe!r} "
                                 "(robot.keyframe names another; '' the model's qpos0)")
         try:
-            surface = surface_from_settings(scene.surface, scene.surface_height, self.model)
-            self.notices.extend(surface.notices)
+            surface = self._surface(surface)
             zeta_map = zeta_map_from_settings(scene.zeta_map)
         except ValueError as error:
             raise SceneError(f'scene {scene.name}: {error}') from None
@@ -289,6 +294,23 @@ class Simulation:
                                 'a name: no command interfaces, not in /joint_states (name '
                                 'them in the model to command them)')
         return named
+
+    def _surface(self, given):
+        """The sand's surface: `given` (a Surface made in Python; the scene's sand.surface
+        must then be the plane), else the scene's sand.surface; its notices said."""
+        if given is None:
+            surface = surface_from_settings(self.scene.surface, self.scene.surface_height,
+                                            self.model)
+        elif not isinstance(given, Surface):
+            raise ValueError(f'surface must be a rft_sim_ros.sand.surface.Surface (a Plane, '
+                             f'Slope or HeightGrid), got {type(given).__name__}')
+        elif self.scene.surface.get('type', 'plane') != 'plane':
+            raise ValueError('a surface given in Python replaces the scene\'s sand.surface, '
+                             f'which is a {self.scene.surface["type"]} here: leave it out')
+        else:
+            surface = given
+        self.notices.extend(surface.notices)
+        return surface
 
     def _bed(self, surface, bed):
         """The deformable bed (scene key sand.deformable) over `surface`, centred where the

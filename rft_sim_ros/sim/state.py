@@ -3,7 +3,8 @@
 `SimState` is the one hand-off point from the physics (rft_sim_ros.sim) to everything that
 reports it (ROS messages, rosbag2 files, summary metrics). All quantities are SI; frames are
 named in each field's docstring. The world frame is ROS's `odom` (REP 105): fixed, z up,
-its origin at the world origin of the MuJoCo model; the sand surface is horizontal.
+its origin at the world origin of the MuJoCo model; the sand surface is the scene's
+(`sand.surface`: a horizontal plane unless a scene says otherwise), in that frame.
 """
 import math
 from dataclasses import dataclass, field
