@@ -142,7 +142,7 @@ def test_deformable_keys_are_checked():
     with pytest.raises(ValueError, match='at least two cells'):
         DeformableSand(Plane(), size=(0.01, 1.0), cell=0.01)
     # a bed far larger than any machine's memory is refused before anything is allocated
-    with pytest.raises(ValueError, match=r'a bed of 1000001 x 1000001 nodes \(0.01 m cells\) '
+    with pytest.raises(ValueError, match=r'a bed \(0.01 m cells\) of 1000001 x 1000001 nodes '
                        r'needs about 8.38e\+04 GiB, more than half of this machine'):
         DeformableSand(Plane(), size=(1e4, 1e4), cell=0.01)
     for size, cell in (((1e300, 1e300), 0.01), ((1.0, 1.0), 1e-300)):  # (counted as floats)

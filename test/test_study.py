@@ -21,7 +21,7 @@ from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.study import StudyError, load_study, run_study, study_from_mapping
 from rft_sim_ros.study.cost import dearest_first, run_cost
 from rft_sim_ros.study.execute import RunTask, execute
-from rft_sim_ros.study.pool import map_unordered
+from rft_sim_ros.study.pool import PARENT_CHECK_S, map_unordered
 from rft_sim_ros.study.progress import StudyProgress
 from rft_sim_ros.study.table import read_csv, row
 
@@ -73,7 +73,7 @@ def test_list_and_samples():
     # terrain read before any run starts: a bed too large for the machine, a map file
     ({'vary': {'sand.deformable.cell': [0.01, 1e-4]},
       'set': {'sand.deformable.enabled': True, 'sand.deformable.size': [100.0, 100.0]}},
-     r'a bed of 1000001 x 1000001 nodes'),
+     r'a bed \(0.0001 m cells\) of 1000001 x 1000001 nodes'),
     ({'vary': {'sand.zeta_map.file': ['missing.npy']}, 'set': {'sand.zeta_map.size': [1, 1]}},
      'not found'),
 ])
@@ -237,6 +237,49 @@ def test_a_hung_worker_is_killed_at_the_hard_limit_and_replaced():
     assert outcomes[1].value == 0.0  # ran on the replacement worker
 
 
+WORKER_PARENT = """
+import os, sys, time
+from rft_sim_ros.study.pool import map_unordered, start_method
+
+def pid(_):
+    return os.getpid()
+
+if __name__ == '__main__':
+    assert start_method() == 'fork'  # (a single thread: `rft-sim sweep` as users run it)
+    outcomes = map_unordered(pid, [0, 1], workers=2)
+    print(next(outcomes).value, next(outcomes).value, flush=True)  # the workers, now idle
+    time.sleep(60)
+"""
+
+
+def _running(pid):
+    """Whether process `pid` runs (neither gone nor a zombie no one reaped)."""
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir('/proc'), reason='reads processes from /proc')
+def test_workers_end_when_their_parent_is_killed(tmp_path):
+    """A study killed with SIGKILL (no cleanup runs) leaves no worker behind: each forked
+    worker holds copies of the pipes' parent ends, so it would wait for its next item
+    forever; it looks for its parent while idle instead."""
+    (tmp_path / 'parent.py').write_text(WORKER_PARENT)
+    parent = subprocess.Popen([sys.executable, str(tmp_path / 'parent.py')],
+                              stdout=subprocess.PIPE, text=True,
+                              env=dict(os.environ, **ONE_THREAD))
+    workers = [int(pid) for pid in parent.stdout.readline().split()]
+    assert len(set(workers)) == 2 and all(_running(pid) for pid in workers)
+    parent.kill()
+    parent.wait()
+    deadline = time.monotonic() + 10 * PARENT_CHECK_S
+    while any(_running(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_running(pid) for pid in workers)
+
+
 def thread_settings(names):
     """The worker's values of the environment variables `names` (None where unset)."""
     return [os.environ.get(name) for name in names]
@@ -332,3 +375,15 @@ def test_study_benchmark_pieces():
                'd': {'worker': 'w2', 'started_at': 11.5, 'finished_at': 13.0},
                'e': {'worker': None, 'started_at': None, 'finished_at': None}}
     assert gaps_between_runs(records) == [0.25, 0.0]
+
+
+def test_a_worker_warms_each_set_of_kernels_its_runs_meet(monkeypatch):
+    """A study varying the surface meets the slope's kernels after the plane's: the worker
+    warms them too, outside the run's timing (a run that compiled them could pass
+    --run-timeout); the same kernels again cost nothing."""
+    from rft_sim_ros.study import execute
+    monkeypatch.setattr(execute, '_warmed', set())
+    assert execute.warm('plate_drop', {}) > 0.0
+    assert execute.warm('plate_drop', {'drop_height': 0.2}) == 0.0
+    assert execute.warm('plate_drop', {'sand.surface.type': 'slope'}) > 0.0
+    assert execute.warm('plate_drop', {'sand.surface.type': 'slope', 'zeta': 2.0}) == 0.0

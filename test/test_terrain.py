@@ -754,6 +754,10 @@ def test_zeta_map_multiplies_zeta_where_the_plates_are():
                                          'cell centre of the 0.01 m cells'):  # (it vanished)
         ZetaMap.from_regions([{'x': [0, 1], 'y': [-1, 1], 'factor': 3.0},
                               {'x': [0.5, 0.504], 'y': [-0.5, 0], 'factor': 0.1}])
+    with pytest.raises(ValueError, match=r"sand.zeta_map: the regions' raster \(0.01 m cells\) "
+                                         r'of 200000000 x 200000000 cells needs about 8.94e\+08 '
+                                         'GiB, more than half'):  # (before any allocation)
+        ZetaMap.from_regions([{'x': [-1e6, 1e6], 'y': [-1e6, 1e6], 'factor': 0.5}])
     engine = Simulation(load_scene('plate_drop', {'sand.zeta_map.regions': [
         {'x': [-1, 1], 'y': [-1, 1], 'factor': 8.0}]})).engine
     assert engine.zeta_at([0.0, 2.0], 0.0).tolist() == [30.0, 3.75]
@@ -904,6 +908,7 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
     here.mkdir(), there.mkdir()
     np.save(here / 'raised.npy', np.full((5, 5), 0.02))
     np.save(there / 'lowered.npy', np.full((5, 5), -0.02))
+    np.save(there / 'factors.npy', np.full((5, 5), 0.5))
     grid = {'sand.surface.type': 'grid', 'sand.surface.size': [1.0, 1.0], 'duration': 0.05}
     monkeypatch.chdir(here)
     assert main(['run', 'plate_drop', '--set', 'sand.surface.type=grid', '--set',
@@ -923,10 +928,20 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
                          'robot.package_paths': {'a': 'there', 'b': 'nowhere'}}, tmp_path) == {
         'model': 'plate_drop.xml', 'scenario': 'plate_drop',
         'robot.package_paths': {'a': str(there), 'b': 'nowhere'}}
+    # a whole mapping that holds a file (a study varying sand.surface) is read from there too
+    nested = study_from_mapping({'scene': 'plate_drop', 'set': {'duration': 0.05},
+                                 'vary': {'sand.surface': [{'type': 'grid', 'file': 'lowered.npy',
+                                                            'size': [1.0, 1.0]}],
+                                          'sand': [{'zeta_map': {'file': 'factors.npy',
+                                                                 'size': [1.0, 1.0]}}]},
+                                 'metrics': ['max_depth_m']}, base=there)
+    assert nested.runs[0].overrides['sand.surface']['file'] == str(there / 'lowered.npy')
+    assert nested.runs[0].overrides['sand']['zeta_map']['file'] == str(there / 'factors.npy')
     with pytest.raises(SceneError, match=r"sand.surface.file: 'lowered.npy' not found: no file "
                        f'{config_dir() / "lowered.npy"} \\(a relative file is read from the '
-                       "scene file's folder; one named with --set, in scene_overrides or in "
-                       f'a study is read from the working directory, here {here}, or'):
+                       "scene file's folder; one named with --set or in scene_overrides from "
+                       f"the working directory, here {here}; one named in a study from the "
+                       "study file's folder"):
         load_scene('plate_drop', {**grid, 'sand.surface.file': 'lowered.npy'})
     with pytest.raises(SceneError, match=f"sand.surface.file: '{there}' is a folder, not a file"):
         load_scene('plate_drop', {**grid, 'sand.surface.file': str(there)})

@@ -39,12 +39,12 @@ The rule (volume conserving):
 Every transfer moves the same amount out of one node and into another, so the bed's volume
 is conserved up to floating-point rounding (sum of height changes x cell^2; tested to 1e-9
 of the displaced volume). `reset()` restores the pristine surface exactly (a copy)."""
-import os
 
 import numpy as np
 from numba import njit
 
 from ..kernel_cache import forget_stale
+from .grid_memory import check_grid_memory
 from .surface import BLOCK, HeightGrid, block_maximum, block_minimum, heights_digest
 
 #: Bytes a bed holds per node (its heights, the pristine copy, marks and work space: 82
@@ -272,21 +272,12 @@ def neighbour_slope_deg(grid, cell):
 
 def check_memory(size, cell):
     """Refuse (ValueError) a bed of `size` [x, y] m in `cell` m cells that would take more
-    than half of this machine's memory (`BED_BYTES_PER_NODE`), before any of it is
-    allocated (its nodes counted as floats, so that any size and cell is told)."""
-    try:
-        memory = os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
-    except (AttributeError, ValueError, OSError):  # not a POSIX system: not checked
-        return
-    nx, ny = (float(np.rint(float(s) / cell)) + 1.0 for s in size)  # (inf: an absurd bed)
-    need = nx * ny * BED_BYTES_PER_NODE
-    if need > memory / 2:
-        nodes = ' x '.join(f'{n:.0f}' if n < 1e15 else f'{n:.3g}' for n in (nx, ny))
-        raise ValueError(f'sand.deformable: a bed of {nodes} nodes ({cell:g} m '
-                         f'cells) needs about {need / 2**30:.3g} GiB, more than half of this '
-                         f'machine\'s {memory / 2**30:.3g} GiB: make sand.deformable.size '
-                         'smaller or sand.deformable.cell larger (the bed need only cover '
-                         'where the robot goes)')
+    than half of this machine's memory (`BED_BYTES_PER_NODE`; `grid_memory`), before any of
+    it is allocated."""
+    nodes = [float(np.rint(float(s) / cell)) + 1.0 for s in size]  # (inf: an absurd bed)
+    check_grid_memory(nodes, BED_BYTES_PER_NODE, f'sand.deformable: a bed ({cell:g} m cells)',
+                      'make sand.deformable.size smaller or sand.deformable.cell larger (the '
+                      'bed need only cover where the robot goes)')
 
 
 @njit(cache=True, inline='always')

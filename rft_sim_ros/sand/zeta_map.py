@@ -16,7 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from .grid_files import file_format, grey_levels, read_npy
+from .grid_memory import check_grid_memory
 
+#: Bytes of a raster of regions per cell at its peak (its factors, a mask of each region's
+#: cells, the grid of cell centres: 8 + 1 + 8, rounded up).
+RASTER_BYTES_PER_CELL = 24
 #: A zeta map and its values, as errors name them.
 MAP_VALUES = ('a zeta map', 'factors')
 
@@ -69,8 +73,13 @@ class ZetaMap:
             boxes.append(box)
         boxes = np.array(boxes)
         x_lo, y_lo = boxes[:, 0].min(), boxes[:, 2].min()
-        nx = int(np.ceil((boxes[:, 1].max() - x_lo) / cell))
-        ny = int(np.ceil((boxes[:, 3].max() - y_lo) / cell))
+        cells = [float(np.ceil((boxes[:, 1].max() - x_lo) / cell)),
+                 float(np.ceil((boxes[:, 3].max() - y_lo) / cell))]
+        check_grid_memory(cells, RASTER_BYTES_PER_CELL,
+                          f'sand.zeta_map: the regions\' raster ({cell:g} m cells)',
+                          'bound the regions to where the robot goes, or make '
+                          'sand.zeta_map.cell larger', unit='cells')
+        nx, ny = (int(n) for n in cells)
         xc = x_lo + (np.arange(nx) + 0.5) * cell
         yc = y_lo + (np.arange(ny) + 0.5) * cell
         factors = np.ones((ny, nx))

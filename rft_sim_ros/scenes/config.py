@@ -203,23 +203,39 @@ PATH_KEYS = ('model', 'scenario', 'sand.surface.file', 'sand.zeta_map.file',
 
 def anchor_paths(overrides, folder):
     """A copy of `overrides` in which each relative file named by a PATH_KEYS value (a
-    scenario only as a .py file) that exists under `folder` is made absolute: overrides
-    given on a command line (`folder`: the working directory) or in a study file (its folder)
-    name files from there. Others are left as given, for the scene's own look-up (the scene
-    file's folder, the package's models/)."""
+    scenario only as a .py file) that exists under `folder` is made absolute, also where an
+    override gives a whole mapping holding it (`sand.surface: {type: grid, file: ...}`):
+    overrides given on a command line (`folder`: the working directory) or in a study file
+    (its folder) name files from there. Others are left as given, for the scene's own
+    look-up (the scene file's folder, the package's models/)."""
     def anchored(value):
         if not isinstance(value, str) or Path(value).is_absolute():
             return value
         there = Path(folder) / Path(value).expanduser()
         return str(there.resolve()) if there.exists() else value
+
+    def anchored_value(key, value):
+        if key == 'robot.package_paths' and isinstance(value, dict):
+            return {name: anchored(path) for name, path in value.items()}
+        if key != 'scenario' or (isinstance(value, str) and value.endswith('.py')):
+            return anchored(value)
+        return value
+
+    def within(mapping, key, rest):
+        """A copy of `mapping` with the PATH_KEYS entry `key` at its dotted path `rest`
+        anchored (as given where it does not hold it)."""
+        head, _, tail = rest.partition('.')
+        if not isinstance(mapping, dict) or head not in mapping:
+            return mapping
+        inner = within(mapping[head], key, tail) if tail else anchored_value(key, mapping[head])
+        return {**mapping, head: inner}
     out = dict(overrides)
     for key in PATH_KEYS:
-        value = out.get(key)
-        if key == 'robot.package_paths' and isinstance(value, dict):
-            out[key] = {name: anchored(path) for name, path in value.items()}
-        elif key != 'scenario' or (isinstance(value, str) and value.endswith('.py')):
-            if key in out:
-                out[key] = anchored(value)
+        for given in list(out):
+            if key == given:
+                out[given] = anchored_value(key, out[given])
+            elif key.startswith(given + '.'):
+                out[given] = within(out[given], key, key[len(given) + 1:])
     return out
 
 
@@ -339,9 +355,9 @@ def _subsection(values, section, scene_path, locator):
         if not file.is_file():
             tried = ('' if Path(settings['file']).expanduser().is_absolute() else
                      " (a relative file is read from the scene file's folder; one named with "
-                     '--set, in scene_overrides or in a study is read from the working '
-                     f'directory, here {Path.cwd()}, or the study file\'s folder where it is '
-                     'there; in Python, give load_scene an absolute path or '
+                     '--set or in scene_overrides from the working directory, here '
+                     f'{Path.cwd()}; one named in a study from the study file\'s folder; '
+                     'in Python, give load_scene an absolute path or '
                      'anchor_paths(overrides, folder))')
             raise locator.error(f'{section}.file', f'{settings["file"]!r} not found: no file '
                                 f'{file}{tried}')

@@ -143,8 +143,6 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
         summary, series, sim = _run(scene, duration, recorders, progress, schedule, stop,
                                     log, surface)
     if out is not None:
-        if sim.engine.deformable:  # where the nodes of terrain.npy (below) lie
-            summary['terrain_grid'] = sim.engine.surface.placement()
         (out / 'summary.json').write_text(
             json.dumps(significant(summary), indent=2, default=json_default))
         _write_series(out / 'timeseries.csv', series, scene)
@@ -285,6 +283,8 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
             **sim.engine.surface.describe(), 'given_in_python': True},
         'machine': machine_info(),
     }
+    if sim.engine.deformable:  # where the nodes of the final surface (terrain.npy) lie
+        summary['terrain_grid'] = sim.engine.surface.placement()
     return summary, series, sim
 
 

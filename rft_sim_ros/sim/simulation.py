@@ -90,11 +90,17 @@ def floor_planes(model):
     return [g for g, z in zip(planes, up) if z >= np.cos(np.radians(FLOOR_TILT_DEG))]
 
 
+def kernel_key(scene):
+    """(low-velocity method, surface kind code, deformable): what selects the compiled sand
+    kernels a `scene` (SceneConfig) steps with (`kernel_cache.kernels_cached`)."""
+    return (scene.low_velocity['method'], SURFACE_KINDS[scene.surface.get('type', 'plane')],
+            bool(scene.deformable.get('enabled')))
+
+
 def compile_notice(scene):
     """The line to show before building `scene` (SceneConfig) when its sand kernels are not
     in numba's cache yet: 'compiling kernels, first run only, ~N s'; None when cached."""
-    kind = SURFACE_KINDS[scene.surface.get('type', 'plane')]
-    if kernels_cached(scene.low_velocity['method'], kind, bool(scene.deformable.get('enabled'))):
+    if kernels_cached(*kernel_key(scene)):
         return None
     return f'compiling kernels, first run only, ~{COLD_START_S:.0f} s'
 

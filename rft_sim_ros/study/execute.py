@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 from ..scenes.config import load_scene
 from ..sim.runner import run_scene
-from ..sim.simulation import Simulation
+from ..sim.simulation import Simulation, kernel_key
 
-#: Scenes whose kernels this process has warmed.
+#: (scene, kernel_key) pairs whose kernels this process has warmed.
 _warmed = set()
 
 
@@ -43,12 +43,18 @@ class RunTimeout(Exception):
 
 def warm(scene, overrides):
     """Compile or load the numba kernels (and import everything a run needs) once per process
-    per scene, outside any run's timing: build the scene and take two steps. Returns the
-    time it took (s; 0 when this process had warmed up for the scene already)."""
-    if scene in _warmed:
-        return 0.0
-    _warmed.add(scene)
+    per scene and set of kernels its runs step with (`kernel_key`: a study varying the
+    surface or deformable sand meets several), outside any run's timing: build the scene
+    and take two steps. Returns the time it took (s; 0 when this process had warmed up for
+    them already)."""
     started = time.perf_counter()
+    try:
+        key = (scene, kernel_key(load_scene(scene, overrides)))
+    except Exception:  # noqa: BLE001 - the run itself reports what is wrong
+        key = (scene, None)
+    if key in _warmed:
+        return 0.0
+    _warmed.add(key)
     for values in (overrides, {}):  # the run's values; if they fail, the scene's own
         try:
             Simulation(load_scene(scene, values)).step(2)
@@ -61,9 +67,9 @@ def warm(scene, overrides):
 def execute(task):
     """Run `task` (a RunTask); return its record: run_id, stable, reason, wall_time_s (s: the
     whole run in the worker, scene loading included, warm-up excluded), warm_s (s spent
-    warming this worker first, 0 after its first run), started_at / finished_at (the
-    worker's clock, s since the epoch), worker (host:pid) and summary (run_scene's summary
-    dict, None when the run raised or timed out)."""
+    warming this worker first, 0 where its kernels were warm: `warm`), started_at /
+    finished_at (the worker's clock, s since the epoch), worker (host:pid) and summary
+    (run_scene's summary dict, None when the run raised or timed out)."""
     warm_s = warm(task.scene, task.overrides)
     started_at = time.time()
     started = time.perf_counter()

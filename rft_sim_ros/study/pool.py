@@ -29,6 +29,8 @@ from ..native_threads import unset
 ATTEMPTS = 2
 #: Time a worker may take to start (spawn, imports) before the hard limit starts counting, s.
 START_GRACE_S = 120.0
+#: An idle worker looks whether its parent is still there this often, s.
+PARENT_CHECK_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -58,10 +60,15 @@ def default_workers():
         return os.cpu_count() or 1
 
 
-def _serve(conn, fn):
+def _serve(conn, fn, parent):
     """Worker loop: receive (index, item); send (index, None, None) when fn starts on it, then
-    (index, ok, value or error text)."""
+    (index, ok, value or error text). Ends when told (None) or once its parent process (pid
+    `parent`) is gone, looked at every PARENT_CHECK_S while idle: a forked worker holds
+    copies of the pipes' parent ends, so it would never read an end of file from them."""
     while True:
+        while not conn.poll(PARENT_CHECK_S):
+            if os.getppid() != parent:
+                return
         message = conn.recv()
         if message is None:
             return
@@ -91,7 +98,8 @@ def _worker_environment():
 class _Worker:
     def __init__(self, context, fn):
         self.conn, child = context.Pipe()
-        self.process = context.Process(target=_serve, args=(child, fn), daemon=True)
+        self.process = context.Process(target=_serve, args=(child, fn, os.getpid()),
+                                       daemon=True)
         with _worker_environment():
             self.process.start()
         child.close()
