@@ -387,3 +387,22 @@ def test_a_worker_warms_each_set_of_kernels_its_runs_meet(monkeypatch):
     assert execute.warm('plate_drop', {'drop_height': 0.2}) == 0.0
     assert execute.warm('plate_drop', {'sand.surface.type': 'slope'}) > 0.0
     assert execute.warm('plate_drop', {'sand.surface.type': 'slope', 'zeta': 2.0}) == 0.0
+
+
+HFIELD_ROBOT = """<mujoco><asset><hfield name="bumps" nrow="3" ncol="3" size="1 1 0.05 0.01"/>
+  </asset><worldbody><geom name="terrain" type="hfield" hfield="bumps"/>
+  <body name="base" pos="0 0 0.2"><freejoint/><geom type="box" size="0.1 0.1 0.03"/></body>
+  </worldbody></mujoco>"""
+
+
+def test_a_study_refuses_an_hfield_geom_its_model_lacks_before_any_run(tmp_path):
+    """The model's own hfield is read from its MJCF before the first run: a geom name it
+    lacks stops the study with the reason (it used to fail that run alone, later)."""
+    (tmp_path / 'robot.xml').write_text(HFIELD_ROBOT)
+    study = {'scene': str(tmp_path / 'robot.xml'), 'set': {'sand.surface.type': 'hfield'},
+             'vary': {'sand.surface.geom': ['terrain', 'nope']}, 'metrics': ['stable']}
+    with pytest.raises(StudyError, match=r"sand.surface.geom: no geom or <hfield> 'nope' in the "
+                                         'model; its hfield geoms: terrain'):
+        study_from_mapping(study, base=tmp_path)
+    assert len(study_from_mapping({**study, 'vary': {'sand.surface.geom': ['terrain']}},
+                                  base=tmp_path).runs) == 1

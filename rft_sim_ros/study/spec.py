@@ -17,6 +17,7 @@ are integers; `log: [keys]` draws those keys uniformly in log space). Keys are a
 `rft-sim run --set` accepts (`zeta`, `timestep`, `rft.plates_per_body`, a scene param...).
 Every run's scene is loaded and validated here, before any run starts.
 """
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ import numpy as np
 import yaml
 
 from ..sand.deformable import check_memory
-from ..sand.surface import surface_from_settings
+from ..sand.surface import HeightGrid, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.config import SceneError, anchor_paths, load_scene
 from ..scenes.schema import load_yaml
@@ -138,14 +139,31 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
 
 def check_terrain(scene):
     """Read the terrain files of `scene` (a SceneConfig) and check its deformable bed's size
-    as the Simulation will, so that a study refuses a bad one before any run starts (the
-    model's own hfield excepted: reading it needs the compiled model). Raises ValueError."""
-    if scene.surface.get('type', 'plane') != 'hfield':
+    as the Simulation will, so that a study refuses a bad one before any run starts; the
+    model's own hfield is read from its MJCF (`_check_hfield`). Raises ValueError."""
+    if scene.surface.get('type', 'plane') == 'hfield':
+        _check_hfield(str(scene.model_path), scene.surface.get('geom'))
+    else:
         surface_from_settings(scene.surface, scene.surface_height)
     zeta_map_from_settings(scene.zeta_map)
     bed = scene.deformable
     if bed.get('enabled'):
         check_memory(bed['size'], bed['cell'])
+
+
+@functools.lru_cache(maxsize=None)
+def _check_hfield(model_path, geom):
+    """Read the hfield geom `geom` of the MJCF at `model_path` as the Simulation will (a
+    missing or tilted one raises ValueError), compiled once per model and geom. A model
+    that is no MJCF, or that compiles only with the scene's edits, is left to its runs."""
+    if not model_path.endswith('.xml'):
+        return
+    import mujoco
+    try:
+        model = mujoco.MjModel.from_xml_path(model_path)
+    except ValueError:
+        return
+    HeightGrid.from_mjcf_hfield(model, geom)
 
 
 def expand(vary, where='study'):
