@@ -207,6 +207,26 @@ def test_resume_runs_only_what_is_missing(local_study, tmp_path):
     assert (retried.ran, retried.resumed) == (1, 4)
 
 
+def test_resume_redoes_a_run_whose_files_changed(tmp_path):
+    """A study's run records the SHA-256 of each file it names: after a height grid is
+    rewritten (0.3 m higher), --resume redoes the runs that read it, not the others."""
+    np.save(tmp_path / 'g.npy', np.zeros((5, 5)))
+    study = study_from_mapping({
+        'scene': 'plate_drop', 'duration': 0.05,
+        'set': {'sand.surface.type': 'grid', 'sand.surface.size': [1.0, 1.0]},
+        'vary': [{'sand.surface.file': 'g.npy'}, {'sand.surface': {'type': 'slope'}}],
+        'metrics': ['max_depth_m']}, base=tmp_path)
+    out = tmp_path / 'out'
+    run_study(study, out, workers=1, progress=False)
+    saved = json.loads((out / 'runs' / '0' / 'summary.json').read_text())['study_run']
+    assert list(saved['files']) == [str(tmp_path / 'g.npy')]
+    again = run_study(study, out, workers=1, progress=False, resume=True)
+    assert (again.ran, again.resumed) == (0, 2)
+    np.save(tmp_path / 'g.npy', np.full((5, 5), 0.3))
+    changed = run_study(study, out, workers=1, progress=False, resume=True)
+    assert (changed.ran, changed.resumed) == (1, 1)
+
+
 def die_once(item):
     """Kill this worker process the first time `item` (a marker path) is seen; later return
     the item's name."""

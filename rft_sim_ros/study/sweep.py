@@ -4,14 +4,18 @@ each as it finishes, and write the results table and plots.
 Output folder:
   study.yaml             the study as given (for the record)
   runs/<id>/summary.json each run: `study_run` (varied values, overrides, repeat,
-                         wall_time_s, stable, reason, worker) and `summary` (run_scene's
+                         wall_time_s, stable, reason, worker, the SHA-256 of each file
+                         its overrides name: `file_digests`) and `summary` (run_scene's
                          summary.json content, null if the run raised); written
                          atomically as the run finishes: the source of truth for --resume
   results.csv            one row per run (see table.py), results.npz the same, columnar
   plots/                 each metric against each varied key
   study.json             counts, wall time, backend, workers, machine
 """
+import functools
+import hashlib
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,9 +62,36 @@ def _same(a, b):
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
+def file_digests(overrides):
+    """{path: SHA-256 (hex)} of the files a run's overrides name anywhere in them (absolute
+    paths, as the study anchors them: a height grid, a zeta map, a model), so that a resumed
+    study redoes a run whose files changed since it ran."""
+    found = {}
+
+    def visit(value):
+        if isinstance(value, dict):
+            for item in value.values():
+                visit(item)
+        elif isinstance(value, list):
+            for item in value:
+                visit(item)
+        elif isinstance(value, str) and os.path.isabs(value) and os.path.isfile(value):
+            info = os.stat(value)
+            found[value] = _digest(value, info.st_mtime_ns, info.st_size)
+    visit(overrides)
+    return found
+
+
+@functools.lru_cache(maxsize=256)
+def _digest(path, mtime_ns, size):
+    """SHA-256 (hex) of the file at `path` as it is at (mtime_ns, size): read once per state."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def finished_records(out, study, retry_failed=False):
-    """{run_id: record} of the study's runs already on disk with the same overrides (a run
-    whose summary is missing, unreadable or for other values is not finished)."""
+    """{run_id: record} of the study's runs already on disk with the same overrides and the
+    same files (a run whose summary is missing, unreadable, for other values or for files
+    changed since is not finished)."""
     records = {}
     for run in study.runs:
         try:
@@ -69,6 +100,8 @@ def finished_records(out, study, retry_failed=False):
             continue
         mark = saved.get('study_run') or {}
         if not _same(mark.get('overrides'), run.overrides) or mark.get('repeat') != run.repeat:
+            continue
+        if 'files' in mark and mark['files'] != file_digests(run.overrides):
             continue
         if retry_failed and not mark.get('stable'):
             continue
@@ -81,7 +114,8 @@ def finished_records(out, study, retry_failed=False):
 def _save(out, run, record):
     content = {'study_run': {
         'run_id': run.run_id, 'varied': run.varied, 'repeat': run.repeat,
-        'overrides': run.overrides, 'wall_time_s': record['wall_time_s'],
+        'overrides': run.overrides, 'files': file_digests(run.overrides),
+        'wall_time_s': record['wall_time_s'],
         'warm_s': record.get('warm_s'), 'started_at': record.get('started_at'),
         'finished_at': record.get('finished_at'),
         'stable': record['stable'], 'reason': record['reason'], 'worker': record['worker']},
