@@ -426,3 +426,18 @@ def test_a_study_refuses_an_hfield_geom_its_model_lacks_before_any_run(tmp_path)
         study_from_mapping(study, base=tmp_path)
     assert len(study_from_mapping({**study, 'vary': {'sand.surface.geom': ['terrain']}},
                                   base=tmp_path).runs) == 1
+
+
+def test_a_study_says_each_distinct_notice_of_its_runs_once(tmp_path):
+    """What runs say at start-up (here: cells wider than the plate) is logged once with the
+    first run that said it, not once per run and not never."""
+    study = _study(set={'sand.deformable.enabled': True, 'sand.deformable.size': [0.5, 0.5],
+                        'sand.deformable.cell': 0.12},
+                   vary={'zeta': [2.0, 3.0, 4.0]}, duration=0.05)
+    lines = []
+    run_study(study, tmp_path / 'out', workers=1, progress=False, log=lines.append)
+    said = [line for line in lines if 'is wider than sand body plate' in line]
+    assert len(said) == 1 and said[0].startswith('run ')
+    summaries = [json.loads((tmp_path / 'out' / 'runs' / r.run_id / 'summary.json').read_text())
+                 for r in study.runs]
+    assert all(said[0].split(': ', 1)[1] in s['summary']['notices'] for s in summaries)

@@ -58,6 +58,10 @@ def _summary_path(out, run_id):
     return Path(out) / 'runs' / run_id / 'summary.json'
 
 
+#: Distinct run notices a study logs before it only counts them (`RunNotices`).
+SHOWN_NOTICES = 10
+
+
 def _same(a, b):
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
@@ -125,6 +129,30 @@ def _save(out, run, record):
     table.write_atomic(path, json.dumps(content, indent=1, default=json_default).encode())
 
 
+class RunNotices:
+    """What the runs' start-up and run notices say (summary.json's `notices`: a bed the
+    robot walks off, cells wider than a foot, a base that avalanches), each distinct text
+    logged once with the first run that said it, SHOWN_NOTICES at most, then how many more
+    there were (every run's are in its summary.json)."""
+
+    def __init__(self, log):
+        self._log, self._said, self._more = log, set(), 0
+
+    def say(self, run_id, notices):
+        for notice in notices:
+            if notice in self._said:
+                continue
+            self._said.add(notice)
+            if len(self._said) <= SHOWN_NOTICES:
+                self._log(f'run {run_id}: {notice}')
+            else:
+                self._more += 1
+
+    def close(self):
+        if self._more:
+            self._log(f'{self._more} more distinct notices: see runs/<id>/summary.json')
+
+
 def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=False,
               run_timeout=None, progress=True, log=lambda line: None):
     """Run `study` (spec.Study) into folder `out`: on `workers` local processes (default: all
@@ -161,6 +189,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     done = failed = 0
     warm_s = 0.0
     executed = {}
+    notices = RunNotices(log)
     last_table = time.monotonic()
     try:
         for outcome in outcomes:
@@ -174,12 +203,14 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
             failed += not record['stable']
             if not record['stable']:
                 log(f'run {run_id} {by_id[run_id].varied}: {record["reason"]}')
+            notices.say(run_id, (record['summary'] or {}).get('notices', ()))
             bar.update(done, failed)
             if time.monotonic() - last_table > TABLE_EVERY_S:
                 table.write_csv(out / 'results.csv', names, _rows(study, records))
                 last_table = time.monotonic()
     finally:
         bar.close()
+    notices.close()
     finishing = time.perf_counter()
     rows = _rows(study, records)
     table.write_csv(out / 'results.csv', names, rows)
