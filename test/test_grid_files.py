@@ -135,3 +135,24 @@ def test_scene_files_of_the_surface_and_the_zeta_map_read_their_pngs_exactly(tmp
     with pytest.raises(ValueError, match="sand.zeta_map.range maps a PNG's grey levels"):
         zeta_map_from_settings({'file': str(tmp_path / 'factors.npy'), 'size': [0.4, 0.3],
                                 'range': [0.1, 1.0]})
+
+
+def test_a_png_too_large_for_the_machine_is_refused_before_it_is_read(tmp_path):
+    """The header's size is checked against the machine's memory first (Pillow's own guard
+    against decompression bombs would raise a traceback above 179 Mpx instead)."""
+    path = write_png(tmp_path / 'huge.png', np.zeros((1, 8)), 8)
+    data = bytearray(path.read_bytes())
+    data[16:24] = struct.pack('>II', 2 ** 30, 2 ** 30)  # the header says 2^30 x 2^30
+    data[29:33] = struct.pack('>I', zlib.crc32(bytes(data[12:29])))
+    path.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"key .*huge.png': an image of 1073741824 x 1073741824 "
+                                         'pixels needs about'):
+        grey_levels(path, 'key', WHAT)
+
+
+def test_a_palette_png_with_transparency_reads_without_a_warning(tmp_path, recwarn):
+    grey = np.array([[0, 128, 255]], dtype=np.uint8)
+    image = Image.fromarray(grey, 'L').convert('P')
+    image.save(tmp_path / 'p.png', transparency=bytes([0, 255, 128]))  # (per palette entry)
+    np.testing.assert_array_equal(grey_levels(tmp_path / 'p.png', 'key', WHAT), grey / 255.0)
+    assert not [w for w in recwarn if 'Transparency' in str(w.message)]

@@ -18,6 +18,7 @@ import yaml
 from rft_sim_ros.cli import main
 from rft_sim_ros.native_threads import ONE_THREAD
 from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.resources import config_dir
 from rft_sim_ros.study import StudyError, load_study, run_study, study_from_mapping
 from rft_sim_ros.study.cost import dearest_first, run_cost
 from rft_sim_ros.study.execute import RunTask, execute
@@ -208,21 +209,27 @@ def test_resume_runs_only_what_is_missing(local_study, tmp_path):
 
 
 def test_resume_redoes_a_run_whose_files_changed(tmp_path):
-    """A study's run records the SHA-256 of each file it names: after a height grid is
-    rewritten (0.3 m higher), --resume redoes the runs that read it, not the others."""
-    np.save(tmp_path / 'g.npy', np.zeros((5, 5)))
+    """A study's run records the SHA-256 of each file it reads, as its scene resolves them
+    (here a grid named relative to the scene file, in another folder than the study's):
+    after the grid is rewritten (0.3 m higher), --resume redoes the runs that read it, not
+    the others."""
+    scenes = tmp_path / 'scenes'
+    scenes.mkdir()
+    np.save(scenes / 'g.npy', np.zeros((5, 5)))
+    text = (config_dir() / 'plate_drop.yaml').read_text()
+    grid = '  surface: {type: grid, file: g.npy, size: [1.0, 1.0]}'
+    (scenes / 'drop.yaml').write_text(text.replace('  surface_height: 0.0  # m', grid))
     study = study_from_mapping({
-        'scene': 'plate_drop', 'duration': 0.05,
-        'set': {'sand.surface.type': 'grid', 'sand.surface.size': [1.0, 1.0]},
-        'vary': [{'sand.surface.file': 'g.npy'}, {'sand.surface': {'type': 'slope'}}],
+        'scene': str(scenes / 'drop.yaml'), 'duration': 0.05,
+        'vary': [{'zeta': 2.0}, {'sand.surface': {'type': 'slope'}}],
         'metrics': ['max_depth_m']}, base=tmp_path)
     out = tmp_path / 'out'
     run_study(study, out, workers=1, progress=False)
     saved = json.loads((out / 'runs' / '0' / 'summary.json').read_text())['study_run']
-    assert list(saved['files']) == [str(tmp_path / 'g.npy')]
+    assert {str(scenes / 'g.npy'), str(scenes / 'drop.yaml')} <= set(saved['files'])
     again = run_study(study, out, workers=1, progress=False, resume=True)
     assert (again.ran, again.resumed) == (0, 2)
-    np.save(tmp_path / 'g.npy', np.full((5, 5), 0.3))
+    np.save(scenes / 'g.npy', np.full((5, 5), 0.3))
     changed = run_study(study, out, workers=1, progress=False, resume=True)
     assert (changed.ran, changed.resumed) == (1, 1)
 

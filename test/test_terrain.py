@@ -494,6 +494,7 @@ def test_hfield_in_a_body_fixed_to_the_world_turned_by_quarter_turns(body_deg, g
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     grid = HeightGrid.from_mjcf_hfield(model)  # the only hfield geom
+    assert grid.notices == ()  # (a quarter turn's rounding is no turn to tell)
     g = model.geom('terrain').id
     rotation, pos = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g]
     flat = HeightGrid.from_mjcf_hfield(mujoco.MjModel.from_xml_string(HFIELD), 'terrain')
@@ -661,6 +662,10 @@ def test_hfield_turned_within_a_tenth_of_a_node_spacing_of_a_quarter_turn_is_rea
                             'spacing)',)
     exact = HeightGrid.from_mjcf_hfield(_turned_field('bumps', BUMPS, -90.0))
     assert np.array_equal(grid.grid, exact.grid) and grid.origin == exact.origin
+    assert exact.notices == ()
+    # the same with a plane around it (the snap is decided on the field, not its ring)
+    beyond = HeightGrid.from_mjcf_hfield(model, beyond=0.0)
+    assert beyond.notices == grid.notices and beyond.grid.shape == (15, 11)
     steepest = np.tan(np.radians(grid.steepest_deg()))
     inner = FIELD_NODES[(np.abs(FIELD_NODES[:, 0]) < 0.55) & (np.abs(FIELD_NODES[:, 1]) < 0.35)]
     nodes = _turn(-89.954, inner)

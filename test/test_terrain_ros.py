@@ -229,6 +229,19 @@ def test_the_mean_rate_is_the_rate_asked_for(cycle):
     assert np.diff(times).max() < 0.5 + cycle + 1e-9
 
 
+def test_a_publication_between_the_grids_times_keeps_the_grid():
+    """A re-send for a new subscriber (or a reset's publication) between two of the grid's
+    times publishes at once without moving the grid: the changes still go out at 0.5 s."""
+    bed = DeformableSand(Plane(0.0), size=(0.2, 0.2), cell=0.02)
+    feed = TerrainFeed(bed, rate=2.0)
+    assert feed.update(0.0) is not None
+    feed.resend_markers()
+    assert feed.update(0.3).clear
+    bed.grid[0, 0] -= 0.001
+    assert feed.update(0.49) is None
+    assert feed.update(0.5) is not None
+
+
 def test_a_schedule_that_fell_behind_restarts_from_now():
     """After the surface stood still, the first change is published at once and the next
     a period later, not in a burst catching up the missed times."""

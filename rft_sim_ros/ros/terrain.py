@@ -109,7 +109,8 @@ class TerrainFeed:
             return None
         self._published = grid.copy()
         self._whole_cloud = self._whole_markers = False
-        self._schedule(time)
+        if time >= self._next:  # (one between the grid's times, due or a re-send, keeps it)
+            self._schedule(time)
         if whole_cloud:
             points, shape = self._points(*np.indices(grid.shape).reshape(2, -1)), grid.shape
         elif changed.any():

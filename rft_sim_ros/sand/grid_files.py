@@ -16,10 +16,15 @@ import zlib
 
 import numpy as np
 
+from .grid_memory import check_grid_memory
+
 #: PNG colour types (the IHDR chunk's), by code.
 PNG_COLOUR_TYPES = {0: 'greyscale', 2: 'RGB', 3: 'palette', 4: 'grey+alpha', 6: 'RGBA'}
 #: The bytes every .npy file starts with.
 NPY_MAGIC = b'\x93NUMPY'
+#: Bytes a PNG takes per pixel at the peak of reading it (Pillow's image, RGBA and float
+#: copies of it), for the memory check (`grid_memory`).
+PNG_BYTES_PER_PIXEL = 48
 #: The 8 bytes every PNG starts with.
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 
@@ -58,12 +63,16 @@ def grey_levels(path, key, what):
     """The grey levels 0..1 of the PNG at `path`, (rows, columns) with row 0 the image's
     bottom row (lowest y); key, what: as in `read_npy`, for errors (ValueError with the
     reason). See the module docstring for what is read and what is refused."""
-    depth, colour = png_header(path, key)
+    width, height, depth, colour = png_header(path, key)
+    check_grid_memory((float(width), float(height)), PNG_BYTES_PER_PIXEL,
+                      f'{key} {str(path)!r}: an image', 'downsample it, or save a .npy',
+                      unit='pixels')
     if depth == 16 and colour != 0:
         raise ValueError(f'{key} {str(path)!r} is a 16-bit {PNG_COLOUR_TYPES[colour]} PNG, '
                          'which the PNG reader (Pillow) reduces to 8 bits: save it as a 16-bit '
                          'greyscale PNG without alpha, or as a .npy')
     from PIL import Image
+    bomb_limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # (checked above)
     try:
         with Image.open(path) as image:
             image.load()
@@ -71,10 +80,12 @@ def grey_levels(path, key, what):
                 levels = np.asarray(image, dtype=float)
                 top = 1.0 if image.mode == '1' else (65535.0 if depth == 16 else 255.0)
             else:  # (Pillow expands palettes and grey+alpha; alpha is dropped)
-                levels = np.asarray(image.convert('RGB'), dtype=float)
+                levels = np.asarray(image.convert('RGBA'), dtype=float)[..., :3]
                 top = 255.0
     except (OSError, SyntaxError, ValueError) as error:
         raise ValueError(f'{key} {str(path)!r} is not a readable PNG ({error})') from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = bomb_limit
     if levels.ndim == 3:
         if np.any(levels[..., 1:] != levels[..., :1]):
             raise ValueError(f'{key} {str(path)!r} is a colour image ({PNG_COLOUR_TYPES[colour]} '
@@ -85,17 +96,18 @@ def grey_levels(path, key, what):
 
 
 def png_header(path, key):
-    """(bit depth, colour type) from the IHDR chunk of the PNG at `path`; ValueError naming
-    `key` if the file does not start as a PNG does."""
+    """(width, height, bit depth, colour type) from the IHDR chunk of the PNG at `path`;
+    ValueError naming `key` if the file does not start as a PNG does."""
     with open(path, 'rb') as stream:
         head = stream.read(33)
     if len(head) < 33 or head[:8] != PNG_SIGNATURE or head[12:16] != b'IHDR':
         raise ValueError(f'{key} {str(path)!r} is not a PNG file')
+    width, height = struct.unpack('>II', head[16:24])
     depth, colour = head[24], head[25]
     if zlib.crc32(head[12:29]) != struct.unpack('>I', head[29:33])[0] or \
             colour not in PNG_COLOUR_TYPES:
         raise ValueError(f'{key} {str(path)!r} is not a readable PNG (a damaged header)')
-    return depth, colour
+    return width, height, depth, colour
 
 
 def _checked(values, key, path, what):

@@ -362,18 +362,18 @@ class HeightGrid(Surface):
         heights = pos[2] + model.hfield_size[h][2] * \
             model.hfield_data[start:start + rows * cols].reshape(rows, cols)
         field = cls(heights, 2.0 * model.hfield_size[h][:2])  # (the geom's frame)
-        if beyond is not None:
-            field = field.within_plane(beyond)
         turns = int(np.rint(yaw / (np.pi / 2)))
         off = yaw - turns * np.pi / 2
         move = abs(off) * 0.5 * np.hypot(*field.size)  # m: its farthest node's, were it snapped
+        if beyond is not None:
+            field = field.within_plane(beyond)
         if move > SNAP_SPACINGS * min(field.spacing):
             return _resampled(field, yaw, (pos[0], pos[1]), label)
         # rows are y (row 0 lowest), so a turn counterclockwise seen from above is rot90's
         # clockwise one
         grid = cls(np.rot90(field.grid, -turns),
                    field.size if turns % 2 == 0 else field.size[::-1], (pos[0], pos[1]))
-        if off:
+        if move > ROUNDING_SPACINGS * min(field.spacing):  # (not a quarter turn's rounding)
             grid.notices = (f'{label} is turned {np.degrees(yaw):.6g} deg about z: read as '
                             f'{90 * turns} deg, exactly (its nodes move at most '
                             f'{move * 1e3:.2g} mm, {move / min(field.spacing):.2g} of its node '
@@ -423,9 +423,13 @@ class HeightGrid(Surface):
 #: spacings from a quarter turn's place is read as that quarter turn: resampling would
 #: smooth the field by more.
 SNAP_SPACINGS = 0.1
+#: A move below this many node spacings is the rounding of a quarter turn (an euler of 90
+#: deg), read without a notice.
+ROUNDING_SPACINGS = 1e-9
 #: Any other turn is resampled at the field's finer node spacing / RESAMPLE_REFINE, or a
-#: coarser fraction of it where that grid would pass RESAMPLE_NODES nodes (8 MB of heights, a
-#: 12 MB cloud where the node publishes the whole grid).
+#: coarser fraction of it (never coarser than the field's own spacing) where that grid would
+#: pass RESAMPLE_NODES nodes (8 MB of heights, a 12 MB cloud where the node publishes the
+#: whole grid).
 RESAMPLE_REFINE = 4
 RESAMPLE_NODES = 1_000_000
 

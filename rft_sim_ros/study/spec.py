@@ -29,7 +29,7 @@ import yaml
 from ..sand.deformable import check_memory
 from ..sand.surface import HeightGrid, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
-from ..scenes.config import SceneError, anchor_paths, load_scene
+from ..scenes.config import SceneError, anchor_paths, bundled_scenes, load_scene
 from ..scenes.schema import load_yaml
 from .cost import run_cost
 
@@ -43,13 +43,15 @@ class StudyError(SceneError):
 @dataclass(frozen=True)
 class Run:
     """One run of a study: its id (folder name under DIR/runs), the varied values, the repeat
-    index (0-based), the overrides it hands load_scene (fixed `set` + varied values) and its
-    expected relative cost (`cost.run_cost`: runs go out dearest first)."""
+    index (0-based), the overrides it hands load_scene (fixed `set` + varied values), its
+    expected relative cost (`cost.run_cost`: runs go out dearest first) and the files it
+    reads (`files_read`)."""
     run_id: str
     varied: dict
     repeat: int
     overrides: dict
     cost: float = 1.0
+    files: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -114,7 +116,7 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
     points = expand(raw.get('vary'), where)
     keys = tuple(dict.fromkeys(k for point in points for k in point))
     width = len(str(len(points) * repeats - 1))
-    costs = {}
+    costs, files = {}, {}
     for point in points:
         overrides = anchor_paths({**fixed, **point}, base)  # files: from the study's folder
         key = _frozen(overrides)
@@ -123,18 +125,31 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
                 loaded = load_scene(scene, overrides)
                 check_terrain(loaded)
                 costs[key] = run_cost(loaded, duration)
+                files[key] = files_read(scene, loaded)
             except (SceneError, ValueError) as error:
                 raise StudyError(f'{where}: run with {overrides}: {error}') from None
     runs = []
     for i, point in enumerate(points):
         overrides = anchor_paths({**fixed, **point}, base)
+        key = _frozen(overrides)
         for repeat in range(repeats):
             index = i * repeats + repeat
-            runs.append(Run(f'{index:0{width}d}', point, repeat, overrides,
-                            costs[_frozen(overrides)]))
+            runs.append(Run(f'{index:0{width}d}', point, repeat, overrides, costs[key],
+                            files[key]))
     return Study(scene=scene, fixed=dict(fixed), duration=None if duration is None
                  else float(duration), keys=keys, runs=tuple(runs), repeats=repeats,
                  metrics=tuple(metrics), source=raw)
+
+
+def files_read(scene, loaded):
+    """The files (absolute paths, sorted) a run of `scene` (a bundled scene's name or a file)
+    reads as `loaded` (its SceneConfig) resolved them: the scene file, the model, a height
+    grid and a zeta map file; a resumed study compares them by SHA-256."""
+    scenes = bundled_scenes()
+    candidates = (scenes.get(scene, scene), loaded.model_path, loaded.surface.get('file'),
+                  (loaded.zeta_map or {}).get('file'))
+    return tuple(sorted({str(Path(p).resolve()) for p in candidates
+                         if p is not None and Path(p).is_file()}))
 
 
 def check_terrain(scene):

@@ -5,7 +5,7 @@ Output folder:
   study.yaml             the study as given (for the record)
   runs/<id>/summary.json each run: `study_run` (varied values, overrides, repeat,
                          wall_time_s, stable, reason, worker, the SHA-256 of each file
-                         its overrides name: `file_digests`) and `summary` (run_scene's
+                         it reads: `file_digests`) and `summary` (run_scene's
                          summary.json content, null if the run raised); written
                          atomically as the run finishes: the source of truth for --resume
   results.csv            one row per run (see table.py), results.npz the same, columnar
@@ -66,23 +66,17 @@ def _same(a, b):
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
-def file_digests(overrides):
-    """{path: SHA-256 (hex)} of the files a run's overrides name anywhere in them (absolute
-    paths, as the study anchors them: a height grid, a zeta map, a model), so that a resumed
-    study redoes a run whose files changed since it ran."""
+def file_digests(paths):
+    """{path: SHA-256 (hex)} of the files at `paths` (a run's `files`: the scene file, the
+    model, a grid, a zeta map), so that a resumed study redoes a run whose files changed
+    since it ran; a file gone since is missing from it."""
     found = {}
-
-    def visit(value):
-        if isinstance(value, dict):
-            for item in value.values():
-                visit(item)
-        elif isinstance(value, list):
-            for item in value:
-                visit(item)
-        elif isinstance(value, str) and os.path.isabs(value) and os.path.isfile(value):
-            info = os.stat(value)
-            found[value] = _digest(value, info.st_mtime_ns, info.st_size)
-    visit(overrides)
+    for path in paths:
+        try:
+            info = os.stat(path)
+        except OSError:
+            continue
+        found[path] = _digest(path, info.st_mtime_ns, info.st_size)
     return found
 
 
@@ -105,7 +99,7 @@ def finished_records(out, study, retry_failed=False):
         mark = saved.get('study_run') or {}
         if not _same(mark.get('overrides'), run.overrides) or mark.get('repeat') != run.repeat:
             continue
-        if 'files' in mark and mark['files'] != file_digests(run.overrides):
+        if 'files' in mark and mark['files'] != file_digests(run.files):
             continue
         if retry_failed and not mark.get('stable'):
             continue
@@ -118,7 +112,7 @@ def finished_records(out, study, retry_failed=False):
 def _save(out, run, record):
     content = {'study_run': {
         'run_id': run.run_id, 'varied': run.varied, 'repeat': run.repeat,
-        'overrides': run.overrides, 'files': file_digests(run.overrides),
+        'overrides': run.overrides, 'files': file_digests(run.files),
         'wall_time_s': record['wall_time_s'],
         'warm_s': record.get('warm_s'), 'started_at': record.get('started_at'),
         'finished_at': record.get('finished_at'),
