@@ -448,3 +448,23 @@ def test_a_study_says_each_distinct_notice_of_its_runs_once(tmp_path):
     summaries = [json.loads((tmp_path / 'out' / 'runs' / r.run_id / 'summary.json').read_text())
                  for r in study.runs]
     assert all(said[0].split(': ', 1)[1] in s['summary']['notices'] for s in summaries)
+
+
+def test_workers_that_would_hold_more_beds_than_memory_allows_are_fewer(monkeypatch):
+    """Each bed fits the machine alone; two workers holding the two largest at once would
+    pass half its memory, so the study runs on one and says why."""
+    from rft_sim_ros.study import sweep
+    study = _study(set={'sand.deformable.enabled': True}, vary={'sand.deformable.cell':
+                                                                [0.01, 0.02]})
+    largest = max(run.bed_bytes for run in study.runs)
+    assert largest == pytest.approx(201 * 201 * 90)  # (2 m x 2 m at 1 cm)
+    lines = []
+    monkeypatch.setattr(sweep, 'machine_memory', lambda: 3.0 * largest)
+    assert sweep.workers_within_memory(study.runs, 2, lines.append) == 2  # 1.25 beds <= 1.5
+    monkeypatch.setattr(sweep, 'machine_memory', lambda: 2.2 * largest)
+    assert sweep.workers_within_memory(study.runs, 2, lines.append) == 1
+    assert lines == [f'deformable beds of up to {largest / 2**30:.3g} GiB: 1 of 2 workers at '
+                     f"once keep them within half of this machine's {2.2 * largest / 2**30:.3g} "
+                     'GiB']
+    monkeypatch.setattr(sweep, 'machine_memory', lambda: None)  # (not told: as asked)
+    assert sweep.workers_within_memory(study.runs, 2, lines.append) == 2

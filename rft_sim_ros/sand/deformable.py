@@ -270,11 +270,23 @@ def neighbour_slope_deg(grid, cell):
     return float(np.degrees(np.arctan(max(neighbour_slopes(grid, cell)))))
 
 
+def bed_node_counts(size, cell):
+    """(nx, ny) nodes of a bed of `size` [x, y] m in `cell` m cells, as floats (inf for an
+    absurd bed), for memory checks before anything is allocated."""
+    return [float(np.rint(float(s) / cell)) + 1.0 for s in size]
+
+
+def bed_bytes(size, cell):
+    """Bytes a bed of `size` [x, y] m in `cell` m cells holds (`BED_BYTES_PER_NODE`)."""
+    nx, ny = bed_node_counts(size, cell)
+    return nx * ny * BED_BYTES_PER_NODE
+
+
 def check_memory(size, cell):
     """Refuse (ValueError) a bed of `size` [x, y] m in `cell` m cells that would take more
     than half of this machine's memory (`BED_BYTES_PER_NODE`; `grid_memory`), before any of
     it is allocated."""
-    nodes = [float(np.rint(float(s) / cell)) + 1.0 for s in size]  # (inf: an absurd bed)
+    nodes = bed_node_counts(size, cell)
     check_grid_memory(nodes, BED_BYTES_PER_NODE, f'sand.deformable: a bed ({cell:g} m cells)',
                       'make sand.deformable.size smaller or sand.deformable.cell larger (the '
                       'bed need only cover where the robot goes)')

@@ -1,5 +1,6 @@
 """Refuse a grid too large for this machine before any of it is allocated: deformable sand's
-bed (`deformable.check_memory`) and a zeta map's raster of regions (`zeta_map`). Nodes are
+bed (`deformable.check_memory`; a study's workers holding beds at once: `study.sweep`), a
+zeta map's raster of regions (`zeta_map`) and a PNG (`grid_files`). Nodes are
 counted as floats, so that any size and cell, however absurd, is told rather than
 overflowing."""
 import os
@@ -8,14 +9,22 @@ import os
 MEMORY_FRACTION = 0.5
 
 
+def machine_memory():
+    """This machine's physical memory, bytes; None where the system does not say (not
+    POSIX)."""
+    try:
+        return os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
 def check_grid_memory(nodes, bytes_per_node, what, advice, unit='nodes'):
     """Raise ValueError where a grid of `nodes` (nx, ny: floats, inf for an absurd grid) of
     `bytes_per_node` bytes each would take more than MEMORY_FRACTION of this machine's
     memory: '`what` of NX x NY `unit` needs about N GiB, ...: `advice`'. Not checked where
-    the system does not say its memory (not POSIX)."""
-    try:
-        memory = os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
-    except (AttributeError, ValueError, OSError):
+    the system does not say its memory (`machine_memory`)."""
+    memory = machine_memory()
+    if memory is None:
         return
     nx, ny = nodes
     need = nx * ny * bytes_per_node

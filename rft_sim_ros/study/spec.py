@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..sand.deformable import check_memory
+from ..sand.deformable import bed_bytes, check_memory
 from ..sand.surface import HeightGrid, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.config import SceneError, anchor_paths, bundled_scenes, load_scene
@@ -44,14 +44,15 @@ class StudyError(SceneError):
 class Run:
     """One run of a study: its id (folder name under DIR/runs), the varied values, the repeat
     index (0-based), the overrides it hands load_scene (fixed `set` + varied values), its
-    expected relative cost (`cost.run_cost`: runs go out dearest first) and the files it
-    reads (`files_read`)."""
+    expected relative cost (`cost.run_cost`: runs go out dearest first), the files it
+    reads (`files_read`) and the bytes its deformable bed holds (0 without one)."""
     run_id: str
     varied: dict
     repeat: int
     overrides: dict
     cost: float = 1.0
     files: tuple = ()
+    bed_bytes: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,7 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
     points = expand(raw.get('vary'), where)
     keys = tuple(dict.fromkeys(k for point in points for k in point))
     width = len(str(len(points) * repeats - 1))
-    costs, files = {}, {}
+    costs, files, beds = {}, {}, {}
     for point in points:
         overrides = anchor_paths({**fixed, **point}, base)  # files: from the study's folder
         key = _frozen(overrides)
@@ -126,6 +127,8 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
                 check_terrain(loaded)
                 costs[key] = run_cost(loaded, duration)
                 files[key] = files_read(scene, loaded)
+                bed = loaded.deformable
+                beds[key] = bed_bytes(bed['size'], bed['cell']) if bed.get('enabled') else 0.0
             except (SceneError, ValueError) as error:
                 raise StudyError(f'{where}: run with {overrides}: {error}') from None
     runs = []
@@ -135,7 +138,7 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
         for repeat in range(repeats):
             index = i * repeats + repeat
             runs.append(Run(f'{index:0{width}d}', point, repeat, overrides, costs[key],
-                            files[key]))
+                            files[key], beds[key]))
     return Study(scene=scene, fixed=dict(fixed), duration=None if duration is None
                  else float(duration), keys=keys, runs=tuple(runs), repeats=repeats,
                  metrics=tuple(metrics), source=raw)

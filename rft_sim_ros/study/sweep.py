@@ -22,6 +22,7 @@ from pathlib import Path
 
 import yaml
 
+from ..sand.grid_memory import MEMORY_FRACTION, machine_memory
 from ..sim.runner import machine_info
 from ..sim.summary import json_default
 from . import plots, table
@@ -123,6 +124,22 @@ def _save(out, run, record):
     table.write_atomic(path, json.dumps(content, indent=1, default=json_default).encode())
 
 
+def workers_within_memory(runs, workers, log):
+    """At most `workers`, and as many as can hold the largest deformable beds of `runs` at
+    once (one a worker) within MEMORY_FRACTION of this machine's memory, said through `log`
+    where that is fewer (each bed alone was checked against it as the study loaded)."""
+    memory = machine_memory()
+    largest = sorted((run.bed_bytes for run in runs), reverse=True)
+    fit = workers
+    while memory is not None and fit > 1 and sum(largest[:fit]) > MEMORY_FRACTION * memory:
+        fit -= 1
+    if fit < workers:
+        log(f'deformable beds of up to {largest[0] / 2**30:.3g} GiB: {fit} of {workers} '
+            f'workers at once keep them within half of this machine\'s {memory / 2**30:.3g} '
+            'GiB')
+    return fit
+
+
 class RunNotices:
     """What the runs' start-up and run notices say (summary.json's `notices`: a bed the
     robot walks off, cells wider than a foot, a base that avalanches), each distinct text
@@ -172,7 +189,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
         outcomes = ray_backend.map_unordered(execute, tasks, ray)
         backend = f'ray ({ray})'
     else:
-        workers = workers or default_workers()
+        workers = workers_within_memory(todo, workers or default_workers(), log)
         hard = None if run_timeout is None else 2 * run_timeout + 30
         outcomes = map_unordered(execute, tasks, workers, hard_timeout=hard)
         count = min(workers, max(1, len(tasks)))
