@@ -164,6 +164,19 @@ def test_cells_wider_than_a_sand_body_are_said_at_start_up():
     assert not [n for n in fine.notices if 'is wider than' in n]
 
 
+def test_deformable_keys_set_while_deformable_sand_is_off_are_said():
+    """A study that sets a cell and varies `enabled` leaves the cell without effect on its
+    rigid runs: said at start-up (not refused: the same keys act once enabled)."""
+    rigid = Simulation(load_scene('plate_drop', {'sand.deformable.cell': 0.02,
+                                                 'sand.deformable.size': [1.0, 1.0]}))
+    assert ('sand.deformable.cell, sand.deformable.size set, but sand.deformable.enabled is '
+            'false: the sand is rigid and they have no effect (sand.deformable.enabled=true '
+            'makes it deformable)') in rigid.notices
+    for overrides in ({}, {'sand.deformable.enabled': False}, {**BED}):
+        assert not [n for n in Simulation(load_scene('plate_drop', overrides)).notices
+                    if 'have no effect' in n]
+
+
 def test_cells_narrower_than_half_the_plate_spacing_are_said_at_start_up():
     """plate_drop's 500 plates on its 10 x 10 cm plate's faces lie about 9 mm apart: at 2 mm
     cells a plate marks the cell under its centre and leaves the cells between unmarked, said

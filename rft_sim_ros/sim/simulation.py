@@ -182,6 +182,12 @@ class Simulation:
         self._base_id = self._base(self.model)
         self.base_body = self.model.body(self._base_id).name  # (every body has one:
         # robot.description names the others)
+        given = sorted(set((scene.raw.get('sand') or {}).get('deformable') or {}) - {'enabled'})
+        if given and not scene.deformable.get('enabled'):
+            self.notices.append(f'sand.deformable.{", sand.deformable.".join(given)} set, but '
+                                'sand.deformable.enabled is false: the sand is rigid and they '
+                                'have no effect (sand.deformable.enabled=true makes it '
+                                'deformable)')
         if scene.deformable.get('enabled'):
             surface = self._bed(surface, scene.deformable)
             self.notices.extend(surface.notices)
