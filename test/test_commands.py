@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 
 from rft_sim_ros.ros import inbound
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
-from rft_sim_ros.control.commands import (CommandHandler, Reason, TrajectoryCommand,
-                                      TrajectoryPoint)
+from rft_sim_ros.control.commands import (CommandHandler, CommandRejected, Reason,
+                                      TrajectoryCommand, TrajectoryPoint)
 from rft_sim_ros.control.throttle import ThrottledLog
 
 JOINTS = ('a', 'b', 'c')
@@ -343,6 +343,18 @@ def test_bad_array_command_is_rejected_and_changes_nothing(busy_handler, positio
     for (p0, v0), (p1, v1) in zip(before, snapshot(busy_handler)):
         np.testing.assert_array_equal(p0, p1)
         np.testing.assert_array_equal(v0, v1)
+
+
+def test_check_raises_on_a_rejection_and_passes_an_acceptance():
+    h = handler()
+    with pytest.raises(CommandRejected, match=r'command rejected \(not_finite\): .*b') as caught:
+        h.set_positions([1.0, math.nan, 3.0], now=0.0).check()
+    assert isinstance(caught.value, ValueError)
+    assert caught.value.result.reason is Reason.NOT_FINITE
+    np.testing.assert_array_equal(h.sample(1.0).positions, INITIAL)   # nothing changed
+    accepted = h.set_positions([1.0, 2.0, 3.0], now=0.0)
+    assert accepted.check() is accepted
+    np.testing.assert_array_equal(h.sample(1.0).positions, [1.0, 2.0, 3.0])
 
 
 @settings(max_examples=300, deadline=None)

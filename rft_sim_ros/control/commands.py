@@ -30,7 +30,8 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
   starts where the joints are.
 
 Every command is validated first; a bad one is rejected with a `CommandResult` naming the
-problem, counted per `Reason`, and changes nothing. Times are sim time in s; positions in
+problem, counted per `Reason`, and changes nothing (`CommandResult.check` turns a rejection
+into a `CommandRejected` exception, for scripts that must stop on it). Times are sim time in s; positions in
 rad (or m), velocities in rad/s (or m/s), in the joint's own unit.
 """
 import bisect
@@ -75,6 +76,22 @@ class CommandResult:
     @property
     def accepted(self):
         return self.reason is None
+
+    def check(self):
+        """This result if the command was accepted; else raises `CommandRejected` with the
+        reason and message: for a script or a learning loop that must stop on a bad command
+        rather than go on with the targets held before it."""
+        if self.reason is not None:
+            raise CommandRejected(self)
+        return self
+
+
+class CommandRejected(ValueError):
+    """A rejected command (`CommandResult.check`); `result` is its CommandResult."""
+
+    def __init__(self, result):
+        super().__init__(f'command rejected ({result.reason.value}): {result.message}')
+        self.result = result
 
 
 #: The result of every accepted command.
