@@ -105,3 +105,37 @@ def test_a_runs_plot_title_names_the_zeta_schedule(monkeypatch, tmp_path):
     title = fig._suptitle.get_text()
     plt.close(fig)
     assert 'zeta = 5 N/cm$^3$, 1 from 1.5 s' in title and '99' not in title
+
+
+def test_a_study_plot_labels_mapping_values_by_what_sets_them_apart(monkeypatch, tmp_path):
+    from rft_sim_ros.study.plots import category_labels, plot_study
+    surfaces = [{'type': 'plane'}, {'type': 'slope', 'angle_deg': 10.0},
+                {'type': 'grid', 'file': '/data/terrain/dunes_' + 'x' * 60 + '.npy',
+                 'size': [2.0, 2.0]}]
+    labels = category_labels(surfaces)
+    assert labels[:2] == ['type=plane', 'type=slope,\nangle_deg=10.0']
+    assert labels[2].startswith('type=grid, file=') and labels[2].endswith('...')
+    assert max(len(line) for label in labels for line in label.split('\n')) <= 22
+    # entries the same in every value are left out; values that would read alike numbered
+    assert category_labels([{'a': 1, 'b': {'c': 2}}, {'a': 1, 'b': {'c': 3}}]) == ['b.c=2',
+                                                                                  'b.c=3']
+    assert category_labels(['x' * 100 + 'A', 'x' * 100 + 'B'])[0].startswith('(1) ')
+    assert category_labels([0.5, 'heavy', [1, 2]]) == ['0.5', 'heavy', '[1, 2]']
+    kept = []
+    monkeypatch.setattr(plt, 'close', kept.append)
+    study = SimpleNamespace(keys=['sand.surface'], metrics=['mean_speed_mps'])
+    order = [surfaces[2], surfaces[0], surfaces[1]]       # the study's order, kept on the axis
+    rows = [{'sand.surface': s, 'mean_speed_mps': v, 'stable': True}
+            for s, v in zip(order + order[::-1], [0.05, 0.07, 0.06, 0.061, 0.071, 0.052])]
+    plot_study(tmp_path, study, rows)
+    fig = kept[0]
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    ticks = ax.get_xticklabels()
+    assert [t.get_text() for t in ticks] == category_labels(order)
+    renderer = fig.canvas.get_renderer()
+    boxes = [t.get_window_extent(renderer) for t in ticks]
+    figure_box = fig.bbox
+    for box in boxes:                                     # inside the saved figure
+        assert box.x0 >= figure_box.x0 - 1 and box.y0 >= figure_box.y0 - 1
+    plt.close(fig)
