@@ -414,6 +414,13 @@ def test_a_worker_warms_each_set_of_kernels_its_runs_meet(monkeypatch):
     assert execute.warm('plate_drop', {'drop_height': 0.2}) == 0.0
     assert execute.warm('plate_drop', {'sand.surface.type': 'slope'}) > 0.0
     assert execute.warm('plate_drop', {'sand.surface.type': 'slope', 'zeta': 2.0}) == 0.0
+    # only what selects kernels counts: deformable sand has one gather whatever its base,
+    # and the explicit methods share theirs
+    assert execute.warm('plate_drop', {'sand.deformable.enabled': True}) > 0.0
+    assert execute.warm('plate_drop', {'sand.deformable.enabled': True,
+                                       'sand.surface.type': 'slope'}) == 0.0
+    assert execute.warm('plate_drop', {'rft.low_velocity.method': 'ema'}) > 0.0
+    assert execute.warm('plate_drop', {'rft.low_velocity.method': 'none'}) == 0.0
 
 
 HFIELD_ROBOT = """<mujoco><asset><hfield name="bumps" nrow="3" ncol="3" size="1 1 0.05 0.01"/>

@@ -39,7 +39,8 @@ CONSTRAINT_ROOM = 16
 
 def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
     """Whether numba's on-disk cache holds current compiled code of the kernels an engine
-    with low-velocity `method` on a surface of `surface_kind` (deformable or not) runs, so
+    with low-velocity `method` ('implicit'; any other: the explicit methods' kernels) on a
+    surface of `surface_kind` (deformable or not) runs, so
     that building one compiles nothing (otherwise it compiles for about COLD_START_S: a
     first run after install, or after an upgrade)."""
     gather = coupling.gather_kernel(surface_kind, deformable)

@@ -28,7 +28,7 @@ from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_
 from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
-from ..sand.surface import (CHECKED_SLOPE_DEG, SURFACE_KINDS, Surface, hfield_geom,
+from ..sand.surface import (CHECKED_SLOPE_DEG, GRID, SURFACE_KINDS, Surface, hfield_geom,
                             hfield_label, surface_from_settings)
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
@@ -91,10 +91,14 @@ def floor_planes(model):
 
 
 def kernel_key(scene):
-    """(low-velocity method, surface kind code, deformable): what selects the compiled sand
-    kernels a `scene` (SceneConfig) steps with (`kernel_cache.kernels_cached`)."""
-    return (scene.low_velocity['method'], SURFACE_KINDS[scene.surface.get('type', 'plane')],
-            bool(scene.deformable.get('enabled')))
+    """(low-velocity kernels, surface kind code, deformable): what selects the compiled sand
+    kernels a `scene` (SceneConfig) steps with (`engine.kernels_cached`), and nothing else:
+    'implicit' or 'explicit' (the 'ema' and 'none' methods share one set); deformable sand
+    has one gather kernel whatever surface its bed lies on (GRID)."""
+    deformable = bool(scene.deformable.get('enabled'))
+    kind = GRID if deformable else SURFACE_KINDS[scene.surface.get('type', 'plane')]
+    method = 'implicit' if scene.low_velocity['method'] == 'implicit' else 'explicit'
+    return method, kind, deformable
 
 
 def compile_notice(scene):
