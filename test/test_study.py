@@ -475,3 +475,35 @@ def test_workers_that_would_hold_more_beds_than_memory_allows_are_fewer(monkeypa
                      'GiB']
     monkeypatch.setattr(sweep, 'machine_memory', lambda: None)  # (not told: as asked)
     assert sweep.workers_within_memory(study.runs, 2, lines.append) == 2
+
+
+def test_a_studys_runs_read_an_mjcf_models_includes_and_assets(tmp_path):
+    """files_read lists what MuJoCo reads for an MJCF model: its includes (relative to the
+    main model), and the mesh, hfield and texture files resolved against the compiler's
+    meshdir / texturedir, as MuJoCo resolves them (the model compiles from them); so a
+    resumed study sees an hfield image rewritten since."""
+    import mujoco
+    import trimesh
+    from PIL import Image
+    from rft_sim_ros.study.spec import files_read
+    (tmp_path / 'assets').mkdir()
+    (tmp_path / 'pics').mkdir()
+    trimesh.creation.box((0.1, 0.1, 0.1)).export(tmp_path / 'assets' / 'box.obj')
+    Image.fromarray(np.arange(16, dtype=np.uint8).reshape(4, 4) * 16).save(
+        tmp_path / 'assets' / 'bumps.png')
+    Image.fromarray(np.zeros((8, 8, 3), dtype=np.uint8)).save(tmp_path / 'pics' / 'grey.png')
+    (tmp_path / 'part.xml').write_text(
+        '<mujoco><asset><mesh name="box" file="box.obj"/></asset></mujoco>')
+    (tmp_path / 'robot.xml').write_text(f"""<mujoco>
+      <compiler meshdir="assets" texturedir="pics"/>
+      <include file="part.xml"/>
+      <asset><hfield name="bumps" file="bumps.png" size="1 1 0.05 0.01"/>
+        <texture name="t" type="2d" file="grey.png"/></asset>
+      <worldbody><geom name="terrain" type="hfield" hfield="bumps"/>
+        <body name="base" pos="0 0 0.2"><freejoint/><geom type="mesh" mesh="box"/></body>
+      </worldbody></mujoco>""")
+    mujoco.MjModel.from_xml_path(str(tmp_path / 'robot.xml'))   # MuJoCo reads these files
+    loaded = load_scene(str(tmp_path / 'robot.xml'), {'sand.surface.type': 'hfield'})
+    assert set(files_read(str(tmp_path / 'robot.xml'), loaded)) == {
+        str(tmp_path / name) for name in ('robot.xml', 'part.xml', 'assets/box.obj',
+                                          'assets/bumps.png', 'pics/grey.png')}

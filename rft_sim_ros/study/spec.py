@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..robot.model_files import mjcf_files
 from ..sand.deformable import bed_bytes, check_memory
 from ..sand.surface import HeightGrid, surface_from_settings
 from ..sand.zeta_map import zeta_map_from_settings
@@ -146,11 +147,15 @@ def study_from_mapping(raw, base=Path('.'), where='study'):
 
 def files_read(scene, loaded):
     """The files (absolute paths, sorted) a run of `scene` (a bundled scene's name or a file)
-    reads as `loaded` (its SceneConfig) resolved them: the scene file, the model, a height
-    grid and a zeta map file; a resumed study compares them by SHA-256."""
+    reads as `loaded` (its SceneConfig) resolved them: the scene file, the model (an MJCF
+    with the files it includes and its assets: meshes, a height field's image,
+    `model_files.mjcf_files`), a height grid and a zeta map file; a resumed study compares
+    them by SHA-256."""
     scenes = bundled_scenes()
-    candidates = (scenes.get(scene, scene), loaded.model_path, loaded.surface.get('file'),
-                  (loaded.zeta_map or {}).get('file'))
+    model = loaded.model_path
+    candidates = (scenes.get(scene, scene), model, loaded.surface.get('file'),
+                  (loaded.zeta_map or {}).get('file'),
+                  *(mjcf_files(str(model)) if str(model).endswith('.xml') else ()))
     return tuple(sorted({str(Path(p).resolve()) for p in candidates
                          if p is not None and Path(p).is_file()}))
 
