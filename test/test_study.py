@@ -135,10 +135,11 @@ def test_the_dearest_runs_go_out_first(tmp_path):
 
 def test_a_metric_is_the_scenarios_else_every_scenes_else_the_summarys_own():
     """A study of one's own robot file (no scenario metrics) tabulates the generic metrics
-    and the summary's numbers; a scenario's metric wins a shared name; lists and text are
-    not metrics."""
+    and the summary's numbers; a scenario's metric wins a shared name; a list of numbers is
+    a metric by its components (name[i]), not whole; text is none."""
     study = _study(metrics=['max_depth_m', 'base_displacement_m', 'real_time_factor',
-                            'base_displacement_xyz_m', 'scene'], vary={'zeta': [1.0]})
+                            'base_displacement_xyz_m', 'scene', 'base_displacement_xyz_m[0]',
+                            'base_displacement_xyz_m[2]'], vary={'zeta': [1.0]})
     record = {'summary': {'scene': 'plate_drop', 'stable': True, 'real_time_factor': 12.5,
                           'generic_metrics': {'base_displacement_m': 0.25, 'max_depth_m': 9.0,
                                               'base_displacement_xyz_m': [0.25, 0.0, 0.0]},
@@ -148,6 +149,8 @@ def test_a_metric_is_the_scenarios_else_every_scenes_else_the_summarys_own():
     assert cells['max_depth_m'] == 0.02 and cells['base_displacement_m'] == 0.25
     assert cells['real_time_factor'] == 12.5
     assert cells['base_displacement_xyz_m'] is None and cells['scene'] is None
+    assert (cells['base_displacement_xyz_m[0]'], cells['base_displacement_xyz_m[2]']) == (0.25,
+                                                                                          0.0)
 
 
 @pytest.fixture(scope='module')
@@ -507,3 +510,18 @@ def test_a_studys_runs_read_an_mjcf_models_includes_and_assets(tmp_path):
     assert set(files_read(str(tmp_path / 'robot.xml'), loaded)) == {
         str(tmp_path / name) for name in ('robot.xml', 'part.xml', 'assets/box.obj',
                                           'assets/bumps.png', 'pics/grey.png')}
+
+
+def test_a_list_metric_is_said_by_its_components(tmp_path):
+    """Naming a vector metric whole tabulates nothing; the closing line says which names
+    do (name[0] ..), and a component is tabulated."""
+    said = []
+    study = _study(vary={'zeta': [2.0]}, duration=0.05,
+                   metrics=['base_displacement_xyz_m', 'base_displacement_xyz_m[2]'])
+    result = run_study(study, tmp_path / 'out', workers=1, progress=False, log=said.append)
+    assert result.rows[0]['base_displacement_xyz_m'] is None
+    assert result.rows[0]['base_displacement_xyz_m[2]'] < 0.0          # the plate fell
+    assert any("no stable run reported ['base_displacement_xyz_m']" in line
+               and 'base_displacement_xyz_m is a list: name one of its numbers, '
+                   'base_displacement_xyz_m[0] .. base_displacement_xyz_m[2]' in line
+               for line in said)

@@ -235,8 +235,12 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
     missing = [m for m in study.metrics if all(r[m] is None for r in rows if r['stable'])]
     if missing:
         stable = next((r for r in records.values() if r['stable']), None)
+        values = table.summary_values(stable.get('summary')) if stable else {}
         known = sorted(table.summary_metrics(stable.get('summary'))) if stable else []
+        lists = [f'{m} is a list: name one of its numbers, {m}[0] .. {m}[{len(values[m]) - 1}]'
+                 for m in missing if isinstance(values.get(m), list) and values[m]]
         log(f'no stable run reported {missing}: check the metric names'
+            + ''.join(f'; {line}' for line in lists)
             + (f' (a run reports: {", ".join(known)})' if known else ''))
     table.write_atomic(out / 'study.json', json.dumps({
         'scene': study.scene, 'runs': len(study.runs), 'ran': done, 'resumed': resumed,

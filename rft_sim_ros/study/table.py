@@ -26,16 +26,31 @@ def columns(study):
     return ['run_id', 'repeat', *study.keys, *study.metrics, *TAIL]
 
 
-def summary_metrics(summary):
-    """{name: number} of the metrics a study can tabulate from a run's summary.json: the
-    summary's own numbers (real_time_factor, implicit_solves_per_step, plates_active_mean,
-    ...), then every scene's (`generic_metrics`: base_displacement_m, max_depth_m_<body>,
-    ...), then the scenario's (`metrics`), a later one winning a name."""
+def _number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def summary_values(summary):
+    """{name: value} of a run's summary.json that metrics are named from: the summary's own
+    (real_time_factor, implicit_solves_per_step, plates_active_mean, ...), then every
+    scene's (`generic_metrics`: base_displacement_m, max_depth_m_<body>, ...), then the
+    scenario's (`metrics`), a later one winning a name."""
     summary = summary or {}
-    merged = {**summary, **(summary.get('generic_metrics') or {}),
-              **(summary.get('metrics') or {})}
-    return {name: value for name, value in merged.items()
-            if isinstance(value, (int, float)) and not isinstance(value, bool)}
+    return {**summary, **(summary.get('generic_metrics') or {}),
+            **(summary.get('metrics') or {})}
+
+
+def summary_metrics(summary):
+    """{name: number} of the metrics a study can tabulate from a run's summary.json
+    (`summary_values`): its numbers, and each number of a list of numbers as name[i]
+    (base_displacement_xyz_m[0]: the x of a vector)."""
+    metrics = {}
+    for name, value in summary_values(summary).items():
+        if _number(value):
+            metrics[name] = value
+        elif isinstance(value, list) and value and all(_number(v) for v in value):
+            metrics.update({f'{name}[{i}]': v for i, v in enumerate(value)})
+    return metrics
 
 
 def row(study, run, record):
