@@ -105,6 +105,14 @@ def test_a_robot_still_moving_when_settling_ends_starts_as_drop_0_would(tmp_path
     np.testing.assert_array_equal(sim.data.qpos, dropped.data.qpos)
     [notice] = [n for n in sim.notices if 'spawn rest' in n]
     assert notice.startswith('spawn rest: still moving after 0.05 s (base speed ')
+    assert 'as a robot that cannot stand without its controller' in notice
+    # the same robot touching rigid ground (a world box at the sand's surface) is told so
+    path.write_text(STILT.replace('<worldbody>', '<worldbody><geom name="slab" type="box" '
+                                  'size="2 2 0.05" pos="0 0 -0.05"/>'))
+    [notice] = [n for n in Simulation(load_scene(path, {'rft.plates_per_body': 50})).notices
+                if 'spawn rest' in n]
+    assert notice.startswith('spawn rest: still moving after 0.05 s (base speed ')
+    assert 'touching rigid geoms (' in notice and 'on which it may slide' in notice
 
 
 def test_a_robot_on_a_slope_is_set_down_turned_to_it_and_stands(tmp_path):

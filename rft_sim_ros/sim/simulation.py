@@ -469,11 +469,13 @@ class Simulation:
                 break
         else:
             failure = (f'still moving after {SETTLE_LIMIT_S:g} s (base speed {speed:.2g} '
-                       'm/s), as a robot that cannot stand without its controller (a humanoid) '
-                       'falls')
+                       'm/s), ' + (f'touching rigid geoms ({self.data.ncon} contacts), on '
+                                   'which it may slide' if self.data.ncon else
+                                   'as a robot that cannot stand without its controller (a '
+                                   'humanoid) falls'))
         if failure is not None:
-            notice = (f'spawn rest: {failure}: it starts as spawn drop:0 starts it instead, at '
-                      'rest on the sand, the clock running at once')
+            notice = (f'spawn rest: {failure}; so it starts as spawn drop:0 starts it instead, '
+                      'where it was set down on the sand, the clock running at once')
             if notice not in self.notices:  # (a reset settles again)
                 self.notices.append(notice)
             mujoco.mj_setState(self.model, self.data, lowered, kind)
