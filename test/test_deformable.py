@@ -4,8 +4,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from rft_sim_ros.sand.deformable import COUNT, DeformableSand, neighbour_slopes
-from rft_sim_ros.sand.surface import HeightGrid, Plane, Slope, block_maximum, block_minimum
+from rft_sim_ros.sand.deformable import COUNT, DeformableSand, neighbour_slopes, touch_cell
+from rft_sim_ros.sand.surface import (BLOCK, HeightGrid, Plane, Slope, block_maximum,
+                                      block_minimum)
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 from rft_sim_ros.validation.terrain import lift_out, plate_redrop
@@ -89,6 +90,57 @@ def test_each_plate_in_the_sand_marks_the_four_nodes_of_its_cell():
     assert pending.tolist() == order
     assert np.allclose(bed.lowest.ravel()[pending], [lowest[n] for n in order], rtol=0,
                        atol=1e-12)
+
+
+def test_a_plate_on_the_beds_far_edge_marks_its_last_cell():
+    """A plate exactly on the bed's far edge (u = nx - 1), which the gather reads as on the
+    bed, marks the last cell's four nodes, as one on its near edge (u = 0) marks the first
+    cell's; only a plate beyond the bed is counted outside it."""
+    bed = DeformableSand(Plane(0.0), size=(0.1, 0.1), cell=0.05)  # 3 x 3 nodes
+    arrays = bed.kernel_arrays()
+    footprints = tuple(arrays[name] for name in (
+        'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cell_stamp',
+        'deform_cell_low'))
+    touch_cell(footprints, 0, 2.0, 1.0, -0.01)
+    assert bed.state[COUNT] == 4 and bed.plates_outside == 0
+    assert sorted(bed.pending[:4].tolist()) == [4, 5, 7, 8]  # nodes [1..2, 1..2]
+    touch_cell(footprints, 0, 0.0, 0.0, -0.01)
+    assert bed.state[COUNT] == 7 and bed.plates_outside == 0
+    touch_cell(footprints, 0, 2.0 + 1e-9, 1.0, -0.01)
+    assert bed.state[COUNT] == 7 and bed.plates_outside == 1
+
+
+def _block_nodes(bed, rows, columns):
+    """Where the nodes of the blocks [rows[k], columns[k]] of `bed` lie: a bool (ny, nx)."""
+    held = np.zeros(bed.grid.shape, dtype=bool)
+    for bj, bi in zip(rows, columns):
+        held[bj * BLOCK:(bj + 1) * BLOCK + 1, bi * BLOCK:(bi + 1) * BLOCK + 1] = True
+    return held
+
+
+def test_the_blocks_changed_since_an_epoch_hold_every_changed_height_and_lie_around_it():
+    """What a terrain publication compares (`blocks_changed_since`, so that it costs what
+    changed, not the bed): the crater a plate leaves lies in the blocks changed since the
+    epoch before, which lie around the plate, not across the bed; steps that change nothing
+    keep the epoch; a reset and a hand edit (`edited`) change every block."""
+    sim = _drop({'sand.deformable.size': [1.0, 1.0]})
+    bed = sim.engine.surface
+    epoch, before = bed.change_epoch, bed.grid.copy()
+    lift_out(sim)
+    rows, columns = bed.blocks_changed_since(epoch)
+    changed = bed.grid != before
+    assert changed.sum() > 100 and _block_nodes(bed, rows, columns)[changed].all()
+    assert rows.size <= 16 and bed.block_max.size == 13 * 13  # a 10 cm plate, a 1 m bed
+    assert bed.blocks_changed_since(bed.change_epoch)[0].size == 0
+    settled = bed.change_epoch
+    sim.step(100)  # the plate above the sand, the crater settled: nothing changes
+    assert bed.change_epoch == settled
+    sim.reset()
+    assert bed.blocks_changed_since(settled)[0].size == bed.block_max.size
+    bed.grid[50, 50] += 0.02  # a pile made by hand, above its block's maximum
+    bed.edited()
+    assert bed.blocks_changed_since(settled + 1)[0].size == bed.block_max.size
+    assert bed.block_max.max() == pytest.approx(bed.pristine.max() + 0.02)
 
 
 def test_a_plate_dropped_again_into_its_footprint_sinks_deeper():

@@ -115,6 +115,7 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     assert len(feed.update(0.0).points) == bed.grid.size
     bed.grid[3, 4] -= 0.01  # a footprint
     bed.grid[3, 5] += 0.01  # its rim
+    bed.edited()
     assert feed.update(0.4) is None  # within 0.5 s of the last publication
     update = feed.update(0.5)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 4), node_xyz(bed, 3, 5)],
@@ -125,6 +126,7 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     np.testing.assert_allclose(tile.change, [-0.01, 0.01])
     np.testing.assert_allclose(tile.deformed, update.points)
     bed.grid[3, 5] -= 0.01
+    bed.edited()
     update = feed.update(1.2)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 5)], atol=1e-6)
     np.testing.assert_allclose(update.tiles[0].deformed, [node_xyz(bed, 3, 4)], atol=1e-6)
@@ -134,9 +136,32 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     assert update.points[0, 2] == pytest.approx(0.1)
     assert len(update.tiles) == 1 and len(update.tiles[0].deformed) == 0  # pristine again
     bed.grid[0, 0] += 0.001
+    bed.edited()
     assert feed.update(1.8) is None  # not due yet
     np.testing.assert_allclose(feed.update(1.8, due=True).points, [node_xyz(bed, 0, 0)],
                                atol=1e-6)
+
+
+def test_the_changes_a_walk_makes_are_all_published():
+    """The hexapod walking on deformable sand: publications of the changed nodes only (found
+    in the blocks the sand changed, `DeformableSand.blocks_changed_since`), applied in turn to
+    the first whole cloud, give the bed as it is at each publication."""
+    sim = Simulation(load_scene('hexapod', {'sand.deformable.enabled': True}))
+    bed = sim.engine.surface
+    feed = TerrainFeed(bed, rate=2.0)
+    first = feed.update(sim.time)
+    shown = first.points[:, 2].astype(float).reshape(bed.grid.shape)
+    changes = 0
+    for _ in range(5):  # the drop, then the first steps of the walk
+        sim.step(375)  # 0.3 s
+        update = feed.update(sim.time, due=True)
+        if update is not None:
+            i = np.rint((update.points[:, 0] - bed.origin[0]) / bed.spacing[0]).astype(int)
+            j = np.rint((update.points[:, 1] - bed.origin[1]) / bed.spacing[1]).astype(int)
+            shown[j, i] = update.points[:, 2]
+            changes += len(update.points)
+        np.testing.assert_allclose(shown, bed.grid, rtol=0, atol=1e-7)  # (float32 points)
+    assert changes > 200  # the feet's footprints and rims
 
 
 @pytest.mark.parametrize('deformable', [False, True])
@@ -150,6 +175,7 @@ def test_resend_publishes_the_whole_grid_at_once_for_a_late_subscriber(deformabl
     assert feed.update(0.1) is None
     if deformable:  # (a rigid grid's heights are read-only)
         surface.grid[2, 3] -= 0.01
+        surface.edited()
     feed.resend_cloud()
     update = feed.update(0.2)  # within 0.5 s of the last publication: due anyway
     assert len(update.points) == surface.grid.size and update.shape == surface.grid.shape
@@ -170,6 +196,7 @@ def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
     feed = TerrainFeed(bed, rate=2.0)
     bed.grid[:40, :40] -= 0.001  # tiles 0, 1, 4 and 5
     bed.grid[69, 99] += 0.002  # the last tile, 11
+    bed.edited()
     first = feed.update(0.0)
     assert first.clear and [tile.index for tile in first.tiles] == [0, 1, 4, 5, 11]
     assert [(m.action, m.id) for m in marker_array(first).markers] == [  # one message
@@ -179,6 +206,7 @@ def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
     np.testing.assert_allclose(first.tiles[-1].change, [0.002])
     bed.grid[35, 3] -= 0.001  # in tile 4 (row 1, column 0)
     bed.grid[69, 99] = 0.0  # tile 11 back to pristine
+    bed.edited()
     update = feed.update(0.5)
     assert not update.clear and [tile.index for tile in update.tiles] == [4, 11]
     assert [(m.action, m.id) for m in marker_array(update).markers] == [
@@ -198,12 +226,14 @@ def test_a_marker_resend_publishes_every_tile_and_no_cloud_unless_it_changed():
     feed.update(0.0)
     bed.grid[5, 5] -= 0.001
     bed.grid[50, 90] -= 0.001
+    bed.edited()
     feed.update(0.5)
     feed.resend_markers()
     update = feed.update(0.6)
     assert update.points is None and update.shape is None  # nothing changed: no cloud
     assert update.clear and [tile.index for tile in update.tiles] == [0, 6]
     bed.grid[5, 5] = 0.0
+    bed.edited()
     feed.resend_markers()
     update = feed.update(0.7)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 5, 5)], atol=1e-6)
@@ -223,6 +253,7 @@ def test_the_mean_rate_is_the_rate_asked_for(cycle):
     times = []
     for k in range(1, round(100.0 / cycle) + 1):
         bed.grid[0, 0] += 1e-4
+        bed.edited()
         if feed.update(k * cycle) is not None:
             times.append(k * cycle)
     assert abs(len(times) - 200) <= 1
@@ -238,6 +269,7 @@ def test_a_publication_between_the_grids_times_keeps_the_grid():
     feed.resend_markers()
     assert feed.update(0.3).clear
     bed.grid[0, 0] -= 0.001
+    bed.edited()
     assert feed.update(0.49) is None
     assert feed.update(0.5) is not None
 
@@ -249,8 +281,10 @@ def test_a_schedule_that_fell_behind_restarts_from_now():
     feed = TerrainFeed(bed, rate=2.0)
     feed.update(0.0)
     bed.grid[0, 0] += 0.01
+    bed.edited()
     assert feed.update(10.0) is not None
     bed.grid[0, 0] += 0.01
+    bed.edited()
     assert feed.update(10.1) is None and feed.update(10.49) is None
     assert feed.update(10.5) is not None
 
@@ -272,6 +306,7 @@ def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
     np.testing.assert_allclose(grid[:, :, 2], bed.grid, atol=1e-7)
     bed.grid[2, 2] -= 0.03
     bed.grid[2, 3] += 0.005
+    bed.edited()
     update = feed.update(1.25)
     (cloud_topic, cloud), (marker_topic, array) = messages.terrain_messages(FACTORY, update)
     assert (cloud_topic, marker_topic) == (topics.TERRAIN, topics.TERRAIN_MARKER)
@@ -361,6 +396,7 @@ def test_a_terrain_reset_is_published_at_once_while_paused(service):
                          terrain=TerrainFeed(sim.engine.surface, rate=0.5))
     bed = sim.engine.surface
     bed.grid[10, 10] -= 0.01  # a footprint away from the plate
+    bed.edited()
     assert runtime.step().success
     assert len(sink.terrain) == 1 and len(shown_points(markers_of(sink.terrain))) == 1
     assert getattr(runtime, service)().success
@@ -386,6 +422,7 @@ def test_a_new_subscriber_gets_the_surface_at_once_while_paused(cloud):
     assert sink.terrain == []  # before the initial publication: that one carries everything
     bed = sim.engine.surface
     bed.grid[10, 10] -= 0.01  # a footprint away from the plate
+    bed.edited()
     runtime.tick()  # the initial publication (paused)
     assert len(sink.terrain) == 1
     runtime.resend_terrain(cloud=cloud, markers=not cloud)

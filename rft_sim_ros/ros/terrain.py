@@ -14,7 +14,9 @@ not divide the period keep the mean rate). `resend_cloud()` (the node calls it w
 subscriber of the cloud joins) makes the next publication carry every node again, and
 `resend_markers()` (a subscriber of the markers joins) every tile, so that a late subscriber
 gets the whole surface. Heights in m, world z; x, y in m in the odom frame (the MuJoCo world
-frame).
+frame). What changed is found in the blocks of deformable sand that changed since the last
+publication (`DeformableSand.blocks_changed_since`), so a publication costs what changed,
+not the bed's size (a first publication and a re-send excepted).
 """
 import math
 from dataclasses import dataclass
@@ -22,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rft_sim_ros.ros.parameters import TERRAIN_RATE, publish_rate
-from rft_sim_ros.sand.surface import HeightGrid
+from rft_sim_ros.sand.surface import BLOCK, HeightGrid
 
 #: Default publications per second of sim time (the node's `terrain_rate`, the bags' rate).
 DEFAULT_RATE = 2.0
@@ -76,6 +78,7 @@ class TerrainFeed:
         self._surface = surface if isinstance(surface, HeightGrid) else None
         self._period = 1.0 / publish_rate(rate, TERRAIN_RATE)
         self._published = None  # heights at the last publication
+        self._epoch = 0  # deformable sand's change epoch at the last publication
         self._whole_cloud = self._whole_markers = True
         self._next = -math.inf
 
@@ -101,25 +104,24 @@ class TerrainFeed:
             return None
         grid = self._surface.grid
         pristine = getattr(self._surface, 'pristine', None)  # only deformable sand changes
-        if self._published is None or pristine is None:  # the first publication, or rigid
-            changed = np.zeros(grid.shape, dtype=bool)
-        else:
-            changed = grid != self._published
-        if not (whole_cloud or whole_markers or changed.any()):
+        changed = self._changed_nodes(pristine is not None)
+        if not (whole_cloud or whole_markers or changed[0].size):
             return None
-        self._published = grid.copy()
         self._whole_cloud = self._whole_markers = False
         if time >= self._next:  # (one between the grid's times, due or a re-send, keeps it)
             self._schedule(time)
         if whole_cloud:
             points, shape = self._points(*np.indices(grid.shape).reshape(2, -1)), grid.shape
-        elif changed.any():
-            points = self._points(*np.nonzero(changed))
+        elif changed[0].size:
+            points = self._points(*changed)
             shape = (1, len(points))
         else:
             points, shape = None, None
-        deformed = changed if pristine is None else grid != pristine  # (rigid: none)
-        tiles = self._tile_indices(deformed if whole_markers else changed)
+        if whole_markers:
+            tiles = self._tile_indices(*np.nonzero(grid != pristine) if pristine is not None
+                                       else changed)  # (rigid: none deformed)
+        else:
+            tiles = self._tile_indices(*changed)
         return TerrainUpdate(float(time), points, shape, whole_markers,
                              tuple(self._tile(index, pristine) for index in tiles),
                              float(min(self._surface.spacing)))
@@ -132,12 +134,35 @@ class TerrainFeed:
         if self._next <= time:
             self._next = time + self._period
 
+    def _changed_nodes(self, deformable):
+        """(rows, columns) of the nodes whose height changed since the last publication,
+        row-major, and the heights kept for the next comparison brought up to date. The
+        first publication keeps them all and reports none; rigid grids never change.
+        Deformable sand is compared in the blocks it changed since (`blocks_changed_since`)
+        only."""
+        grid = self._surface.grid
+        if self._published is None or not deformable:
+            if self._published is None:
+                self._published = grid.copy()
+                self._epoch = self._surface.change_epoch if deformable else 0
+            return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+        rows, columns = self._surface.blocks_changed_since(self._epoch)
+        self._epoch = self._surface.change_epoch
+        ny, nx = grid.shape
+        offsets = np.arange(BLOCK + 1)  # (a block's nodes, clipped to the grid)
+        j = np.minimum(rows[:, None] * BLOCK + offsets, ny - 1)
+        i = np.minimum(columns[:, None] * BLOCK + offsets, nx - 1)
+        nodes = np.unique((j[:, :, None] * nx + i[:, None, :]).ravel())
+        heights, published = grid.reshape(-1), self._published.reshape(-1)
+        nodes = nodes[heights[nodes] != published[nodes]]
+        published[nodes] = heights[nodes]
+        return np.divmod(nodes, nx)
+
     def _tiles_per_row(self):
         return -(-self._surface.grid.shape[1] // TILE)
 
-    def _tile_indices(self, nodes):
-        """Sorted indices of the tiles holding a node where `nodes` is True."""
-        j, i = np.nonzero(nodes)
+    def _tile_indices(self, j, i):
+        """Sorted indices of the tiles holding the nodes [j, i] (index arrays)."""
         return np.unique((j // TILE) * self._tiles_per_row() + i // TILE).tolist()
 
     def _tile(self, index, pristine):

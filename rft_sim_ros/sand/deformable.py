@@ -61,9 +61,10 @@ SETTLED = 1e-3
 
 #: The small int64 state vector: pending count; the avalanche's work queue (first entry,
 #: length); steps that ended with nodes still queued; dirty blocks listed; plates found in
-#: the sand outside the bed (where they leave no footprint).
-COUNT, HEAD, QUEUED, UNSETTLED, DIRTY, OUTSIDE = range(6)
-STATE_SIZE = 6
+#: the sand outside the bed (where they leave no footprint); the change epoch (counts the
+#: steps that changed heights, and resets: `DeformableSand.blocks_changed_since`).
+COUNT, HEAD, QUEUED, UNSETTLED, DIRTY, OUTSIDE, EPOCH = range(7)
+STATE_SIZE = 7
 
 #: Element type and rank of each array of `DeformableSand.kernel_arrays`.
 KERNEL_ARRAYS = {'deform_stamp': (np.int64, 2), 'deform_lowest': (np.float64, 2),
@@ -71,7 +72,8 @@ KERNEL_ARRAYS = {'deform_stamp': (np.int64, 2), 'deform_lowest': (np.float64, 2)
                  'deform_cell_stamp': (np.int64, 2), 'deform_cell_low': (np.float64, 2),
                  'deform_committed': (np.int64, 1), 'deform_amount': (np.float64, 1),
                  'deform_queue': (np.int64, 1), 'deform_in_queue': (np.int8, 2),
-                 'deform_dirty': (np.int8, 2), 'deform_dirty_list': (np.int64, 1)}
+                 'deform_dirty': (np.int8, 2), 'deform_dirty_list': (np.int64, 1),
+                 'deform_changed': (np.int64, 2)}
 
 
 def no_bed_arrays():
@@ -124,6 +126,8 @@ class DeformableSand(HeightGrid):
         self._in_queue = np.zeros(self.grid.shape, dtype=np.int8)
         self._dirty = np.zeros(self.block_max.shape, dtype=np.int8)  # blocks to refresh
         self._dirty_list = np.zeros(self.block_max.size, dtype=np.int64)
+        # per block: the change epoch (state[EPOCH]) at which its heights last changed
+        self._changed = np.zeros(self.block_max.shape, dtype=np.int64)
 
     def height(self, x, y):
         """The bed's height (bilinear between its nodes) over the bed, the base's beyond."""
@@ -167,7 +171,8 @@ class DeformableSand(HeightGrid):
                     deform_cell_stamp=self.cell_stamp, deform_cell_low=self.cell_low,
                     deform_committed=self._committed, deform_amount=self._amount,
                     deform_queue=self._queue, deform_in_queue=self._in_queue,
-                    deform_dirty=self._dirty, deform_dirty_list=self._dirty_list)
+                    deform_dirty=self._dirty, deform_dirty_list=self._dirty_list,
+                    deform_changed=self._changed)
 
     def relax_all(self):
         """Avalanche the whole bed until settled (e.g. a pile made by hand); returns the
@@ -179,10 +184,18 @@ class DeformableSand(HeightGrid):
         while self.state[QUEUED]:
             visits += avalanche(self.grid, self.stamp, self._queue, self._in_queue, self.state,
                                 self._dirty, self._dirty_list, self.rise, MAX_VISITS)
-        self.block_max[:], self.block_min[:] = block_maximum(self.grid), block_minimum(self.grid)
         self._dirty[:] = 0
         self.state[DIRTY] = 0
+        self.edited()
         return visits
+
+    def edited(self):
+        """Take heights changed by hand in `grid` (a pile, a trench; `relax_all` settles them):
+        the block bounds the gather kernel skips bodies by are computed again, and the
+        whole bed counts as changed (`blocks_changed_since`). Without it, a node raised by
+        hand above its block's old maximum would not be read by plates over it."""
+        self.block_max[:], self.block_min[:] = block_maximum(self.grid), block_minimum(self.grid)
+        self._changed_everywhere()
 
     def reset(self):
         """The pristine surface again, nothing pending."""
@@ -190,9 +203,28 @@ class DeformableSand(HeightGrid):
         self.block_max[:], self.block_min[:] = self._pristine_blocks
         self.stamp[:] = -1
         self.cell_stamp[:] = -1
-        self.state[:] = 0
+        self.state[:EPOCH] = 0
         self._in_queue[:] = 0
         self._dirty[:] = 0
+        self._changed_everywhere()
+
+    def _changed_everywhere(self):
+        """Every block's heights changed (a reset, a whole-bed relaxation): a new epoch."""
+        self.state[EPOCH] += 1
+        self._changed[:] = self.state[EPOCH]
+
+    @property
+    def change_epoch(self):
+        """The bed's change epoch: it grows with every step that changed a height, and with
+        every reset (`blocks_changed_since`)."""
+        return int(self.state[EPOCH])
+
+    def blocks_changed_since(self, epoch):
+        """(rows, columns) block indices of the `BLOCK` x `BLOCK`-cell blocks (block [bj, bi]:
+        nodes bj * BLOCK .. (bj + 1) * BLOCK by bi * BLOCK .. (bi + 1) * BLOCK, clipped) holding
+        every node whose height changed after change epoch `epoch` (`change_epoch`), and
+        maybe some whose height came back: the cost follows the changes, not the bed."""
+        return np.nonzero(self._changed > epoch)
 
     def volume_change(self):
         """Net change of the bed's sand volume since the start (m^3): should stay ~0."""
@@ -294,13 +326,14 @@ def check_memory(size, cell):
 
 @njit(cache=True, inline='always')
 def touch_cell(footprints, step, u, v, z):
-    """`mark_cell` for a plate at node coordinates (u, v), anywhere; outside the bed it is
-    only counted (state[OUTSIDE])."""
+    """`mark_cell` for a plate at node coordinates (u, v), anywhere: on the bed's far edges
+    (u = nx - 1, v = ny - 1) in their last cell; outside the bed it is only counted
+    (state[OUTSIDE])."""
     ny, nx = footprints[0].shape
-    if u < 0.0 or v < 0.0 or u >= nx - 1 or v >= ny - 1:
+    if u < 0.0 or v < 0.0 or u > nx - 1 or v > ny - 1:
         footprints[3][OUTSIDE] += 1
         return
-    mark_cell(footprints, step, int(u), int(v), z)
+    mark_cell(footprints, step, min(int(u), nx - 2), min(int(v), ny - 2), z)
 
 
 @njit(cache=True, inline='always')
@@ -335,9 +368,9 @@ def _mark_node(stamp, lowest, pending, state, nx, step, i, j, z):
 
 @njit(cache=True)
 def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed, amount, queue,
-           in_queue, dirty, dirty_list, step, rise):
+           in_queue, dirty, dirty_list, changed, step, rise):
     """Rules 2-4 (module docstring) for the nodes that were pending before `step`; `rise`:
-    see `avalanche`."""
+    see `avalanche`; `changed`: see `_refresh_dirty`."""
     ny, nx = grid.shape
     count = state[COUNT]
     kept = 0
@@ -366,7 +399,7 @@ def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed,
     if state[QUEUED]:
         avalanche(grid, stamp, queue, in_queue, state, dirty, dirty_list, rise, MAX_VISITS)
         state[UNSETTLED] += state[QUEUED] > 0
-    _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, state)
+    _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, changed, state)
 
 
 @njit(cache=True, inline='always')
@@ -393,10 +426,12 @@ def _mark_dirty(dirty, dirty_list, state, i, j):
 
 
 @njit(cache=True)
-def _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, state):
-    """Recompute the maxima and minima of the blocks `_mark_dirty` noted."""
+def _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, changed, state):
+    """Recompute the maxima and minima of the blocks `_mark_dirty` noted, and stamp them
+    in `changed` with a new change epoch (state[EPOCH]) where there are any."""
     ny, nx = grid.shape
     nbx = dirty.shape[1]
+    state[EPOCH] += state[DIRTY] > 0
     for d in range(state[DIRTY]):
         bj, bi = dirty_list[d] // nbx, dirty_list[d] % nbx
         low, high = 1e300, -1e300
@@ -404,6 +439,7 @@ def _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, state):
             for i in range(bi * BLOCK, min((bi + 1) * BLOCK, nx - 1) + 1):
                 low, high = min(low, grid[j, i]), max(high, grid[j, i])
         block_max[bj, bi], block_min[bj, bi] = high, low
+        changed[bj, bi] = state[EPOCH]
         dirty[bj, bi] = 0
     state[DIRTY] = 0
 
