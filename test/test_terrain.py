@@ -8,8 +8,9 @@ import pytest
 from test_engine import _arm, _random_state
 
 from rft_sim_ros.rft import body_wrench
+from rft_sim_ros.rft.plates import Plates
 from rft_sim_ros.sand.deformable import COUNT, DeformableSand
-from rft_sim_ros.sand.engine import LowVelocity
+from rft_sim_ros.sand.engine import LowVelocity, SandEngine
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,
                                       heights_digest, surface_from_settings, tile_planes,
@@ -82,6 +83,9 @@ def test_a_grids_height_is_bilinear_between_its_nodes_and_continues_its_edges():
     nodes_y = grid.origin[1] + grid.spacing[1] * np.arange(23)
     assert np.allclose(grid.height(*np.meshgrid(nodes_x, nodes_y)), grid.grid, atol=1e-14)
     assert isinstance(grid.height(0.2, -0.1), float)  # a point in, a number out
+    far = [1e19, 1e300, np.inf]  # (beyond any integer node coordinate: the edge still)
+    assert np.allclose(grid.height(far, [-0.1] * 3), _bilinear(grid, 1.0, -0.1), rtol=0,
+                       atol=1e-13)
 
 
 def test_a_rigid_grid_is_read_only_and_refuses_a_size_or_centre_that_is_not_finite():
@@ -129,6 +133,29 @@ def test_a_flat_height_grid_gives_exactly_the_planes_forces(seed):
     *_, engine, flat_grid = _wrenches(grid, seed)
     assert engine.plates_active > 0
     assert np.array_equal(plane, flat_grid)
+
+
+def test_a_body_whose_plates_lie_at_its_origin_reads_a_rigid_grid():
+    """A sand body of radius 0 (its one plate at its origin: a probe) on a rigid grid meets
+    the grid under it, as any body does: a horizontal plate pushed straight down 1 mm below
+    the surface feels zeta A z. A body without plates is refused with its name."""
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="probe" pos="0 0 1"><freejoint/>'
+        '<geom size="0.01" mass="0.1"/></body></worldbody></mujoco>')
+    data = mujoco.MjData(model)
+    grid = HeightGrid(0.3 + 0.01 * np.tile(np.arange(21.0), (21, 1)), size=(2.0, 2.0))
+    probe = Plates(np.zeros((1, 3)), np.array([[0.0, 0.0, -1.0]]), np.array([1e-4]))
+    engine = SandEngine(model, data, {'probe': probe}, zeta=2.0, surface=grid,
+                        low_velocity=LowVelocity(method='none'))
+    x, y = 0.05, 0.02
+    data.qpos[:3] = x, y, grid.height(x, y) - 1e-3
+    data.qvel[2] = -0.01
+    mujoco.mj_step1(model, data)
+    engine.apply()
+    assert engine.body_wrenches[0, 2] == pytest.approx(2.0e6 * 1e-4 * 1e-3, rel=1e-9)
+    nothing = Plates(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    with pytest.raises(ValueError, match='sand bodies without plates: probe'):
+        SandEngine(model, data, {'probe': nothing}, zeta=2.0, surface=grid)
 
 
 @pytest.mark.parametrize('seed', range(3))
@@ -980,3 +1007,6 @@ def test_a_surface_made_in_python_is_the_sand_and_the_summary_records_it(tmp_pat
     with pytest.raises(SceneError, match=r'surface must be a rft_sim_ros.sand.surface.Surface '
                                          r'\(a Plane, Slope or HeightGrid\), got ndarray'):
         Simulation(load_scene('plate_drop'), surface=heights)
+    with pytest.raises(SceneError, match="got DeformableSand; deformable sand is the scene's "
+                                         'sand.deformable, laid over the surface given'):
+        Simulation(load_scene('plate_drop'), surface=DeformableSand(flat, size=(0.5, 0.5)))

@@ -202,12 +202,13 @@ class SandEngine:
             settings[coupling.DEFORM_RISE] = surface.rise
         self._surface_grid = data.grid
         self._surface_block_max, self._surface_block_min = data.block_max, data.block_min
-        # a rigid grid's bounding planes over tiles that hold any body's square
+        # a rigid grid's bounding planes over tiles that hold any body's square (none where
+        # every body's plates lie at its origin: step 0)
         step = int(np.ceil(2 * self.radii.max(initial=0.0) / min(data.spacing)))
-        rigid_grid = data.kind == GRID and not self.deformable and step > 0
+        rigid_grid = data.kind == GRID and not self.deformable
         settings[coupling.TILE_STEP] = step if rigid_grid else 0
         self._surface_tiles = (tile_planes(data.grid, data.origin, data.spacing, step)
-                               if rigid_grid else np.zeros((1, 4)))
+                               if rigid_grid and step > 0 else np.zeros((1, 4)))
         # and its extremes over windows that reach every node a cluster's square touches
         self._surface_windows = (
             window_extremes(data.grid, window_span(self._cluster_radius.max(), data.spacing))
@@ -218,6 +219,10 @@ class SandEngine:
     def _cluster(self, plates):
         """Store all plates, body by body and within a body cluster by cluster, with the
         bounding spheres (body frame) used to skip plates above the sand."""
+        empty = [name for name, body in zip(self.body_names, plates) if len(body) == 0]
+        if empty:
+            raise ValueError(f'sand bodies without plates: {", ".join(empty)} (each sand body '
+                             'needs at least one)')
         parts, body_clusters, plate_starts, centers, radii = [], [0], [], [], []
         offset = 0
         for body in plates:
@@ -240,8 +245,7 @@ class SandEngine:
         self.areas = np.ascontiguousarray(joined.areas)
         counts = np.array([len(p) for p in plates], dtype=np.int64)
         self.plate_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        self.radii = np.array([np.linalg.norm(p.centroids, axis=1).max() if len(p) else 0.0
-                               for p in plates])
+        self.radii = np.array([np.linalg.norm(p.centroids, axis=1).max() for p in plates])
         self._body_cluster_start = np.array(body_clusters, dtype=np.int64)
         self._cluster_plate_start = np.array(plate_starts, dtype=np.int64)
         self._cluster_center = np.array(centers, dtype=float).reshape(-1, 3)

@@ -27,8 +27,8 @@ def cell_height(grid, i, j, fu, fv):
 def node_height(grid, u, v):
     """Bilinear height of the grid at node coordinates (u, v), m."""
     ny, nx = grid.shape
-    i = min(max(int(u), 0), nx - 2)  # (clamped as integers: any u gives a node inside)
-    j = min(max(int(v), 0), ny - 2)
+    i = int(min(max(u, 0.0), nx - 2.0))  # (clamped before the conversion: any u, however
+    j = int(min(max(v, 0.0), ny - 2.0))  # far, gives a node inside)
     return cell_height(grid, i, j, min(max(u - i, 0.0), 1.0), min(max(v - j, 0.0), 1.0))
 
 

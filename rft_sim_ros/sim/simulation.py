@@ -317,9 +317,11 @@ class Simulation:
         if given is None:
             surface = surface_from_settings(self.scene.surface, self.scene.surface_height,
                                             self.model)
-        elif not isinstance(given, Surface):
+        elif not isinstance(given, Surface) or isinstance(given, DeformableSand):
             raise ValueError(f'surface must be a rft_sim_ros.sand.surface.Surface (a Plane, '
-                             f'Slope or HeightGrid), got {type(given).__name__}')
+                             f'Slope or HeightGrid), got {type(given).__name__}'
+                             + ('; deformable sand is the scene\'s sand.deformable, laid over '
+                                'the surface given' if isinstance(given, DeformableSand) else ''))
         elif self.scene.surface.get('type', 'plane') != 'plane':
             raise ValueError('a surface given in Python replaces the scene\'s sand.surface, '
                              f'which is a {self.scene.surface["type"]} here: leave it out')
