@@ -17,8 +17,9 @@ BED = {'sand.deformable.enabled': True, 'sand.deformable.size': [0.5, 0.5]}
 @pytest.mark.parametrize('repose', [25.0, 34.0])
 def test_a_pile_steeper_than_repose_relaxes_to_it_conserving_volume(repose):
     bed = DeformableSand(Plane(0.1), size=(0.6, 0.6), cell=0.01, repose_deg=repose)
-    bed.grid[30, 30] += 0.08  # a column of sand 8 cm tall, one cell wide
-    bed.grid[10:14, 40:44] += 0.03
+    with bed.editing() as heights:
+        heights[30, 30] += 0.08  # a column of sand 8 cm tall, one cell wide
+        heights[10:14, 40:44] += 0.03
     before = bed.grid.sum()
     moved = 0.08 + 16 * 0.03
     bed.relax_all()
@@ -137,8 +138,8 @@ def test_the_blocks_changed_since_an_epoch_hold_every_changed_height_and_lie_aro
     assert bed.change_epoch == settled
     sim.reset()
     assert bed.blocks_changed_since(settled)[0].size == bed.block_max.size
-    bed.grid[50, 50] += 0.02  # a pile made by hand, above its block's maximum
-    bed.edited()
+    with bed.editing() as heights:
+        heights[50, 50] += 0.02  # a pile made by hand, above its block's maximum
     assert bed.blocks_changed_since(settled + 1)[0].size == bed.block_max.size
     assert bed.block_max.max() == pytest.approx(bed.pristine.max() + 0.02)
 
@@ -258,7 +259,8 @@ def test_start_up_says_where_the_bed_lies_and_what_it_rounded():
     # a pile relaxed to the angle of repose (every neighbour pair within it; its bilinear
     # surface is steeper at some cell corners) is not steeper than repose as a base
     pile = DeformableSand(Plane(0.1), size=(0.6, 0.6), cell=0.01, repose_deg=30.0)
-    pile.grid[30, 30] += 0.08
+    with pile.editing() as heights:
+        heights[30, 30] += 0.08
     pile.relax_all()
     assert pile.steepest_deg() > 31.0
     relaxed = HeightGrid(pile.grid.copy(), pile.size)
@@ -376,13 +378,14 @@ def test_the_avalanche_works_around_the_changes_not_across_the_space_between_the
     from rft_sim_ros.sand.deformable import HEAD, MAX_VISITS, QUEUED, avalanche
     bed = DeformableSand(Plane(0.0), size=(2.0, 2.0), cell=0.01, repose_deg=30.0)
     nx = bed.grid.shape[1]
+    heights = bed._heights  # (the kernels' writable heights: the avalanche is called alone)
     for j, i in ((20, 20), (180, 180)):
-        bed.grid[j, i] += 0.03
+        heights[j, i] += 0.03
         bed._queue[bed.state[QUEUED]] = j * nx + i  # (as settle queues the nodes it changed)
         bed._in_queue[j, i] = 1
         bed.state[QUEUED] += 1
     assert bed.state[HEAD] == 0
-    visits = avalanche(bed.grid, bed.stamp, bed._queue, bed._in_queue, bed.state, bed._dirty,
+    visits = avalanche(heights, bed.stamp, bed._queue, bed._in_queue, bed.state, bed._dirty,
                        bed._dirty_list, bed.rise, MAX_VISITS)
     assert bed.state[QUEUED] == 0 and visits < 100
     axis, diagonal = neighbour_slopes(bed.grid, bed.cell)

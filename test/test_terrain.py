@@ -91,14 +91,18 @@ def test_a_grids_height_is_bilinear_between_its_nodes_and_continues_its_edges():
 def test_a_rigid_grid_is_read_only_and_refuses_a_size_or_centre_that_is_not_finite():
     """The engine derives the grid's bounds once: a rigid grid's heights and bounds cannot be
     changed in place (that gave forces of the old surface, silently); deformable sand's
-    can, as its own kernels keep its bounds. A NaN or infinite size or centre is said to be
-    one."""
+    change through its kernels, or by hand through `editing`, which keeps its bounds (a
+    hand edit in place would not: read-only too). A NaN or infinite size or centre is said
+    to be one."""
     grid = HeightGrid(np.zeros((5, 6)), size=(0.5, 0.4))
-    for array in (grid.grid, grid.block_max, grid.block_min):
+    bed = DeformableSand(grid, size=(0.2, 0.2), cell=0.02)
+    for array in (grid.grid, grid.block_max, grid.block_min, bed.grid, bed.block_max,
+                  bed.block_min, bed.pristine):
         with pytest.raises(ValueError, match='read-only'):
             array[0, 0] = 0.03
-    bed = DeformableSand(grid, size=(0.2, 0.2), cell=0.02)
-    bed.grid[2, 3] -= 0.01
+    with bed.editing() as heights:
+        heights[2, 3] += 0.01
+    assert bed.grid[2, 3] == 0.01 and bed.block_max.max() == 0.01 and bed.pristine.max() == 0
     for size in ((np.nan, 2.0), (np.inf, 2.0)):
         with pytest.raises(ValueError, match=r'sand.surface.size must be \[x, y\] > 0 m, finite'):
             HeightGrid(np.zeros((5, 6)), size=size)
@@ -398,7 +402,8 @@ def test_lowest_and_highest_surface_point_over_a_rectangle():
     assert grid.highest(-9.0, -8.0, -9.0, -8.0) == grid.grid[0, 0]  # outside: edge continued
     # deformable sand: its bed, and beyond the bed its base (a slope rising to -x here)
     bed = DeformableSand(slope, size=(0.4, 0.4), cell=0.02)
-    bed.grid[10, 10] += 0.05  # a pile in the middle of the bed
+    with bed.editing() as heights:
+        heights[10, 10] += 0.05  # a pile in the middle of the bed
     assert bed.highest(-0.05, 0.05, -0.05, 0.05) == pytest.approx(bed.grid[10, 10])
     assert bed.highest(0.5, 0.6, 0.0, 0.1) == pytest.approx(slope.highest(0.5, 0.6, 0.0, 0.1))
     assert bed.highest(0.1, 0.5, 0.0, 0.1) >= slope.highest(0.1, 0.5, 0.0, 0.1)

@@ -168,7 +168,8 @@ def test_a_terrain_reset_while_paused_is_published_at_once(ros):
     assert ros.spin_until(lambda: clouds and arrays)
     bed = sim.runtime.sim.engine.surface
     for service in (reset_terrain, ros.probe.reset):
-        bed.grid[10, 10] -= 0.01                         # a footprint, away from the plate
+        with bed.editing() as heights:
+            heights[10, 10] -= 0.01  # a footprint, away from the plate
         assert ros.call(ros.probe.step, Trigger.Request()).success
         assert ros.spin_until(lambda: last_marker(arrays).action == Marker.ADD)
         ticks, count = len(ros.probe.clocks), len(clouds)

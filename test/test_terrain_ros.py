@@ -113,9 +113,9 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     bed = DeformableSand(Plane(0.1), size=(0.2, 0.2), cell=0.02)
     feed = TerrainFeed(bed, rate=2.0)
     assert len(feed.update(0.0).points) == bed.grid.size
-    bed.grid[3, 4] -= 0.01  # a footprint
-    bed.grid[3, 5] += 0.01  # its rim
-    bed.edited()
+    with bed.editing() as heights:
+        heights[3, 4] -= 0.01  # a footprint
+        heights[3, 5] += 0.01  # its rim
     assert feed.update(0.4) is None  # within 0.5 s of the last publication
     update = feed.update(0.5)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 4), node_xyz(bed, 3, 5)],
@@ -125,8 +125,8 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     assert tile.index == 0 and not update.clear
     np.testing.assert_allclose(tile.change, [-0.01, 0.01])
     np.testing.assert_allclose(tile.deformed, update.points)
-    bed.grid[3, 5] -= 0.01
-    bed.edited()
+    with bed.editing() as heights:
+        heights[3, 5] -= 0.01
     update = feed.update(1.2)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 5)], atol=1e-6)
     np.testing.assert_allclose(update.tiles[0].deformed, [node_xyz(bed, 3, 4)], atol=1e-6)
@@ -135,8 +135,8 @@ def test_deformable_sand_publishes_changed_nodes_at_the_rate_and_after_a_reset()
     np.testing.assert_allclose(update.points, [node_xyz(bed, 3, 4)], atol=1e-6)
     assert update.points[0, 2] == pytest.approx(0.1)
     assert len(update.tiles) == 1 and len(update.tiles[0].deformed) == 0  # pristine again
-    bed.grid[0, 0] += 0.001
-    bed.edited()
+    with bed.editing() as heights:
+        heights[0, 0] += 0.001
     assert feed.update(1.8) is None  # not due yet
     np.testing.assert_allclose(feed.update(1.8, due=True).points, [node_xyz(bed, 0, 0)],
                                atol=1e-6)
@@ -174,8 +174,8 @@ def test_resend_publishes_the_whole_grid_at_once_for_a_late_subscriber(deformabl
     assert len(feed.update(0.0).points) == surface.grid.size
     assert feed.update(0.1) is None
     if deformable:  # (a rigid grid's heights are read-only)
-        surface.grid[2, 3] -= 0.01
-        surface.edited()
+        with surface.editing() as heights:
+            heights[2, 3] -= 0.01
     feed.resend_cloud()
     update = feed.update(0.2)  # within 0.5 s of the last publication: due anyway
     assert len(update.points) == surface.grid.size and update.shape == surface.grid.shape
@@ -194,9 +194,9 @@ def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
     bed = DeformableSand(Plane(0.0), size=(0.99, 0.69), cell=0.01)  # 100 x 70 nodes
     assert bed.grid.shape == (70, 100) and TILE == 32  # tiles: 3 rows of 4
     feed = TerrainFeed(bed, rate=2.0)
-    bed.grid[:40, :40] -= 0.001  # tiles 0, 1, 4 and 5
-    bed.grid[69, 99] += 0.002  # the last tile, 11
-    bed.edited()
+    with bed.editing() as heights:
+        heights[:40, :40] -= 0.001  # tiles 0, 1, 4 and 5
+        heights[69, 99] += 0.002  # the last tile, 11
     first = feed.update(0.0)
     assert first.clear and [tile.index for tile in first.tiles] == [0, 1, 4, 5, 11]
     assert [(m.action, m.id) for m in marker_array(first).markers] == [  # one message
@@ -204,9 +204,9 @@ def test_only_the_tiles_holding_a_changed_node_are_rebuilt():
     assert len(first.tiles[0].deformed) == TILE * TILE and len(first.tiles[1].deformed) == 8 * 32
     np.testing.assert_allclose(first.tiles[-1].deformed, [node_xyz(bed, 69, 99)], atol=1e-6)
     np.testing.assert_allclose(first.tiles[-1].change, [0.002])
-    bed.grid[35, 3] -= 0.001  # in tile 4 (row 1, column 0)
-    bed.grid[69, 99] = 0.0  # tile 11 back to pristine
-    bed.edited()
+    with bed.editing() as heights:
+        heights[35, 3] -= 0.001  # in tile 4 (row 1, column 0)
+        heights[69, 99] = 0.0  # tile 11 back to pristine
     update = feed.update(0.5)
     assert not update.clear and [tile.index for tile in update.tiles] == [4, 11]
     assert [(m.action, m.id) for m in marker_array(update).markers] == [
@@ -224,16 +224,16 @@ def test_a_marker_resend_publishes_every_tile_and_no_cloud_unless_it_changed():
     bed = DeformableSand(Plane(0.0), size=(0.99, 0.69), cell=0.01)
     feed = TerrainFeed(bed, rate=2.0)
     feed.update(0.0)
-    bed.grid[5, 5] -= 0.001
-    bed.grid[50, 90] -= 0.001
-    bed.edited()
+    with bed.editing() as heights:
+        heights[5, 5] -= 0.001
+        heights[50, 90] -= 0.001
     feed.update(0.5)
     feed.resend_markers()
     update = feed.update(0.6)
     assert update.points is None and update.shape is None  # nothing changed: no cloud
     assert update.clear and [tile.index for tile in update.tiles] == [0, 6]
-    bed.grid[5, 5] = 0.0
-    bed.edited()
+    with bed.editing() as heights:
+        heights[5, 5] = 0.0
     feed.resend_markers()
     update = feed.update(0.7)
     np.testing.assert_allclose(update.points, [node_xyz(bed, 5, 5)], atol=1e-6)
@@ -252,8 +252,8 @@ def test_the_mean_rate_is_the_rate_asked_for(cycle):
     feed = TerrainFeed(bed, rate=2.0)
     times = []
     for k in range(1, round(100.0 / cycle) + 1):
-        bed.grid[0, 0] += 1e-4
-        bed.edited()
+        with bed.editing() as heights:
+            heights[0, 0] += 1e-4
         if feed.update(k * cycle) is not None:
             times.append(k * cycle)
     assert abs(len(times) - 200) <= 1
@@ -268,8 +268,8 @@ def test_a_publication_between_the_grids_times_keeps_the_grid():
     assert feed.update(0.0) is not None
     feed.resend_markers()
     assert feed.update(0.3).clear
-    bed.grid[0, 0] -= 0.001
-    bed.edited()
+    with bed.editing() as heights:
+        heights[0, 0] -= 0.001
     assert feed.update(0.49) is None
     assert feed.update(0.5) is not None
 
@@ -280,11 +280,11 @@ def test_a_schedule_that_fell_behind_restarts_from_now():
     bed = DeformableSand(Plane(0.0), size=(0.2, 0.2), cell=0.02)
     feed = TerrainFeed(bed, rate=2.0)
     feed.update(0.0)
-    bed.grid[0, 0] += 0.01
-    bed.edited()
+    with bed.editing() as heights:
+        heights[0, 0] += 0.01
     assert feed.update(10.0) is not None
-    bed.grid[0, 0] += 0.01
-    bed.edited()
+    with bed.editing() as heights:
+        heights[0, 0] += 0.01
     assert feed.update(10.1) is None and feed.update(10.49) is None
     assert feed.update(10.5) is not None
 
@@ -304,9 +304,9 @@ def test_terrain_messages_fill_the_jazzy_types_and_round_trip_cdr():
     grid = cloud_points(whole).reshape(ny, nx, 3)  # row-major, [iy, ix]
     np.testing.assert_allclose(grid[4, 7], node_xyz(bed, 4, 7), atol=1e-6)
     np.testing.assert_allclose(grid[:, :, 2], bed.grid, atol=1e-7)
-    bed.grid[2, 2] -= 0.03
-    bed.grid[2, 3] += 0.005
-    bed.edited()
+    with bed.editing() as heights:
+        heights[2, 2] -= 0.03
+        heights[2, 3] += 0.005
     update = feed.update(1.25)
     (cloud_topic, cloud), (marker_topic, array) = messages.terrain_messages(FACTORY, update)
     assert (cloud_topic, marker_topic) == (topics.TERRAIN, topics.TERRAIN_MARKER)
@@ -395,8 +395,8 @@ def test_a_terrain_reset_is_published_at_once_while_paused(service):
     runtime = SimRuntime(sim, sink, publish_rate=100.0, paused=True,
                          terrain=TerrainFeed(sim.engine.surface, rate=0.5))
     bed = sim.engine.surface
-    bed.grid[10, 10] -= 0.01  # a footprint away from the plate
-    bed.edited()
+    with bed.editing() as heights:
+        heights[10, 10] -= 0.01  # a footprint away from the plate
     assert runtime.step().success
     assert len(sink.terrain) == 1 and len(shown_points(markers_of(sink.terrain))) == 1
     assert getattr(runtime, service)().success
@@ -421,8 +421,8 @@ def test_a_new_subscriber_gets_the_surface_at_once_while_paused(cloud):
     runtime.resend_terrain(cloud=cloud, markers=not cloud)
     assert sink.terrain == []  # before the initial publication: that one carries everything
     bed = sim.engine.surface
-    bed.grid[10, 10] -= 0.01  # a footprint away from the plate
-    bed.edited()
+    with bed.editing() as heights:
+        heights[10, 10] -= 0.01  # a footprint away from the plate
     runtime.tick()  # the initial publication (paused)
     assert len(sink.terrain) == 1
     runtime.resend_terrain(cloud=cloud, markers=not cloud)
@@ -487,7 +487,8 @@ def test_a_deformable_runs_bag_holds_the_surface_where_it_changed(tmp_path):
         heights[j, i] = points[:, 2]
     assert not np.array_equal(final, bed.pristine)  # the plate left its mark
     np.testing.assert_allclose(heights, final.astype(np.float32), rtol=0, atol=1e-7)
-    bed.grid[:] = final
+    with bed.editing() as heights:
+        heights[:] = final
     np.testing.assert_allclose(
         shown_points([marker for _, array in arrays for marker in array.markers]),
         deformed_points(bed), atol=1e-6)

@@ -40,6 +40,8 @@ Every transfer moves the same amount out of one node and into another, so the be
 is conserved up to floating-point rounding (sum of height changes x cell^2; tested to 1e-9
 of the displaced volume). `reset()` restores the pristine surface exactly (a copy)."""
 
+from contextlib import contextmanager
+
 import numpy as np
 from numba import njit
 
@@ -86,7 +88,10 @@ class DeformableSand(HeightGrid):
     """A deformable bed over a base surface (see module docstring).
 
     base: the pristine `surface.Surface`; size: [x, y] m; cell: m; repose_deg: angle of
-    repose, degrees; center: [x, y] m."""
+    repose, degrees; center: [x, y] m. Its `grid` (heights, m), `block_max`, `block_min` and
+    `pristine` are read-only views: the kernels change them, and heights changed by hand go
+    through `editing`, which keeps the bounds the kernels read and the record of changes
+    (`blocks_changed_since`) true."""
 
     rigid = False
 
@@ -106,11 +111,15 @@ class DeformableSand(HeightGrid):
         y = center[1] - span[1] / 2 + cell * np.arange(ny)
         heights = base.height(*np.meshgrid(x, y))
         super().__init__(heights, span, center)
+        # the writable arrays the kernels and this class change; read-only views for the rest
+        self._heights, self._block_max, self._block_min = self.grid, self.block_max, self.block_min
+        self.grid, self.block_max, self.block_min = (
+            _read_only(a) for a in (self._heights, self._block_max, self._block_min))
         self.base, self.cell, self.repose_deg = base, float(cell), float(repose_deg)
         self.notices = self._notices(base, size, repose_deg)
         self.tan_repose = float(np.tan(np.radians(repose_deg)))
         self.rise = self.tan_repose * self.cell  # m between axis neighbours at repose
-        self.pristine = self.grid.copy()
+        self.pristine = _read_only(self.grid.copy())
         self._pristine_blocks = self.block_max.copy(), self.block_min.copy()
         self.stamp = np.full(self.grid.shape, -1, dtype=np.int64)  # last step marked; -1: not
         self.lowest = np.zeros(self.grid.shape)           # lowest plate z while pending, m
@@ -182,25 +191,35 @@ class DeformableSand(HeightGrid):
         self.state[HEAD], self.state[QUEUED] = 0, self.grid.size
         visits = 0
         while self.state[QUEUED]:
-            visits += avalanche(self.grid, self.stamp, self._queue, self._in_queue, self.state,
+            visits += avalanche(self._heights, self.stamp, self._queue, self._in_queue, self.state,
                                 self._dirty, self._dirty_list, self.rise, MAX_VISITS)
         self._dirty[:] = 0
         self.state[DIRTY] = 0
-        self.edited()
+        self._edited()
         return visits
 
-    def edited(self):
-        """Take heights changed by hand in `grid` (a pile, a trench; `relax_all` settles them):
-        the block bounds the gather kernel skips bodies by are computed again, and the
-        whole bed counts as changed (`blocks_changed_since`). Without it, a node raised by
-        hand above its block's old maximum would not be read by plates over it."""
-        self.block_max[:], self.block_min[:] = block_maximum(self.grid), block_minimum(self.grid)
+    @contextmanager
+    def editing(self):
+        """Change the bed's heights by hand (a pile, a trench; `relax_all` then settles them
+        to the angle of repose): `with bed.editing() as heights: heights[j0:j1, i0:i1] +=
+        0.02` (m, [iy, ix] as `grid`). On leaving, the block bounds the gather kernel skips
+        bodies by are computed again (a node raised above its block's old maximum would
+        otherwise not be read by plates over it) and the whole bed counts as changed
+        (`blocks_changed_since`)."""
+        try:
+            yield self._heights
+        finally:
+            self._edited()
+
+    def _edited(self):
+        self._block_max[:] = block_maximum(self._heights)
+        self._block_min[:] = block_minimum(self._heights)
         self._changed_everywhere()
 
     def reset(self):
         """The pristine surface again, nothing pending."""
-        self.grid[:] = self.pristine
-        self.block_max[:], self.block_min[:] = self._pristine_blocks
+        self._heights[:] = self.pristine
+        self._block_max[:], self._block_min[:] = self._pristine_blocks
         self.stamp[:] = -1
         self.cell_stamp[:] = -1
         self.state[:EPOCH] = 0
@@ -280,6 +299,13 @@ class DeformableSand(HeightGrid):
                 'sand_piled_m3': self.piled_volume(),
                 'sand_nodes_under_bodies': self.nodes_under_bodies,
                 'plates_in_sand_outside_bed': self.plates_outside}
+
+
+def _read_only(array):
+    """A read-only view of `array` (the same memory)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def bed_nodes(size, cell):
