@@ -4,7 +4,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from rft_sim_ros.sand.deformable import COUNT, DeformableSand, neighbour_slopes, touch_cell
+from rft_sim_ros.sand.deformable import (COUNT, DeformableSand, _free_distances, mark_cell,
+                                         neighbour_slopes, settle, touch_cell)
 from rft_sim_ros.sand.surface import (BLOCK, HeightGrid, Plane, Slope, block_maximum,
                                       block_minimum)
 from rft_sim_ros.scenes.config import SceneError, load_scene
@@ -111,6 +112,51 @@ def test_a_plate_on_the_beds_far_edge_marks_its_last_cell():
     assert bed.state[COUNT] == 7 and bed.plates_outside == 1
 
 
+def _settle(bed, step):
+    """Rules 2-4 for the nodes pending before `step` (as the deformable gather kernel ends)."""
+    settle(bed._heights, bed._block_max, bed._block_min, bed.stamp, bed.lowest, bed.pending,
+           bed.state, bed._committed, bed._amount, bed._queue, bed._in_queue, bed._dirty,
+           bed._dirty_list, bed._changed, bed._distance, bed._reached, step, bed.rise)
+
+
+def test_a_footprint_of_any_width_is_dug_whole():
+    """A 22 cm square footprint in 1 mm cells, left at once: its middle, 110 cells from the
+    nearest free node, is dug to the plate's depth (the sand goes to the nearest free ring,
+    found for the nodes far inside in one pass: `_free_distances`; it kept its sand beyond
+    100 cells), and the volume stays the bed's (the rim's avalanche starts at the edge)."""
+    bed = DeformableSand(Plane(0.0), size=(0.3, 0.3), cell=0.001)
+    footprints = tuple(bed.kernel_arrays()[name] for name in (
+        'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cell_stamp',
+        'deform_cell_low'))
+    for j in range(40, 260):
+        for i in range(40, 260):
+            mark_cell(footprints, 0, i, j, -0.01)
+    _settle(bed, 1)  # no plate marked in step 1: the footprint is left
+    assert bed.grid[150, 150] == -0.01 and bed.grid[100:200, 100:200].max() == -0.01
+    assert abs(bed.volume_change()) <= 1e-9 * bed.displaced_volume()
+    assert bed.piled_volume() == pytest.approx(bed.displaced_volume(), rel=1e-9)
+    assert (bed._distance == -1).all()  # (set back for the next step)
+
+
+def test_the_distance_to_the_nearest_free_node_is_chebyshevs():
+    """`_free_distances` against the brute-force Chebyshev distance from every node under a
+    body (pending or just committed) to the nearest free node, on random beds."""
+    rng = np.random.default_rng(7)
+    for trial in range(20):
+        ny, nx = rng.integers(3, 40, size=2)
+        stamp = np.where(rng.random((ny, nx)) < rng.uniform(0.5, 0.97), -2, -1)
+        stamp[(stamp == -2) & (rng.random((ny, nx)) < 0.5)] = 3  # some pending, some committed
+        pending, committed = np.flatnonzero(stamp >= 0), np.flatnonzero(stamp == -2)
+        distance = np.full((ny, nx), -1, dtype=np.int32)
+        reached = np.zeros(ny * nx, dtype=np.int64)
+        _free_distances(stamp, pending, len(pending), committed, len(committed), distance,
+                        reached)
+        free = np.argwhere(stamp == -1)
+        for j, i in np.argwhere(stamp != -1):
+            expected = np.abs(free - [j, i]).max(axis=1).min() if len(free) else -1
+            assert distance[j, i] == expected
+
+
 def _block_nodes(bed, rows, columns):
     """Where the nodes of the blocks [rows[k], columns[k]] of `bed` lie: a bool (ny, nx)."""
     held = np.zeros(bed.grid.shape, dtype=bool)
@@ -196,7 +242,7 @@ def test_deformable_keys_are_checked():
         DeformableSand(Plane(), size=(0.01, 1.0), cell=0.01)
     # a bed far larger than any machine's memory is refused before anything is allocated
     with pytest.raises(ValueError, match=r'a bed \(0.01 m cells\) of 1000001 x 1000001 nodes '
-                       r'needs about 8.38e\+04 GiB, more than half of this machine'):
+                       r'needs about 9.5e\+04 GiB, more than half of this machine'):
         DeformableSand(Plane(), size=(1e4, 1e4), cell=0.01)
     for size, cell in (((1e300, 1e300), 0.01), ((1.0, 1.0), 1e-300)):  # (counted as floats)
         with pytest.raises(ValueError, match=r'needs about inf GiB, more than half'):

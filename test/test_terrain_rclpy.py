@@ -110,7 +110,8 @@ def test_late_subscribers_get_the_surface_at_once_while_paused(ros):
     assert ros.spin_until(lambda: ros.probe.clocks)     # the initial publication
     bed = sim.runtime.sim.engine.surface
     assert bed.grid.shape == (201, 201)
-    bed.grid -= 0.001                                    # every node dug (no step: unpublished)
+    with bed.editing() as heights:
+        heights -= 0.001                                 # every node dug (no step: unpublished)
     ticks = len(ros.probe.clocks)
     clouds, arrays = [], []
     ros.probe.create_subscription(PointCloud2, topics.TERRAIN, clouds.append, 10)

@@ -145,7 +145,7 @@ GatherArrays = namedtuple('GatherArrays', [
     # deformable sand's footprint marks and settling (`DeformableSand.kernel_arrays`)
     'deform_stamp', 'deform_lowest', 'deform_pending', 'deform_state', 'deform_cell_stamp',
     'deform_cell_low', 'deform_committed', 'deform_amount', 'deform_queue', 'deform_in_queue',
-    'deform_dirty', 'deform_dirty_list', 'deform_changed',
+    'deform_dirty', 'deform_dirty_list', 'deform_changed', 'deform_distance', 'deform_reached',
     # mjData, mjModel
     'xpos', 'xmat', 'xipos', 'cvel', 'subtree_com', 'body_rootid',
     # outputs
@@ -590,6 +590,7 @@ def gather_deformable(arrays):
            float_vector(arrays, a.deform_amount), int_vector(arrays, a.deform_queue),
            int8_matrix(arrays, a.deform_in_queue), int8_matrix(arrays, a.deform_dirty),
            int_vector(arrays, a.deform_dirty_list), int_matrix(arrays, a.deform_changed),
+           int32_matrix(arrays, a.deform_distance), int_vector(arrays, a.deform_reached),
            int_vector(arrays, a.counters)[STEPS] - 1,
            float_vector(arrays, a.settings)[DEFORM_RISE])
 

@@ -22,9 +22,12 @@ The rule (volume conserving):
    its height drops to the lowest plate z seen (if that is below it); the sand it held, (old
    - new) x cell^2, is displaced.
 3. **Deposit.** The displaced volume of a node goes in equal parts to the nearest nodes
-   around it (the first ring at Chebyshev distance 1, 2, ... up to `DEPOSIT_REACH` that has
-   any) that are neither pending nor just committed: the rim of the footprint. With no such
-   node within reach the node keeps its sand (no footprint there).
+   around it (the first ring at Chebyshev distance 1, 2, ... that has any) that are neither
+   pending nor just committed: the rim of the footprint. The rings are searched out to
+   `NEAR`; a node farther from every free node (inside a wide footprint) has its distance
+   found with all such nodes of the step in one breadth-first pass over the nodes under
+   bodies (`_free_distances`), so a footprint of any width is dug whole at a cost that
+   follows its nodes. With no free node on the bed at all the node keeps its sand.
 4. **Avalanche.** Around the nodes that changed, any pair of neighbouring nodes (axis and
    diagonal neighbours) steeper than the angle of repose exchanges sand until the slope
    between them is at most tan(repose) (each exchange bringing a pair to the limit; settled
@@ -50,11 +53,13 @@ from .grid_memory import check_grid_memory
 from .surface import BLOCK, HeightGrid, block_maximum, block_minimum, heights_digest
 
 #: Bytes a bed holds per node (its heights, the pristine copy, marks and work space: 82
-#: measured, 90 at the peak of building it); a bed is refused where that exceeds half the
-#: machine's memory (`check_memory`).
-BED_BYTES_PER_NODE = 90
-#: Rings (Chebyshev distance, nodes) searched for the rim that takes displaced sand.
-DEPOSIT_REACH = 100
+#: measured, 90 at the peak of building it, and the 12 of the deposit's distances and their
+#: queue); a bed is refused where that exceeds half the machine's memory (`check_memory`).
+BED_BYTES_PER_NODE = 102
+#: Rings (Chebyshev distance, nodes) searched around a committed node for the rim that
+#: takes its sand before the distances of the step's committed nodes are found at once
+#: (`_free_distances`).
+NEAR = 4
 #: Node visits of the avalanche per step at most (the rest carries over to the next step).
 MAX_VISITS = 200_000
 #: A pair whose height difference exceeds the repose limit by less than this fraction of
@@ -75,7 +80,8 @@ KERNEL_ARRAYS = {'deform_stamp': (np.int64, 2), 'deform_lowest': (np.float64, 2)
                  'deform_committed': (np.int64, 1), 'deform_amount': (np.float64, 1),
                  'deform_queue': (np.int64, 1), 'deform_in_queue': (np.int8, 2),
                  'deform_dirty': (np.int8, 2), 'deform_dirty_list': (np.int64, 1),
-                 'deform_changed': (np.int64, 2)}
+                 'deform_changed': (np.int64, 2), 'deform_distance': (np.int32, 2),
+                 'deform_reached': (np.int64, 1)}
 
 
 def no_bed_arrays():
@@ -137,6 +143,10 @@ class DeformableSand(HeightGrid):
         self._dirty_list = np.zeros(self.block_max.size, dtype=np.int64)
         # per block: the change epoch (state[EPOCH]) at which its heights last changed
         self._changed = np.zeros(self.block_max.shape, dtype=np.int64)
+        # the deposit's distances to the nearest free node (-1: none found) and the nodes
+        # they were found for (`_free_distances`)
+        self._distance = np.full(self.grid.shape, -1, dtype=np.int32)
+        self._reached = np.zeros(self.grid.size, dtype=np.int64)
 
     def height(self, x, y):
         """The bed's height (bilinear between its nodes) over the bed, the base's beyond."""
@@ -181,7 +191,8 @@ class DeformableSand(HeightGrid):
                     deform_committed=self._committed, deform_amount=self._amount,
                     deform_queue=self._queue, deform_in_queue=self._in_queue,
                     deform_dirty=self._dirty, deform_dirty_list=self._dirty_list,
-                    deform_changed=self._changed)
+                    deform_changed=self._changed, deform_distance=self._distance,
+                    deform_reached=self._reached)
 
     def relax_all(self):
         """Avalanche the whole bed until settled (e.g. a pile made by hand); returns the
@@ -394,9 +405,10 @@ def _mark_node(stamp, lowest, pending, state, nx, step, i, j, z):
 
 @njit(cache=True)
 def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed, amount, queue,
-           in_queue, dirty, dirty_list, changed, step, rise):
+           in_queue, dirty, dirty_list, changed, distance, reached, step, rise):
     """Rules 2-4 (module docstring) for the nodes that were pending before `step`; `rise`:
-    see `avalanche`; `changed`: see `_refresh_dirty`."""
+    see `avalanche`; `changed`: see `_refresh_dirty`; distance, reached: see
+    `_free_distances`."""
     ny, nx = grid.shape
     count = state[COUNT]
     kept = 0
@@ -414,9 +426,28 @@ def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed,
         grid[j, i] -= amount[n_committed]
         n_committed += 1
     state[COUNT] = kept
+    found = 0  # nodes whose distances `_free_distances` found (0: not needed yet)
     for c in range(n_committed):
+        if amount[c] <= 0.0:
+            continue
         j, i = committed[c] // nx, committed[c] % nx
-        _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, amount[c])
+        ring, free = 0, 0
+        while free == 0 and ring < NEAR:
+            ring += 1
+            free = _ring_free(stamp, i, j, ring)
+        if free == 0:  # inside a wide footprint: every committed node's distance at once
+            if found == 0:
+                found = _free_distances(stamp, pending, kept, committed, n_committed,
+                                        distance, reached)
+            ring = distance[j, i]
+            free = _ring_free(stamp, i, j, ring) if ring > 0 else 0
+        if free == 0:  # no free node on the bed: the node keeps its sand
+            grid[j, i] += amount[c]
+        else:
+            _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, ring, free,
+                     amount[c])
+    for t in range(found):  # (back to none found, for the next step that needs them)
+        distance[reached[t] // nx, reached[t] % nx] = -1
     for c in range(n_committed):
         j, i = committed[c] // nx, committed[c] % nx
         stamp[j, i] = -1
@@ -470,38 +501,71 @@ def _refresh_dirty(grid, block_max, block_min, dirty, dirty_list, changed, state
     state[DIRTY] = 0
 
 
+@njit(cache=True, inline='always')
+def _ring_free(stamp, i, j, r):
+    """The free nodes (neither pending nor just committed) on the ring at Chebyshev distance
+    r >= 1 around node (i, j), clipped to the bed."""
+    ny, nx = stamp.shape
+    free = 0
+    for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
+        step = 1 if abs(jj - j) == r else 2 * r  # (its top and bottom rows, else two nodes)
+        for ii in range(i - r, i + r + 1, step):
+            if 0 <= ii < nx and stamp[jj, ii] == -1:
+                free += 1
+    return free
+
+
 @njit(cache=True)
-def _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, volume_height):
-    """Rule 3: spread `volume_height` (m of one node) evenly over the nearest ring of free
-    nodes around (i, j) (queued for the avalanche); keep it at (i, j) without one."""
-    if volume_height <= 0.0:
-        return
+def _deposit(grid, stamp, queue, in_queue, state, dirty, dirty_list, i, j, r, free,
+             volume_height):
+    """Rule 3: spread `volume_height` (m of one node) evenly over the `free` free nodes of
+    the ring at Chebyshev distance r around (i, j) (`_ring_free`), queued for the avalanche."""
     ny, nx = grid.shape
-    for r in range(1, DEPOSIT_REACH + 1):
-        free = 0
-        for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
-            edge = abs(jj - j) == r
-            step = 1 if edge else 2 * r
-            for ii in range(i - r, i + r + 1, step):
-                if 0 <= ii < nx and stamp[jj, ii] == -1:
-                    free += 1
-        if free == 0:
-            continue
-        share = volume_height / free
-        given = 0.0
-        for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
-            edge = abs(jj - j) == r
-            step = 1 if edge else 2 * r
-            for ii in range(i - r, i + r + 1, step):
-                if 0 <= ii < nx and stamp[jj, ii] == -1:
-                    free -= 1
-                    part = volume_height - given if free == 0 else share
-                    grid[jj, ii] += part
-                    given += part
-                    _enqueue(queue, in_queue, state, nx, ii, jj)
-                    _mark_dirty(dirty, dirty_list, state, ii, jj)
-        return
-    grid[j, i] += volume_height
+    share = volume_height / free
+    given = 0.0
+    for jj in range(max(j - r, 0), min(j + r, ny - 1) + 1):
+        step = 1 if abs(jj - j) == r else 2 * r
+        for ii in range(i - r, i + r + 1, step):
+            if 0 <= ii < nx and stamp[jj, ii] == -1:
+                free -= 1
+                part = volume_height - given if free == 0 else share
+                grid[jj, ii] += part
+                given += part
+                _enqueue(queue, in_queue, state, nx, ii, jj)
+                _mark_dirty(dirty, dirty_list, state, ii, jj)
+
+
+@njit(cache=True)
+def _free_distances(stamp, pending, kept, committed, n_committed, distance, reached):
+    """The Chebyshev distance of every node under a body (the `kept` pending and
+    `n_committed` committed nodes) to the nearest free node, into `distance` (nodes; -1
+    where no free node is reachable), by one breadth-first pass from the free nodes beside
+    them through them (a shortest way from a node to its nearest free node passes only
+    nodes under bodies, else one of those would be nearer). Returns the count of nodes it
+    set, listed in `reached` (flat indices), for setting them back to -1 after use."""
+    ny, nx = stamp.shape
+    tail = 0
+    for source in range(kept + n_committed):
+        index = pending[source] if source < kept else committed[source - kept]
+        j, i = index // nx, index % nx
+        for jj in range(max(j - 1, 0), min(j + 1, ny - 1) + 1):
+            for ii in range(max(i - 1, 0), min(i + 1, nx - 1) + 1):
+                if stamp[jj, ii] == -1 and distance[jj, ii] < 0:
+                    distance[jj, ii] = 0
+                    reached[tail] = jj * nx + ii
+                    tail += 1
+    head = 0
+    while head < tail:
+        index = reached[head]
+        head += 1
+        j, i = index // nx, index % nx
+        for jj in range(max(j - 1, 0), min(j + 1, ny - 1) + 1):
+            for ii in range(max(i - 1, 0), min(i + 1, nx - 1) + 1):
+                if stamp[jj, ii] != -1 and distance[jj, ii] < 0:
+                    distance[jj, ii] = distance[j, i] + 1
+                    reached[tail] = jj * nx + ii
+                    tail += 1
+    return tail
 
 
 @njit(cache=True)
