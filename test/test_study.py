@@ -463,11 +463,12 @@ def test_a_study_says_each_distinct_notice_of_its_runs_once(tmp_path):
 def test_workers_that_would_hold_more_beds_than_memory_allows_are_fewer(monkeypatch):
     """Each bed fits the machine alone; two workers holding the two largest at once would
     pass half its memory, so the study runs on one and says why."""
+    from rft_sim_ros.sand.deformable import BED_BYTES_PER_NODE
     from rft_sim_ros.study import sweep
     study = _study(set={'sand.deformable.enabled': True}, vary={'sand.deformable.cell':
                                                                 [0.01, 0.02]})
     largest = max(run.bed_bytes for run in study.runs)
-    assert largest == pytest.approx(201 * 201 * 90)  # (2 m x 2 m at 1 cm)
+    assert largest == pytest.approx(201 * 201 * BED_BYTES_PER_NODE)  # (2 m x 2 m at 1 cm)
     lines = []
     monkeypatch.setattr(sweep, 'machine_memory', lambda: 3.0 * largest)
     assert sweep.workers_within_memory(study.runs, 2, lines.append) == 2  # 1.25 beds <= 1.5
