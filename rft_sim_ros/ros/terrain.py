@@ -77,8 +77,8 @@ class TerrainFeed:
     def __init__(self, surface, rate=DEFAULT_RATE):
         self._surface = surface if isinstance(surface, HeightGrid) else None
         self._period = 1.0 / publish_rate(rate, TERRAIN_RATE)
-        self._published = None  # heights at the last publication
-        self._epoch = 0  # deformable sand's change epoch at the last publication
+        self._published = None  # deformable sand's heights at the last publication
+        self._epoch = 0  # and its change epoch then
         self._whole_cloud = self._whole_markers = True
         self._next = -math.inf
 
@@ -141,10 +141,10 @@ class TerrainFeed:
         Deformable sand is compared in the blocks it changed since (`blocks_changed_since`)
         only."""
         grid = self._surface.grid
-        if self._published is None or not deformable:
-            if self._published is None:
+        if not deformable or self._published is None:
+            if deformable:  # (the first publication: what later ones are compared with)
                 self._published = grid.copy()
-                self._epoch = self._surface.change_epoch if deformable else 0
+                self._epoch = self._surface.change_epoch
             return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
         rows, columns = self._surface.blocks_changed_since(self._epoch)
         self._epoch = self._surface.change_epoch

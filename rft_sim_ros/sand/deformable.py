@@ -426,7 +426,7 @@ def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed,
         grid[j, i] -= amount[n_committed]
         n_committed += 1
     state[COUNT] = kept
-    found = 0  # nodes whose distances `_free_distances` found (0: not needed yet)
+    searched, found = False, 0  # `_free_distances` run yet; the nodes it set
     for c in range(n_committed):
         if amount[c] <= 0.0:
             continue
@@ -436,9 +436,10 @@ def settle(grid, block_max, block_min, stamp, lowest, pending, state, committed,
             ring += 1
             free = _ring_free(stamp, i, j, ring)
         if free == 0:  # inside a wide footprint: every committed node's distance at once
-            if found == 0:
+            if not searched:
                 found = _free_distances(stamp, pending, kept, committed, n_committed,
                                         distance, reached)
+                searched = True
             ring = distance[j, i]
             free = _ring_free(stamp, i, j, ring) if ring > 0 else 0
         if free == 0:  # no free node on the bed: the node keeps its sand
