@@ -323,7 +323,7 @@ def cmd_sweep(args):
 
 def cmd_warmup(args):
     import time
-    from .kernel_cache import cached_kernels, warm_up
+    from .warmup import cached_kernels, warm_up
     say_if_cold()
     started = time.perf_counter()
     missing = warm_up(log=lambda line: print(line, file=sys.stderr))

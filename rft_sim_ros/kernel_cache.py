@@ -1,23 +1,24 @@
-"""The package's compiled kernels in numba's on-disk cache: which are there, whether they are
-still those of the package's sources, and warming it.
+"""Bookkeeping of the package's compiled kernels in numba's on-disk cache: whether they are
+there, whether they are still those of the package's sources, and compiling some of them in a
+second process. It imports nothing of the package: every kernel module imports it.
 
 The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`,
-`sand.surface_kernels`) and the gaits' (`scenes.gaits`, `scenes.leg_kinematics`) are numba
+`sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`, `scenes.leg_kinematics`) are numba
 functions compiled with cache=True: the first run after an install (or after their source
-changed) compiles them, about 12 s on two cores (`BackgroundCompile` puts a share in a
-second process); every later run loads them from the cache in a fraction of a second.
-`sand.engine.kernels_cached` (and `sim.simulation.compile_notice`, which the CLI and the
-node show) asks `is_cached` about the kernels one engine needs (one gather kernel per kind
-of surface); `warm_up()` compiles every kernel ahead (`rft-sim warmup`).
+changed) compiles them (`BackgroundCompile` puts a share in a second process); every later run
+loads them from the cache in a fraction of a second. `sand.engine.kernels_cached` (and
+`sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
+kernels one engine needs (one gather kernel per kind of surface); `rft-sim warmup`
+(`rft_sim_ros.warmup`, beside the CLI) compiles every kernel ahead.
 
 numba checks a cached kernel against its own source file only, but a kernel compiles in
 helpers and constants from other files too (`sand/surface_kernels.py`, `sand/deformable.py`
 and `sand/array_table.py` into the gather kernels of `sand/coupling.py`): an upgrade or an
 edit that changed only those would load kernels compiled from the old code. So each kernel
 module ends by calling `forget_stale(globals())`, before any of its kernels can load: the
-fingerprint of every source the kernels are compiled from (`kernel_sources`) is kept in a
-marker file beside the module's cached kernels, and where it differs, their cache entries
-are dropped and compile afresh.
+fingerprint of every source the kernels are compiled from (`kernel_sources`, read as text,
+never imported) is kept in a marker file beside the module's cached kernels, and where it
+differs, their cache entries are dropped and compile afresh.
 
 The cache is numba's: `__pycache__` beside the sources, or NUMBA_CACHE_DIR. A kernel counts as
 cached when numba's index for it holds at least one compiled signature for its current source.
@@ -89,7 +90,7 @@ def sources_fingerprint():
     return digest.hexdigest()
 
 
-def _module_kernels(module_name, namespace):
+def module_kernels(module_name, namespace):
     """{name: dispatcher} of the separately compiled, cached numba kernels defined in the
     module namespace `namespace` (numba never compiles inline='always' helpers on their own:
     they are left out)."""
@@ -108,7 +109,7 @@ def forget_stale(namespace, fingerprint=None):
     `fingerprint` there. Called by each kernel module at the end of its import. Returns
     whether it dropped them."""
     fingerprint = fingerprint or sources_fingerprint()
-    kernels = _module_kernels(namespace['__name__'], namespace).values()
+    kernels = module_kernels(namespace['__name__'], namespace).values()
     if not kernels:  # (e.g. NUMBA_DISABLE_JIT: no dispatchers)
         return False
     marker = Path(next(iter(kernels))._cache._cache_path) / f'{namespace["__name__"]}.sources'
@@ -131,57 +132,6 @@ def is_cached(kernel):
     `kernel` for its current source (an index left by older source or another numba version
     counts as none)."""
     return bool(kernel._cache._cache_file._load_index())
-
-
-def cached_kernels():
-    """{qualified name: numba dispatcher} of every cached, separately compiled kernel."""
-    kernels = {}
-    for module_name in KERNEL_MODULES:
-        module = importlib.import_module(module_name)
-        kernels.update({f'{module_name}.{name}': kernel
-                        for name, kernel in _module_kernels(module_name, vars(module)).items()})
-    return kernels
-
-
-def uncached():
-    """Qualified names of the kernels that the cache does not hold."""
-    return [name for name, kernel in cached_kernels().items() if not is_cached(kernel)]
-
-
-def warm_up(log=print):
-    """Compile (or load) every kernel: short runs of the scenes and settings that use them,
-    with the gather kernels of the other surfaces compiled meanwhile in a second process.
-    Returns the qualified names still not cached (none, unless a kernel went unused)."""
-    import tempfile
-
-    import numpy as np
-
-    from .rft.kernel import plate_forces_compiled
-    from .sand import coupling
-    from .sand.array_table import TABLE_SIGNATURE
-    from .scenes.config import load_scene
-    from .sim.simulation import Simulation
-    others = [(kernel, TABLE_SIGNATURE) for kernel in (
-        coupling.gather_slope, coupling.gather_grid, coupling.gather_deformable)]
-
-    def run(scene, overrides):
-        log(f'warmup: {scene} {overrides or ""}'.rstrip())
-        Simulation(load_scene(scene, overrides)).step(2)
-
-    with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling:
-        run('hexapod', {})                      # implicit engine step (plane), tripod gait
-        run('articulated_leg', {})              # leg inverse kinematics
-        run('plate_drop', {'rft.low_velocity.method': 'ema'})  # the explicit path
-        compiling.wait()  # (a kernel it did not cache compiles in its run below)
-        level = Path(folder) / 'level.npy'  # a height grid (of the plane's height)
-        np.save(level, np.zeros((3, 3)))
-        run('plate_drop', {'sand.surface.type': 'slope'})  # the other surfaces' gathers
-        run('plate_drop', {'sand.surface.type': 'grid', 'sand.surface.file': str(level),
-                           'sand.surface.size': [1.0, 1.0]})
-        run('plate_drop', {'sand.deformable.enabled': True})  # and deformable sand's
-    down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
-    plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
-    return uncached()
 
 
 class BackgroundCompile:

@@ -310,12 +310,12 @@ def test_a_cold_kernel_cache_is_announced_before_compiling(tmp_path):
 
 
 def test_warmup_leaves_every_kernel_cached(capsys):
-    from rft_sim_ros import kernel_cache
+    from rft_sim_ros import warmup
     assert main(['warmup']) == 0
-    total = len(kernel_cache.cached_kernels())
+    total = len(warmup.cached_kernels())
     assert total >= 20  # the engine's, the law's and the gaits' kernels were all found
     assert f'{total} of {total} kernels cached' in capsys.readouterr().out
-    assert kernel_cache.uncached() == []
+    assert warmup.uncached() == []
 
 
 def test_an_ignored_sigint_stays_ignored(tmp_path):

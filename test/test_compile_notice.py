@@ -7,10 +7,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from rft_sim_ros.kernel_cache import (KERNEL_MODULES, PACKAGE, cached_kernels, forget_stale,
-                                      is_cached, kernel_sources, sources_fingerprint)
+from rft_sim_ros.kernel_cache import (KERNEL_MODULES, PACKAGE, forget_stale, is_cached,
+                                      kernel_sources, sources_fingerprint)
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
+from rft_sim_ros.warmup import cached_kernels
 
 _PROBE = ('from rft_sim_ros.scenes.config import load_scene\n'
           'from rft_sim_ros.sim.simulation import compile_notice\n'

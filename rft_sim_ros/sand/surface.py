@@ -33,11 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .grid_files import file_format, grey_levels, read_npy
-
-#: Kind codes read by the kernels.
-FLAT, SLOPE, GRID = 0, 1, 2
-#: Nodes per side of a block of the grid's block maximum.
-BLOCK = 8
+from .surface_codes import BLOCK, FLAT, GRID, SLOPE
 
 #: What the kernels read: kind code; the plane's height at the world origin (m) and gradient
 #: dh/dx, dh/dy; the grid (heights (ny, nx) m, origin = world (x, y) of node [0, 0], node
@@ -393,7 +389,7 @@ class HeightGrid(Surface):
         """The bilinear height the gather kernels read (`surface_kernels.grid_heights`),
         compiled: a Python caller (metrics, scenarios) sampling thousands of points at the
         publish rate pays microseconds, not a numpy pass per operation."""
-        from .surface_kernels import grid_heights  # (it imports this module)
+        from .surface_kernels import grid_heights  # (numba, imported when first used)
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         out = np.empty(x.shape)
         grid_heights(self.grid, self.origin[0], self.origin[1], 1.0 / self.spacing[0],

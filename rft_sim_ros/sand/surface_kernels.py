@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit
 
 from ..kernel_cache import forget_stale
-from .surface import BLOCK, FLAT, GRID, SLOPE
+from .surface_codes import BLOCK, FLAT, GRID, SLOPE
 
 
 @njit(inline='always')

@@ -1,0 +1,60 @@
+"""`rft-sim warmup`: every compiled kernel of the package into numba's on-disk cache ahead of
+a first run, by short runs of the scenes and settings that use them.
+
+This sits beside the CLI, above the simulation it runs; the cache bookkeeping the kernel
+modules themselves need (`kernel_cache`) sits below them and imports none of the package.
+"""
+import importlib
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .kernel_cache import KERNEL_MODULES, BackgroundCompile, is_cached, module_kernels
+from .rft.kernel import plate_forces_compiled
+from .sand import coupling
+from .sand.array_table import TABLE_SIGNATURE
+from .scenes.config import load_scene
+from .sim.simulation import Simulation
+
+
+def cached_kernels():
+    """{qualified name: numba dispatcher} of every cached, separately compiled kernel."""
+    kernels = {}
+    for module_name in KERNEL_MODULES:
+        module = importlib.import_module(module_name)
+        kernels.update({f'{module_name}.{name}': kernel
+                        for name, kernel in module_kernels(module_name, vars(module)).items()})
+    return kernels
+
+
+def uncached():
+    """Qualified names of the kernels that the cache does not hold."""
+    return [name for name, kernel in cached_kernels().items() if not is_cached(kernel)]
+
+
+def warm_up(log=print):
+    """Compile (or load) every kernel: short runs of the scenes and settings that use them,
+    with the gather kernels of the other surfaces compiled meanwhile in a second process.
+    Returns the qualified names still not cached (none, unless a kernel went unused)."""
+    others = [(kernel, TABLE_SIGNATURE) for kernel in (
+        coupling.gather_slope, coupling.gather_grid, coupling.gather_deformable)]
+
+    def run(scene, overrides):
+        log(f'warmup: {scene} {overrides or ""}'.rstrip())
+        Simulation(load_scene(scene, overrides)).step(2)
+
+    with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling:
+        run('hexapod', {})                      # implicit engine step (plane), tripod gait
+        run('articulated_leg', {})              # leg inverse kinematics
+        run('plate_drop', {'rft.low_velocity.method': 'ema'})  # the explicit path
+        compiling.wait()  # (a kernel it did not cache compiles in its run below)
+        level = Path(folder) / 'level.npy'  # a height grid (of the plane's height)
+        np.save(level, np.zeros((3, 3)))
+        run('plate_drop', {'sand.surface.type': 'slope'})  # the other surfaces' gathers
+        run('plate_drop', {'sand.surface.type': 'grid', 'sand.surface.file': str(level),
+                           'sand.surface.size': [1.0, 1.0]})
+        run('plate_drop', {'sand.deformable.enabled': True})  # and deformable sand's
+    down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
+    plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
+    return uncached()
