@@ -28,6 +28,7 @@ import functools
 import hashlib
 import importlib
 import importlib.util
+import json
 from pathlib import Path
 
 #: Modules holding the package's cached numba kernels.
@@ -132,6 +133,44 @@ def is_cached(kernel):
     `kernel` for its current source (an index left by older source or another numba version
     counts as none)."""
     return bool(kernel._cache._cache_file._load_index())
+
+
+#: File beside a module's cached kernels that keeps how long the last start that compiled
+#: them took (`record_cold_start`).
+COLD_START_FILE = 'rft_sim_ros.cold_start.json'
+
+
+def _cold_start_file(kernel):
+    """The cold-start record in the cache folder of numba dispatcher `kernel`."""
+    return Path(kernel._cache._cache_path) / COLD_START_FILE
+
+
+def record_cold_start(kernel, key, wall_s, cpu_s):
+    """Keep, in the cache folder of numba dispatcher `kernel`, that a start compiling the
+    kernels of `key` (a short text, e.g. 'implicit') took `wall_s` seconds (and `cpu_s` of
+    CPU, this process and its children), for `last_cold_start` to quote the next time those
+    kernels must compile in that folder (after an upgrade, an edit, a cleared cache). A
+    folder numba cannot write to keeps nothing."""
+    path = _cold_start_file(kernel)
+    try:
+        records = json.loads(path.read_text())
+    except (OSError, ValueError):
+        records = {}
+    records[key] = {'wall_s': round(wall_s, 2), 'cpu_s': round(cpu_s, 2)}
+    try:
+        path.write_text(json.dumps(records))
+    except OSError:
+        pass
+
+
+def last_cold_start(kernel, key):
+    """{'wall_s', 'cpu_s'} of the last start that compiled the kernels of `key` with its cache
+    in the folder of numba dispatcher `kernel` (`record_cold_start`), or None: none recorded."""
+    try:
+        record = json.loads(_cold_start_file(kernel).read_text())[key]
+        return {'wall_s': float(record['wall_s']), 'cpu_s': float(record['cpu_s'])}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 class BackgroundCompile:

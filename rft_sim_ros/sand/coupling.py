@@ -210,12 +210,17 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
 
-@njit(inline='always')
+@njit(cache=True, error_model='numpy', fastmath={'contract'})
 def _gather_plates(arrays, kind, deform):
     """Find the plates in the sand and their RFT force for the current direction of motion:
     one step (counted in the STEPS counter). `kind` (surface.FLAT, SLOPE or GRID) and
     `deform` (deformable sand: a GRID) are constants of each compiled kernel
-    (`gather_kernel`), so that each kind of surface runs a plate loop of its own.
+    (`gather_kernel`), so that each kind of surface runs a plate loop of its own: numba
+    compiles this function once for each pair of constants it is called with (literal
+    arguments), with its callers' options. (A function of its own rather than inline='always':
+    numba's inliner copies a callee's whole variable scope for each of its blocks, which cost
+    some 45 s CPU of every gather kernel's compile on this size of function, for the same
+    machine code; see docs/speed.md.)
 
     arrays: the table of an `ArrayTable` of `GatherArrays`; settings SURFACE ... TRAILING.
 

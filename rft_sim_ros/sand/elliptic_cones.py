@@ -37,6 +37,9 @@ CONE_TOLERANCE = 1e-6
 CONE_ITERATIONS = 12
 HALVINGS = 10
 ARMIJO = 1e-4
+#: The columns handed to the kernels below as numpy integers: a kernel taking a column then
+#: compiles once, where a plain int constant would compile it once for each literal value.
+_POINT, _JAR, _TRIAL = np.int64(ROW_POINT), np.int64(ROW_JAR), np.int64(ROW_TRIAL)
 
 
 @njit(cache=True, inline='always')
@@ -108,11 +111,11 @@ def _linearise(rows, r, dim, timestep, flags):
     there (into flags STATE): f ~ f(point) - H (jar - point) = ROW_LINEAR - H jar, and with
     jar = J qvel+ / dt - start its push dt (ROW_LINEAR + H start) (dt J^T f adds J^T H J to
     the system and J^T push to the right-hand side, `cone_terms`)."""
-    zone = cone_zone(rows, r, dim, ROW_POINT)
+    zone = cone_zone(rows, r, dim, _POINT)
     flags[STATE, r] = zone
     force = np.empty(CONE_ROWS)
     hessian = rows[r:r + dim, ROW_HESSIAN:ROW_HESSIAN + dim]
-    cone_force(rows, r, dim, zone, ROW_POINT, force, hessian)
+    cone_force(rows, r, dim, zone, _POINT, force, hessian)
     for a in range(dim):
         linear = force[a]
         for b in range(dim):
@@ -151,7 +154,7 @@ def cone_start(constraints, timestep):
     for r in range(n):
         if rows[r, ROW_KIND] == CONE:
             rows[r, ROW_JAR] = -rows[r, ROW_AREF]
-    return _linearise_all(constraints, ROW_JAR, timestep)
+    return _linearise_all(constraints, _JAR, timestep)
 
 
 @njit(cache=True)
@@ -218,7 +221,7 @@ def cone_errors(constraints, qvel, solution, timestep):
             rows[a, ROW_JAR] = row_jar(constraints, a, qvel, solution, timestep)
         for a in range(dim):
             rows[r + a, ROW_FORCE] = _linear_force(rows, r, dim, a, ROW_JAR)
-        error, size = _error(rows, r, dim, ROW_JAR, force, hessian)
+        error, size = _error(rows, r, dim, _JAR, force, hessian)
         wrong += error > CONE_TOLERANCE ** 2 * size
     return wrong
 
@@ -256,7 +259,7 @@ def cone_step(constraints, point, solution, system, rhs, timestep):
             for a in range(r, r + dim):
                 rows[a, ROW_TRIAL] = rows[a, ROW_POINT] + alpha * (rows[a, ROW_JAR]
                                                                    - rows[a, ROW_POINT])
-            _error(rows, r, dim, ROW_TRIAL, force, hessian)
+            _error(rows, r, dim, _TRIAL, force, hessian)
             for a in range(dim):
                 for c in columns[r + a, :counts[r + a]]:
                     residual[c] += timestep * jac[r + a, c] * force[a]
@@ -266,7 +269,7 @@ def cone_step(constraints, point, solution, system, rhs, timestep):
         if squared <= (1.0 - 2.0 * ARMIJO * alpha) * start or halving == HALVINGS:
             break
         alpha *= 0.5
-    _linearise_all(constraints, ROW_TRIAL, timestep)
+    _linearise_all(constraints, _TRIAL, timestep)
     for i in range(nv):
         point[i] += alpha * (solution[i] - point[i])
     return alpha
@@ -277,7 +280,7 @@ def cone_settled(constraints, timestep):
     """Where the cones' forces hold at the last solve's end velocities (`cone_errors`): each
     linearised there (ROW_POINT = ROW_JAR), for the solves the plates' and rows' sets may
     still ask for."""
-    _linearise_all(constraints, ROW_JAR, timestep)
+    _linearise_all(constraints, _JAR, timestep)
 
 
 @njit(cache=True)

@@ -10,12 +10,14 @@ Only the bodies a scene names carry plates; a body whose plates are all above th
 skipped after one bounding-sphere test, so cost grows with plates in the sand.
 """
 import contextlib
+import resource
+import time
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from ..kernel_cache import BackgroundCompile, is_cached, load
+from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, record_cold_start
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
@@ -28,29 +30,51 @@ from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
-#: Wall seconds a start takes with an empty numba cache (the kernels compile, in two processes:
-#: `_load_kernels`), measured on the 2-core VM of the README's figures (11-13 s idle; a busy
-#: or one-core machine takes longer); start-up messages quote it.
-COLD_START_S = 15
 #: Constraint rows an engine has room for at first (`SandEngine._take_constraint_rows` grows
 #: it for a step with more: a few contacts' pyramid edges, equalities, limits).
 CONSTRAINT_ROOM = 16
 
 
-def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
-    """Whether numba's on-disk cache holds current compiled code of the kernels an engine
-    with low-velocity `method` ('implicit'; any other: the explicit methods' kernels) on a
-    surface of `surface_kind` (deformable or not) runs, so
-    that building one compiles nothing (otherwise it compiles for about COLD_START_S: a
-    first run after install, or after an upgrade)."""
+def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False):
+    """The compiled kernels an engine with low-velocity `method` ('implicit'; any other: the
+    explicit methods' kernels) on a surface of `surface_kind` (deformable or not) runs."""
     gather = coupling.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
-        kernels = (gather, coupling.implicit_step, coupling.implicit_plate_forces,
-                   constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
-                   constraint_rows.return_constraint_rows)
-    else:
-        kernels = (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
-    return all(is_cached(kernel) for kernel in kernels)
+        return (gather, coupling.implicit_step, coupling.implicit_plate_forces,
+                constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
+                constraint_rows.return_constraint_rows)
+    return (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
+
+
+def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
+    """Whether numba's on-disk cache holds current compiled code of the `engine_kernels` of
+    these arguments, so that building such an engine compiles nothing (otherwise it compiles
+    them: a first run after install, or after an upgrade)."""
+    return all(is_cached(kernel) for kernel in engine_kernels(method, surface_kind, deformable))
+
+
+def _uncached_key(kernels):
+    """The names of those of `kernels` (numba dispatchers) that the cache lacks, as one text
+    (what a cold start's record is kept under); '' when it holds them all."""
+    return ' '.join(sorted(kernel.py_func.__qualname__ for kernel in kernels
+                           if not is_cached(kernel)))
+
+
+def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False):
+    """Wall seconds the last start that compiled what the cache now lacks of the
+    `engine_kernels` of these arguments took with this cache (measured on this machine by
+    `SandEngine._load_kernels`, kept by `kernel_cache.record_cold_start`); None when no start
+    compiled just those here (e.g. a first run after install) or none are missing."""
+    key = _uncached_key(engine_kernels(method, surface_kind, deformable))
+    record = last_cold_start(coupling.implicit_step, key) if key else None
+    return None if record is None else record['wall_s']
+
+
+def _cpu_seconds():
+    """CPU seconds of this process and its waited-for children (the background compile)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def full_inertia_call(model, data, out):
@@ -541,11 +565,24 @@ class SandEngine:
         as part of start-up, and not at the first step in contact with sand, where it would
         stall a running simulation (a paced ROS node) for up to a few tenths of a second:
         the gather kernel by its signature, the others by a run on no plates (their outputs
-        are scratch).
+        are scratch). Where any of them had to compile, the time that took is recorded in
+        the cache (`kernel_cache.record_cold_start`): the next notice that they compile
+        quotes it (`cold_start_estimate`)."""
+        cold = _uncached_key(engine_kernels(self.low_velocity.method, self.surface.data.kind,
+                                            self.deformable))
+        wall, cpu = time.perf_counter(), _cpu_seconds()
+        self._compile_kernels()
+        if cold:
+            record_cold_start(coupling.implicit_step, cold, time.perf_counter() - wall,
+                              _cpu_seconds() - cpu)
+        self._counters[:] = 0
+        self._wrench_sum[:] = 0.0
 
-        With a cold cache (a first run) and the implicit method, the gather kernel compiles
-        in a second process (`BackgroundCompile`) while this one compiles the implicit
-        step, the larger share: on two cores the start-up is that share, not the sum."""
+    def _compile_kernels(self):
+        """`_load_kernels`' loads: with a cold cache (a first run) and the implicit method,
+        the gather kernel compiles in a second process (`BackgroundCompile`) while this one
+        compiles the implicit step, the larger share: on two cores the start-up is that
+        share, not the sum."""
         if self._implicit_method:
             background = [(self._gather, TABLE_SIGNATURE)]
             with (BackgroundCompile(background) if not is_cached(self._gather)
@@ -558,8 +595,6 @@ class SandEngine:
         else:
             self._explicit()
         load(self._gather, TABLE_SIGNATURE)
-        self._counters[:] = 0
-        self._wrench_sum[:] = 0.0
 
     def mean_wrenches(self):
         """(nb, 6) mean of each sand body's wrench over the steps since the last call (what

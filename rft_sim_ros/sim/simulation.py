@@ -25,7 +25,7 @@ from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, ini
                           lift_to, parse_spawn, set_initial_pose)
 from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
                                  resolve_sand_bodies)
-from ..sand.engine import COLD_START_S, LowVelocity, SandEngine, kernels_cached
+from ..sand.engine import LowVelocity, SandEngine, cold_start_estimate, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
 from ..sand.surface import (CHECKED_SLOPE_DEG, GRID, SURFACE_KINDS, Surface, hfield_geom,
@@ -103,10 +103,16 @@ def kernel_key(scene):
 
 def compile_notice(scene):
     """The line to show before building `scene` (SceneConfig) when its sand kernels are not
-    in numba's cache yet: 'compiling kernels, first run only, ~N s'; None when cached."""
-    if kernels_cached(*kernel_key(scene)):
+    in numba's cache yet: 'compiling kernels, first run only', with ', ~N s as here last
+    time' where a start that compiled the same kernels with this cache measured it
+    (`engine.cold_start_estimate`; a first run after install has no such measure, and a
+    figure from another machine would be a promise); None when cached."""
+    key = kernel_key(scene)
+    if kernels_cached(*key):
         return None
-    return f'compiling kernels, first run only, ~{COLD_START_S:.0f} s'
+    seconds = cold_start_estimate(*key)
+    return 'compiling kernels, first run only' + (
+        '' if seconds is None else f', ~{seconds:.0f} s as here last time')
 
 
 #: Columns (y, z, x) and (z, x, y) of a vector: a x b = a[NEXT] b[LAST] - a[LAST] b[NEXT].
