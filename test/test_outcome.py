@@ -76,3 +76,31 @@ def test_the_words_say_a_body_left_under_the_sand():
     assert words(outcome, 0.9, 'pelvis') == (
         'fell at t = 0.80 s: base turned 95 deg; pelvis ends 90 cm below the sand surface; '
         'deepest: pelvis 120 cm below the surface at t = 1.50 s (no plates: it passed through)')
+
+
+def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
+    """/diagnostics (ROS-free fields): the outcome's words and figures as values, level WARN
+    once the robot fell, OK before."""
+    from rft_sim_ros.ros.messages import RunStatus, diagnostic_fields
+    from rft_sim_ros.sim.state import SimState
+    state = SimState(time=1.0, joint_names=(), joint_positions=np.zeros(0),
+                     joint_velocities=np.zeros(0), joint_efforts=np.zeros(0), base_frame='b',
+                     base_position=np.zeros(3), base_quaternion_wxyz=np.array([1.0, 0, 0, 0]),
+                     base_linear_velocity=np.zeros(3), base_angular_velocity=np.zeros(3),
+                     legs=(), zeta=3.75, plates_active=0)
+    fallen = {'fell': True, 'fell_at_s': 0.8, 'tilt_limit_deg': 45.0, 'max_tilt_deg': 95.0,
+              'final_tilt_deg': 90.0, 'deepest': {'body': 'trunk', 'depth_m': 0.02,
+                                                  'time_s': 0.9, 'has_plates': True},
+              'unsettled_step_share': 0.0, 'max_uncovered_penetration_m': None,
+              'words': 'fell at t = 0.80 s: base turned 95 deg; lying on the sand'}
+    fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0,
+                                                outcome=fallen))
+    values = dict(fields.values)
+    assert fields.level == 1 and fields.message == 'running'
+    assert values['outcome'] == fallen['words'] and values['fell'] == 'true'
+    assert float(values['fell_at_s']) == 0.8 and values['deepest_body'] == 'trunk'
+    assert values['max_uncovered_penetration_m'] == 'nan'
+    standing = {**fallen, 'fell': False, 'fell_at_s': None, 'deepest': None, 'words': 'upright'}
+    fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0,
+                                                outcome=standing))
+    assert fields.level == 0 and dict(fields.values)['fell_at_s'] == 'nan'

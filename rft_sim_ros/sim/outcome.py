@@ -134,6 +134,8 @@ class OutcomeWatch:
     def observe(self, data, surface, time):
         """One look at `data` at sim time `time` (s)."""
         tilt = self.tilt(data)
+        if not np.isfinite(tilt):  # (a diverged state: nothing to learn from it)
+            return
         self.max_tilt = max(self.max_tilt, tilt)
         if self.fell_at is None and tilt > self.tilt_limit_deg:
             self.fell_at = time

@@ -537,6 +537,11 @@ class Simulation:
         e = self.engine
         return np.array([e.solves, e.unsettled_steps, e.handed_back_steps], dtype=np.int64)
 
+    @property
+    def fell(self):
+        """Whether the robot has fallen since the last (re)start (sim/outcome.py)."""
+        return self._outcome.fell_at is not None
+
     def outcome(self):
         """What happened since the last (re)start, the state now included, as
         summary.json's `outcome` says it (sim/outcome.py): fell, how deep any body went, the
