@@ -108,9 +108,8 @@ def _bearing_notice(model, data, engine, zeta, base, sand_count):
     return [f'sand bodies: their {found.area_m2 * 1e4:.3g} cm^2 facing down bear the robot\'s '
             f'{mass:.3g} kg only about {found.depth_m * 100:.3g} cm deep (zeta A z = m g), '
             f'deeper than its other bodies clear them ({found.clearance_m * 100:.3g} cm): those '
-            'go into the sand too, ' + ('held there by their coarser plates '
-                                        '(rft.other_bodies_density_per_mm2)'
-                                        if len(engine.body_ids) > sand_count else
-                                        'which does not hold them, and pass through it')
+            + ('bear the rest on their coarser plates (rft.other_bodies_density_per_mm2)'
+               if len(engine.body_ids) > sand_count else
+               'pass through its surface, which does not hold them')
             + "; name more sand bodies (rft.bodies; '*' takes every body) or take their plates "
             'from their visual geoms (rft.plate_geoms: visual)']

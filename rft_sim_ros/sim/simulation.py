@@ -711,7 +711,8 @@ class Simulation:
         body, depth = found
         return (f'by t = {self.time:.2f} s body {body} reached {depth * 100:.3g} cm into the '
                 'sand: it carries no plates, so the sand does not act on it and it passes '
-                "through; name it a sand body (rft.bodies; '*' takes every body)")
+                "through; name it a sand body (rft.bodies; '*' takes every body) or give the "
+                'other bodies plates (rft.other_bodies_density_per_mm2)')
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean
