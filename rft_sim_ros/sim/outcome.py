@@ -6,9 +6,9 @@ bodies went into the sand, and how often the implicit solve did not settle.
 - the base's tilt: the angle (deg) between its up axis (body z) now and at the (re)start,
   after spawn rest settled it; the robot fell once it exceeds TILT_LIMIT_DEG (a quadruped on
   its side, a humanoid on its back; standing and walking robots stay well within it);
-- the lowest point of every collision geom of every moving body (exact for spheres,
-  capsules, cylinders, ellipsoids and boxes; a mesh's bounding box's lowest corner, at or
-  below the mesh), against the sand surface under that point: the deepest one (body, depth
+- the lowest point of every collision geom of every moving body (exact: for a mesh its
+  lowest vertex, of the convex hull MuJoCo collides where it made one), against the sand
+  surface under that point: the deepest one (body, depth
   m, time s, whether the body carries plates) and the deepest of the bodies without plates
   (`rft.other_bodies_density_per_mm2: null` allows them);
 
@@ -45,15 +45,29 @@ DEEP_M = 0.05
 #: The share of unsettled implicit steps above which the words say it.
 UNSETTLED_SAID = 0.01
 
-_SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX = (
+_SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = (
     int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE),
     int(mujoco.mjtGeom.mjGEOM_ELLIPSOID), int(mujoco.mjtGeom.mjGEOM_CYLINDER),
-    int(mujoco.mjtGeom.mjGEOM_BOX))
+    int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_MESH))
+
+
+def mesh_vertices(model, geom):
+    """(V, 3) vertices (m, geom frame) of mesh geom `geom`: those of the convex hull MuJoCo
+    made of it (what it collides), else all of its mesh's."""
+    mesh = model.geom_dataid[geom]
+    start = model.mesh_vertadr[mesh]
+    vertices = model.mesh_vert[start:start + model.mesh_vertnum[mesh]]
+    graph = model.mesh_graphadr[mesh]
+    if graph < 0:
+        return vertices
+    count = model.mesh_graph[graph]
+    return vertices[model.mesh_graph[graph + 2 + count:graph + 2 + 2 * count]]
 
 
 class LowestPoints:
     """The lowest points (world, m) of a set of geoms of a model, vectorised by geom type:
-    each geom's support point in the direction of world -z."""
+    each primitive's support point in the direction of world -z, each mesh's lowest vertex
+    (`mesh_vertices`; other types: their bounding box's lowest corner, at or below them)."""
 
     def __init__(self, model, geoms):
         self.geoms = np.asarray(geoms, dtype=int)
@@ -64,11 +78,17 @@ class LowestPoints:
         self._capsule = kind == _CAPSULE
         self._cylinder = kind == _CYLINDER
         self._ellipsoid = kind == _ELLIPSOID
-        # boxes and everything else (meshes): the bounding box's lowest corner (a box's is
-        # its own)
-        self._box = ~(self._sphere | self._capsule | self._cylinder | self._ellipsoid)
+        self._mesh = kind == _MESH
+        # boxes, and other types (a bounding box's lowest corner)
+        self._box = ~(self._sphere | self._capsule | self._cylinder | self._ellipsoid
+                      | self._mesh)
         self._box_size = np.where(kind[:, None] == _BOX, self._size, self._aabb[:, 3:])
         self._box_center = np.where(kind[:, None] == _BOX, 0.0, self._aabb[:, :3])
+        # the meshes' vertices, (meshes, V, 3), each padded with copies of its first
+        vertices = [mesh_vertices(model, g) for g in self.geoms[self._mesh]]
+        most = max((len(v) for v in vertices), default=0)
+        self._vertices = np.array([np.vstack([v, np.repeat(v[:1], most - len(v), axis=0)])
+                                   for v in vertices]).reshape(len(vertices), most, 3)
 
     def __call__(self, data):
         """(G, 3) world positions (m) of the geoms' lowest points in `data`'s pose."""
@@ -92,6 +112,10 @@ class LowestPoints:
             support[e] = stretched / np.sqrt(np.einsum('gi,gi->g', stretched, down[e]))[:, None]
         b = self._box
         support[b] = self._box_center[b] + np.copysign(self._box_size[b], down[b])
+        m = self._mesh
+        if m.any():
+            heights = np.einsum('gj,gvj->gv', down[m], self._vertices)  # along -z
+            support[m] = self._vertices[np.arange(m.sum()), np.argmax(heights, axis=1)]
         return data.geom_xpos[self.geoms] + np.einsum('gij,gj->gi', rotation, support)
 
 
