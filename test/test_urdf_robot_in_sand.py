@@ -38,7 +38,7 @@ def sandbot():
 
 def test_auto_sand_bodies_are_the_feet_with_the_plates_asked(sandbot):
     assert sandbot.sand_bodies == FEET  # mesh feet on fixed joints, one per branch
-    counts = np.diff(sandbot.engine.plate_start)
+    counts = np.diff(sandbot.engine.plate_start)[:len(FEET)]
     assert np.all(np.abs(counts - 200) <= 4), counts  # +-2 %
 
 
