@@ -7,7 +7,7 @@ and is held once named beside auto (robot/sand_bodies.py)."""
 import mujoco
 import pytest
 
-from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree
+from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree, other_bodies
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
@@ -72,6 +72,15 @@ def test_legs_below_a_waist_give_two_feet_and_two_legs(spur):
     assert _names(model, feet) == ['foot_left', 'foot_right']  # not the arms: above the band
     legs = legs_from_tree(model, [model.body(b).name for b in feet], torso)
     assert legs == {'thigh_right': ('foot_right',), 'thigh_left': ('foot_left',)}
+    # the other bodies: those of a leg's branch join its wrench, before its foot (the leg's
+    # point); the torso, waist, pelvis and arms are in no leg
+    others = other_bodies(model, _names(model, feet))
+    assert {'torso', 'arm_left', 'pelvis', 'shin_left'} <= set(others)
+    legs = legs_from_tree(model, [model.body(b).name for b in feet], torso, others)
+    spurs = ('spur_right',) if spur else ()
+    assert legs == {'thigh_right': ('thigh_right', *spurs, 'shin_right', 'foot_right'),
+                    'thigh_left': ('thigh_left', *(s.replace('right', 'left') for s in spurs),
+                                   'shin_left', 'foot_left')}
 
 
 def test_a_foots_toes_touching_the_ground_are_sand_bodies_of_its_leg():
