@@ -83,3 +83,23 @@ def test_without_plates_on_its_other_bodies_a_fallen_biped_sinks_and_says_so():
     assert outcome['max_uncovered_penetration_m'] > 0.05
     assert not outcome['deepest']['has_plates']
     assert '(no plates: it passed through)' in outcome['words']
+
+
+def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
+    """run_scene writes `outcome` (sim/outcome.py) with the keys others read, beside
+    `stable`; the run's words are what it says."""
+    import json
+
+    from rft_sim_ros.sim.runner import run_scene
+    run_scene(load_scene(BIPED / 'biped.xml', {'robot.keyframe': 'stand'}), tmp_path,
+              duration=0.3, progress=False, plots=False)
+    summary = json.loads((tmp_path / 'summary.json').read_text())
+    keys = list(summary)
+    assert keys.index('outcome') == keys.index('stable') + 1
+    outcome = summary['outcome']
+    assert set(outcome) == {'fell', 'fell_at_s', 'tilt_limit_deg', 'max_tilt_deg',
+                            'final_tilt_deg', 'deepest', 'unsettled_step_share',
+                            'max_uncovered_penetration_m', 'words'}
+    assert set(outcome['deepest']) == {'body', 'depth_m', 'time_s', 'has_plates'}
+    assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
+    assert summary['other_bodies'] and 'trunk' in summary['plates_per_body']
