@@ -1,7 +1,7 @@
 """What happened to the robot in a run, said plainly: whether it fell, how deep any of its
 bodies went into the sand, and how often the implicit solve did not settle.
 
-`OutcomeWatch` looks, at a modest rate of sim time (the Simulation's CHECK_RATE), at
+`OutcomeWatch` looks, at a modest rate of sim time (the Simulation's OUTCOME_RATE, 25 Hz), at
 
 - the base's tilt: the angle (deg) between its up axis (body z) now and at the (re)start,
   after spawn rest settled it; the robot fell once it exceeds TILT_LIMIT_DEG (a quadruped on
@@ -12,7 +12,8 @@ bodies went into the sand, and how often the implicit solve did not settle.
   m, time s, whether the body carries plates) and the deepest of the bodies without plates
   (`rft.other_bodies_density_per_mm2: null` allows them);
 
-numpy over the geoms, a few tens of microseconds a look. `result` adds the share of steps
+numpy over the geoms near the surface (their bounding spheres reach it), a few tens of
+microseconds a look. `result` adds the share of steps
 the implicit solve did not settle and says it all in words (`words`).
 
 The summary's `outcome` (summary.json, /diagnostics):
@@ -31,6 +32,8 @@ The summary's `outcome` (summary.json, /diagnostics):
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
                               lying on the sand".
 """
+import math
+
 import mujoco
 import numpy as np
 
@@ -65,58 +68,57 @@ def mesh_vertices(model, geom):
 
 
 class LowestPoints:
-    """The lowest points (world, m) of a set of geoms of a model, vectorised by geom type:
-    each primitive's support point in the direction of world -z, each mesh's lowest vertex
-    (`mesh_vertices`; other types: their bounding box's lowest corner, at or below them)."""
+    """The lowest points (world, m) of a set of geoms of a model: each primitive's support
+    point in the direction of world -z, each mesh's lowest vertex (`mesh_vertices`; other
+    types: their bounding box's lowest corner, at or below them). A primitive's support
+    point is a sum of terms whose coefficients are its sizes (zero where a term is not its
+    type's), so that all of them take the same few array operations."""
 
     def __init__(self, model, geoms):
         self.geoms = np.asarray(geoms, dtype=int)
         kind = model.geom_type[self.geoms]
-        self._size = model.geom_size[self.geoms]
-        self._aabb = model.geom_aabb[self.geoms]
-        self._sphere = kind == _SPHERE
-        self._capsule = kind == _CAPSULE
-        self._cylinder = kind == _CYLINDER
-        self._ellipsoid = kind == _ELLIPSOID
-        self._mesh = kind == _MESH
-        # boxes, and other types (a bounding box's lowest corner)
-        self._box = ~(self._sphere | self._capsule | self._cylinder | self._ellipsoid
-                      | self._mesh)
-        self._box_size = np.where(kind[:, None] == _BOX, self._size, self._aabb[:, 3:])
-        self._box_center = np.where(kind[:, None] == _BOX, 0.0, self._aabb[:, :3])
-        # the meshes' vertices, (meshes, V, 3), each padded with copies of its first
-        vertices = [mesh_vertices(model, g) for g in self.geoms[self._mesh]]
-        most = max((len(v) for v in vertices), default=0)
-        self._vertices = np.array([np.vstack([v, np.repeat(v[:1], most - len(v), axis=0)])
-                                   for v in vertices]).reshape(len(vertices), most, 3)
+        size = model.geom_size[self.geoms]
+        #: m: each geom's bounding sphere about its frame's origin (MuJoCo's geom_rbound)
+        self.reach = model.geom_rbound[self.geoms]
+        aabb = model.geom_aabb[self.geoms]
+        is_ = {t: (kind == t)[:, None] for t in (_SPHERE, _CAPSULE, _CYLINDER, _ELLIPSOID,
+                                                _BOX, _MESH)}
+        other = ~(is_[_SPHERE] | is_[_CAPSULE] | is_[_CYLINDER] | is_[_ELLIPSOID]
+                  | is_[_MESH])  # boxes and other types: a box, the bounding box
+        # s = ball * down + ends * sign(down_z) e_z + rim * (down_x, down_y, 0) / |...|
+        #     + shell^2 * down / |shell * down| + centre + half * sign(down)
+        self._ball = np.where(is_[_SPHERE] | is_[_CAPSULE], size[:, :1], 0.0)
+        self._ends = np.where(is_[_CAPSULE] | is_[_CYLINDER], size[:, 1:2], 0.0)[:, 0]
+        self._rim = np.where(is_[_CYLINDER], size[:, :1], 0.0)
+        self._shell = np.where(is_[_ELLIPSOID], size, 0.0)
+        self._ellipsoid = is_[_ELLIPSOID][:, 0]
+        self._half = np.where(other, np.where(is_[_BOX], size, aabb[:, 3:]), 0.0)
+        self._centre = np.where(other & ~is_[_BOX], aabb[:, :3], 0.0)
+        self._vertices = {i: mesh_vertices(model, g) for i, g in enumerate(self.geoms)
+                          if kind[i] == _MESH}
 
-    def __call__(self, data):
-        """(G, 3) world positions (m) of the geoms' lowest points in `data`'s pose."""
-        rotation = data.geom_xmat[self.geoms].reshape(-1, 3, 3)
+    def __call__(self, data, which=None):
+        """(K, 3) world positions (m) of the lowest points, in `data`'s pose, of the geoms
+        at indices `which` (into `geoms`; None: all)."""
+        which = np.arange(len(self.geoms)) if which is None else which
+        rotation = data.geom_xmat[self.geoms[which]].reshape(-1, 3, 3)
         down = -rotation[:, 2, :]  # world -z in each geom's frame
-        size = self._size
-        support = np.zeros_like(down)
-        round_ = self._sphere | self._capsule
-        support[round_] = size[round_, :1] * down[round_]
-        ends = self._capsule | self._cylinder
-        support[ends, 2] += np.copysign(size[ends, 1], down[ends, 2])
-        c = self._cylinder
-        if c.any():
-            radial = down[c, :2]
-            length = np.linalg.norm(radial, axis=1, keepdims=True)
-            support[c, :2] += size[c, :1] * np.divide(radial, length, out=np.zeros_like(radial),
-                                                      where=length > 0)
-        e = self._ellipsoid
-        if e.any():
-            stretched = size[e, :3] ** 2 * down[e]
-            support[e] = stretched / np.sqrt(np.einsum('gi,gi->g', stretched, down[e]))[:, None]
-        b = self._box
-        support[b] = self._box_center[b] + np.copysign(self._box_size[b], down[b])
-        m = self._mesh
-        if m.any():
-            heights = np.einsum('gj,gvj->gv', down[m], self._vertices)  # along -z
-            support[m] = self._vertices[np.arange(m.sum()), np.argmax(heights, axis=1)]
-        return data.geom_xpos[self.geoms] + np.einsum('gij,gj->gi', rotation, support)
+        support = self._ball[which] * down + self._centre[which] + np.copysign(
+            self._half[which], down)
+        support[:, 2] += np.copysign(self._ends[which], down[:, 2])
+        flat = np.hypot(down[:, 0], down[:, 1])[:, None]
+        support[:, :2] += self._rim[which] * down[:, :2] / np.maximum(flat, 1e-12)
+        ellipsoids = np.flatnonzero(self._ellipsoid[which])
+        if ellipsoids.size:
+            shell = self._shell[which[ellipsoids]]
+            stretched = shell ** 2 * down[ellipsoids]
+            support[ellipsoids] += stretched / np.sqrt(
+                np.einsum('gi,gi->g', stretched, down[ellipsoids]))[:, None]
+        for j, i in enumerate(which):
+            vertices = self._vertices.get(int(i))
+            if vertices is not None:
+                support[j] = vertices[np.argmax(vertices @ down[j])]
+        return data.geom_xpos[self.geoms[which]] + np.einsum('gij,gj->gi', rotation, support)
 
 
 class OutcomeWatch:
@@ -136,7 +138,7 @@ class OutcomeWatch:
 
     def start(self, data, time):
         """From a (re)start at sim time `time` (s): the base's up axis now is upright."""
-        self._up = None if data is None else data.xmat[self._base].reshape(3, 3)[:, 2].copy()
+        self._up = None if data is None else data.xmat[self._base].reshape(3, 3)[:, 2].tolist()
         self.fell_at = None
         self.max_tilt = 0.0
         self.deepest = None  # (depth m, geom index, time s)
@@ -146,14 +148,27 @@ class OutcomeWatch:
         """deg between the base's up axis now and at the start."""
         if self._up is None:
             return 0.0
-        up = data.xmat[self._base].reshape(3, 3)[:, 2]
-        return float(np.degrees(np.arccos(np.clip(up @ self._up, -1.0, 1.0))))
+        x, y, z = self._up
+        rotation = data.xmat[self._base]  # (row-major: its up axis is column 2)
+        cosine = rotation[2] * x + rotation[5] * y + rotation[8] * z
+        return math.degrees(math.acos(min(1.0, max(-1.0, cosine)))) if cosine == cosine \
+            else math.nan
 
-    def depths(self, data, surface):
-        """(G,) m: how far each collision geom's lowest point lies below `surface` (a
-        sand.surface.Surface) under it (negative: above)."""
-        points = self._lowest(data)
+    def depths(self, data, surface, which=None):
+        """(K,) m: how far the lowest point of each collision geom (at indices `which`;
+        None: all) lies below `surface` (a sand.surface.Surface) under it (negative:
+        above)."""
+        points = self._lowest(data, which)
         return surface.height(points[:, 0], points[:, 1]) - points[:, 2]
+
+    def _near(self, data, surface):
+        """Indices of the geoms whose bounding sphere reaches below the surface under its
+        centre raised by its radius (so on any slope up to 45 deg): the only ones that
+        can be in the sand, found in a few array operations."""
+        centres = data.geom_xpos[self._lowest.geoms]
+        reach = self._lowest.reach
+        ground = surface.height(centres[:, 0], centres[:, 1])
+        return np.flatnonzero(centres[:, 2] - reach < ground + reach)
 
     def observe(self, data, surface, time):
         """One look at `data` at sim time `time` (s)."""
@@ -163,14 +178,16 @@ class OutcomeWatch:
         self.max_tilt = max(self.max_tilt, tilt)
         if self.fell_at is None and tilt > self.tilt_limit_deg:
             self.fell_at = time
-        if not self._lowest.geoms.size:
+        near = self._near(data, surface) if self._lowest.geoms.size else ()
+        if not len(near):
             return
-        depth = self.depths(data, surface)
-        g = int(np.argmax(depth))
-        if depth[g] > 0.0 and (self.deepest is None or depth[g] > self.deepest[0]):
-            self.deepest = (float(depth[g]), g, time)
-        if self.uncovered is not None:
-            self.uncovered = max(self.uncovered, float(depth[~self._has_plates].max()))
+        depth = self.depths(data, surface, near)
+        i = int(np.argmax(depth))
+        if depth[i] > 0.0 and (self.deepest is None or depth[i] > self.deepest[0]):
+            self.deepest = (float(depth[i]), int(near[i]), time)
+        bare = ~self._has_plates[near]
+        if self.uncovered is not None and bare.any():
+            self.uncovered = max(self.uncovered, float(depth[bare].max()))
 
     def _body(self, g):
         return self._model.body(int(self._bodies[g])).name

@@ -43,6 +43,9 @@ from ..rft.force_law import DynamicTerm
 RUNAWAY_SPEED = 1.0e3
 #: Hz of sim time at which the state is checked for a runaway speed and MuJoCo's warnings.
 CHECK_RATE = 100.0
+#: Hz of sim time at which the outcome (sim/outcome.py) looks at the robot: its tilt, and how
+#: deep its geoms near the surface are.
+OUTCOME_RATE = 25.0
 #: s of sim time between the looks for bodies without plates in the sand (`sand_entry`), and
 #: for a fall while spawn rest settles the robot.
 ENTRY_CHECK_S = 0.1
@@ -261,6 +264,8 @@ class Simulation:
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
         self._check_every = max(1, int(round(
             1.0 / (CHECK_RATE * self._control_every * scene.timestep))))
+        self._outcome_every = max(1, int(round(
+            1.0 / (OUTCOME_RATE * self._control_every * scene.timestep))))
         self._ctrl = self.data.ctrl
         self._warning_numbers = self.data.warning.number  # a view of mjData's warning counts
         self._time_offset = 0.0
@@ -606,6 +611,7 @@ class Simulation:
             problem = self._check()
             if problem:
                 self._diverge(problem)
+        if self._ticks % self._outcome_every == 0:
             self._outcome.observe(self.data, self.engine.surface, self.time)
         self.scenario.control(self)
         commands = self.commands
