@@ -207,6 +207,7 @@ def cmd_run(args):
             'plates_total', 'plates_active_mean', 'stable', 'interrupted', 'reason')
     print(json.dumps(significant({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
                                   'generic_metrics': summary['generic_metrics']}), indent=2))
+    print(f'rft-sim: outcome: {summary["outcome"]["words"]}', file=sys.stderr)
     print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag'),
           file=sys.stderr)
     if stop.signal is not None:

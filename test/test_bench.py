@@ -118,3 +118,10 @@ def test_terrain_cost_writes_every_surface_against_the_plane(tmp_path):
     assert results['cases']['plane']['ratio_to_plane'] == 1.0 and results['processes'] == 2
     assert len(results['cases']) == 9 and results['machine']['cores'] >= 1
     assert '| deformable 8 m x 8 m, 1 cm |' in (tmp_path / 'terrain_cost.md').read_text()
+
+
+def test_other_bodies_cost_compares_the_same_robot_with_and_without_their_plates():
+    from rft_sim_ros.bench.other_bodies import step_cost_ratio
+    cost = step_cost_ratio('quadruped', {'gait': 'none'}, warm_s=0.05, chunks=2, chunk_steps=20)
+    assert cost['other_plates'] > 0 and cost['others_in_sand'] == 0  # trunk, calves: above
+    assert cost['with_us'] > 0 and cost['without_us'] > 0 and cost['ratio'] > 0

@@ -23,11 +23,13 @@ _SURFACES = {
 
 
 def _reference_depths(sim):
-    """(bodies,) m: each plate rotated into the world on its own, its depth below the surface
-    at its own (x, y); the body's deepest, 0 if none is below."""
+    """(sand bodies,) m: each plate rotated into the world on its own, its depth below the
+    surface at its own (x, y); the body's deepest, 0 if none is below (the engine's first
+    bodies are the sand bodies; the others' plates follow)."""
     engine, data = sim.engine, sim.data
     depths = []
-    for b, body in enumerate(engine.body_ids):
+    assert engine.body_names[:len(sim.sand_bodies)] == sim.sand_bodies
+    for b, body in enumerate(engine.body_ids[:len(sim.sand_bodies)]):
         local = engine.local_pos[engine.plate_start[b]:engine.plate_start[b + 1]]
         world = np.array([data.xmat[body].reshape(3, 3) @ p + data.xpos[body] for p in local])
         below = engine.surface.height(world[:, 0], world[:, 1]) - world[:, 2]

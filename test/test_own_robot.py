@@ -43,8 +43,10 @@ def test_auto_picks_the_lowest_body_of_each_leg_and_names_legs_by_branch(tmp_pat
     sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 100}',
                            robot='{keyframe: home}'))
     assert sim.sand_bodies == CALVES
-    assert sim.legs == {'FL_hip': ('FL_calf',), 'FR_hip': ('FR_calf',),
-                        'RL_hip': ('RL_calf',), 'RR_hip': ('RR_calf',)}
+    # each leg ends at its sand body (its point); the other bodies of its branch come before
+    assert {leg: bodies[-1] for leg, bodies in sim.legs.items()} == {
+        'FL_hip': 'FL_calf', 'FR_hip': 'FR_calf', 'RL_hip': 'RL_calf', 'RR_hip': 'RR_calf'}
+    assert sim.legs['FL_hip'][:-1] == ('FL_hip', 'FL_thigh') and 'trunk' in sim.other_bodies
     assert sim.notices[0] == 'sand bodies (auto): FL_calf, FR_calf, RL_calf, RR_calf'
     # a robot sitting on its trunk: the trunk is the lowest body of its own branch and the
     # legs, folded up, are not within the tolerance: auto picks the trunk alone
@@ -74,7 +76,8 @@ def test_globs_choose_bodies_and_legs_follow_the_tree(tmp_path, robot):
                                                 "plates_per_body: 100}"))
     assert set(sim.sand_bodies) == {f'{leg}_{part}' for leg in ('FL', 'FR', 'RL', 'RR')
                                     for part in ('thigh', 'calf')}
-    assert sim.legs['FL_hip'] == ('FL_thigh', 'FL_calf')  # base outwards: calf = foot point
+    # base outwards: calf = foot point
+    assert [b for b in sim.legs['FL_hip'] if b in sim.sand_bodies] == ['FL_thigh', 'FL_calf']
     with pytest.raises(SceneError, match=r"rft.bodies: sand body '\*foot\*' matches no body"):
         Simulation(scene(tmp_path, robot, rft="{bodies: '*foot*'}"))
 
@@ -82,7 +85,7 @@ def test_globs_choose_bodies_and_legs_follow_the_tree(tmp_path, robot):
 def test_plates_come_from_collision_geoms_in_the_count_asked(tmp_path, robot):
     sim = Simulation(scene(tmp_path, robot, rft="{bodies: [trunk, '*_calf'], "
                                                 "plates_per_body: 300}"))
-    counts = np.diff(sim.engine.plate_start)
+    counts = np.diff(sim.engine.plate_start)[:len(sim.sand_bodies)]
     assert np.all(np.abs(counts - 300) <= 6), counts  # +-2 %
     trunk = sim.engine.body_names.index('trunk')
     plates = sim.engine.local_pos[sim.engine.plate_start[trunk]:sim.engine.plate_start[trunk + 1]]
@@ -216,7 +219,8 @@ def test_rft_sim_run_takes_the_robot_file_with_keyframe_and_spawn(robot, tmp_pat
     assert 'rft-sim: sand bodies (auto): FL_calf, FR_calf, RL_calf, RR_calf' in err
     summary = json.loads((out / 'summary.json').read_text())
     generic = summary['generic_metrics']
-    assert summary['legs'] == {f'{leg}_hip': [f'{leg}_calf'] for leg in ('FL', 'FR', 'RL', 'RR')}
+    assert {leg: bodies[-1] for leg, bodies in summary['legs'].items()} == {
+        f'{leg}_hip': f'{leg}_calf' for leg in ('FL', 'FR', 'RL', 'RR')}
     assert generic['stable'] and 0 < generic['max_depth_m_FL_calf'] < 0.1
     assert generic['peak_force_z_N_FL_hip'] > 0
     assert main(['run', str(robot), '--spawn', 'hover', '--out', str(tmp_path / 'x')]) == 2

@@ -7,7 +7,7 @@ and is held once named beside auto (robot/sand_bodies.py)."""
 import mujoco
 import pytest
 
-from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree
+from rft_sim_ros.robot.sand_bodies import auto_sand_bodies, legs_from_tree, other_bodies
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
 
@@ -72,6 +72,15 @@ def test_legs_below_a_waist_give_two_feet_and_two_legs(spur):
     assert _names(model, feet) == ['foot_left', 'foot_right']  # not the arms: above the band
     legs = legs_from_tree(model, [model.body(b).name for b in feet], torso)
     assert legs == {'thigh_right': ('foot_right',), 'thigh_left': ('foot_left',)}
+    # the other bodies: those of a leg's branch join its wrench, before its foot (the leg's
+    # point); the torso, waist, pelvis and arms are in no leg
+    others = other_bodies(model, _names(model, feet))
+    assert {'torso', 'arm_left', 'pelvis', 'shin_left'} <= set(others)
+    legs = legs_from_tree(model, [model.body(b).name for b in feet], torso, others)
+    spurs = ('spur_right',) if spur else ()
+    assert legs == {'thigh_right': ('thigh_right', *spurs, 'shin_right', 'foot_right'),
+                    'thigh_left': ('thigh_left', *(s.replace('right', 'left') for s in spurs),
+                                   'shin_left', 'foot_left')}
 
 
 def test_a_foots_toes_touching_the_ground_are_sand_bodies_of_its_leg():
@@ -136,13 +145,20 @@ def test_a_glob_takes_the_bodies_with_geoms_not_the_world_nor_empty_frames(tmp_p
 
 
 def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
-    """A loose crate beside the robot, with no sand body of its own, falls through the sand:
-    the user is told, and told how to change it (naming a sand body of it silences it)."""
+    """A loose crate beside the robot, with no sand body of its own, carries the other
+    bodies' plates, and the sand holds it; with those off it falls through the sand: the
+    user is told, and told how to change it (naming a sand body of it silences it)."""
     crate = ('<body name="crate" pos="1 0 0.2"><freejoint/>'
              '<geom type="box" size="0.1 0.1 0.1" mass="1"/></body>')
     path = tmp_path / 'robot_and_crate.xml'
     path.write_text(f'<mujoco><worldbody>{_robot_body()}{crate}</worldbody></mujoco>')
-    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    held = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
+    assert 'crate' in held.other_bodies and not [n for n in held.notices if 'free bodies' in n]
+    assert 'crate' not in {b for bodies in held.legs.values() for b in bodies}
+    held.step(round(0.5 / held.timestep))
+    assert 0.05 < held.data.xpos[held.model.body('crate').id, 2] < 0.1
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 50,
+                                       'rft.other_bodies_density_per_mm2': None}))
     [notice] = [n for n in sim.notices if 'free bodies' in n]
     assert 'hold: crate;' in notice and '[auto, crate]' in notice
     both = Simulation(load_scene(path, {'rft.plates_per_body': 50,
@@ -150,7 +166,8 @@ def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
     assert not [n for n in both.notices if 'free bodies' in n]
     # auto beside a name: auto's picks for the robot, then the crate, a leg of its own
     beside = Simulation(load_scene(path, {'rft.plates_per_body': 50,
-                                          'rft.bodies': ['auto', 'crate']}))
+                                          'rft.bodies': ['auto', 'crate'],
+                                          'rft.other_bodies_density_per_mm2': None}))
     assert list(beside.sand_bodies) == [*sim.sand_bodies, 'crate']
     assert beside.legs == {**sim.legs, 'crate': ('crate',)}
     assert not [n for n in beside.notices if 'free bodies' in n]

@@ -23,7 +23,8 @@ def _run(tmp_path, reach, bodies):
     path.write_text(ROBOT.format(z=-0.01 - reach + 0.02))
     lines = []
     summary = run_scene(load_scene(path, {'rft.bodies': bodies, 'robot.spawn': 'model',
-                                          'rft.plates_per_body': 100}),
+                                          'rft.plates_per_body': 100,
+                                          'rft.other_bodies_density_per_mm2': None}),
                         duration=0.05, progress=False, plots=False, log=lines.append)
     return [line for line in lines if 'into the sand' in line], summary
 
@@ -34,13 +35,16 @@ def test_a_body_without_plates_in_the_sand_is_said_once(tmp_path, reach):
     assert len(said) == 1 and 'body probe reached' in said[0]
     depth_cm = float(said[0].split('reached ')[1].split(' cm')[0])
     assert depth_cm == pytest.approx(100 * reach, abs=0.5)  # (the plate sinks a little)
-    assert said[0].endswith("name it a sand body (rft.bodies; '*' takes every body)")
+    assert said[0].endswith("name it a sand body (rft.bodies; '*' takes every body) or give "
+                            'the other bodies plates (rft.other_bodies_density_per_mm2)')
     assert said[0][len('warning: '):] in summary['notices']
+    assert summary['outcome']['max_uncovered_penetration_m'] == pytest.approx(reach, abs=0.005)
 
 
 def test_nothing_is_said_of_a_body_within_the_margin_or_with_plates(tmp_path):
     assert _run(tmp_path, ENTRY_DEPTH / 2, ['plate'])[0] == []
-    assert _run(tmp_path, 0.1, ['plate', 'probe'])[0] == []
+    said, summary = _run(tmp_path, 0.1, ['plate', 'probe'])
+    assert said == [] and summary['outcome']['max_uncovered_penetration_m'] is None
 
 
 def test_the_sand_is_read_under_a_bodys_lowest_corner_not_its_centre():

@@ -26,8 +26,17 @@ base's group or from the fork; the base's own name for the group), its sand bodi
 from the base outwards, so the last one (the deepest in the tree) is the leg's reference
 point.
 
-Free-floating trees other than the robot's that hold no sand body (another robot, a loose
-crate) are named at start-up (`unheld_free_trees`): the sand does not hold them.
+Other bodies (`other_bodies`): every moving body with collision geoms that the sand bodies
+leave out (a shin, the trunk, a head, an arm, a loose crate) carries plates too, at a coarser
+density (rft.other_bodies_density_per_mm2, OTHER_BODIES_DENSITY_PER_MM2 by default), so that
+nothing passes through the sand: a robot that falls lies on it. They are not legs: a leg is
+still a branch that holds sand bodies, and an other body in such a branch (a shin, a thigh
+above its foot) adds its wrench to that leg's (the sand's whole push on the leg), its point
+still the sand body's; an other body in no leg's branch (the trunk, an arm) is in no leg's
+wrench (`legs_from_tree`). Their plates cost a bounding-sphere test a step while above the
+sand. With the key null only the sand bodies carry plates, and free-floating trees that hold
+none (another robot, a loose crate) are named at start-up (`unheld_free_trees`): the sand
+does not hold them.
 """
 import fnmatch
 import re
@@ -45,6 +54,13 @@ AUTO_TOLERANCE = 0.25
 #: auto also keeps every body whose lowest point is within this fraction of the robot's
 #: height of the lowest point of all (it touches the ground).
 AUTO_CONTACT = 0.01
+#: Plates per mm^2 on the other bodies (rft.other_bodies_density_per_mm2): one plate per
+#: 10 cm^2, triangles about 5 cm on a side. On its side a fallen robot's trunk and limbs bear
+#: its weight at a sinkage of millimetres (zeta A z = m g: 30 kg on 0.1 m^2 of zeta 3.75
+#: N/cm^3 sinks 0.8 mm), and a 5 cm facet on a 5 cm radius limb lies 6 mm inside its arc, so
+#: its lowest point stays within a centimetre or so of the surface; a small body gets the
+#: coarsest tessellation of its geoms (`sand.geoms.body_plates`).
+OTHER_BODIES_DENSITY_PER_MM2 = 0.001
 
 
 def collision_geoms(model, body):
@@ -140,6 +156,16 @@ def auto_sand_bodies(model, data, base):
     return sorted(picked)
 
 
+def other_bodies(model, sand_bodies):
+    """Names of the moving bodies (not welded to the world) with collision geoms that are not
+    in `sand_bodies` (names), in model order: those that carry plates at the other bodies'
+    density (module docstring)."""
+    chosen = set(sand_bodies)
+    return [_name(model, b) for b in range(1, model.nbody)
+            if model.body_weldid[b] != 0 and collision_geoms(model, b)
+            and _name(model, b) not in chosen]
+
+
 def unheld_free_trees(model, sand_bodies):
     """Names of the root bodies of free-floating trees (a free joint on the root) that have
     collision geoms and no body in `sand_bodies` (ids): the sand does not hold them (another
@@ -192,14 +218,21 @@ def resolve_sand_bodies(model, data, patterns, base):
     return chosen
 
 
-def legs_from_tree(model, sand_bodies, base):
-    """{leg name: (sand body names, base outwards)} by branch (module docstring)."""
+def legs_from_tree(model, sand_bodies, base, others=()):
+    """{leg name: (body names, base outwards)} by branch (module docstring): each branch
+    that holds sand bodies is a leg, its sand bodies and the `others` (names of other
+    plated bodies) of the branch in tree order, the last sand body last (the leg's
+    point); an other body in no such branch is in no leg."""
     ids = {model.body(name).id: name for name in sand_bodies}
+    extra = {model.body(name).id: name for name in others}
     legs = {}
     for first, bodies in branches(model, base, frozenset(ids)).items():
         mine = [ids[b] for b in bodies if b in ids]
         if mine:
-            legs[_leg_name(_name(model, first))] = tuple(mine)
+            point = mine[-1]
+            leg = [ids.get(b) or extra[b] for b in bodies if b in ids or b in extra]
+            leg.remove(point)
+            legs[_leg_name(_name(model, first))] = (*leg, point)
     unplaced = set(sand_bodies) - {b for leg in legs.values() for b in leg}
     for name in sorted(unplaced):  # sand bodies outside the base's subtree: a leg each
         legs[_leg_name(name)] = (name,)

@@ -23,6 +23,7 @@ from typing import Mapping
 import numpy as np
 
 from rft_sim_ros.ros import topics
+from rft_sim_ros.ros.diagnostics import outcome_values
 from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
 from rft_sim_ros.units import zeta_to_si
 
@@ -59,6 +60,7 @@ class RunStatus:
     commands_rejected: count of rejected commands per reason
         (`CommandHandler.rejections`).
     paused: True while the simulation is paused (sim time stands still).
+    outcome: the run's outcome so far (`Simulation.outcome`; None: not given).
     """
     scene: str
     real_time_factor: float
@@ -66,6 +68,7 @@ class RunStatus:
     problem: str = ''
     commands_rejected: Mapping[str, int] = field(default_factory=dict)
     paused: bool = False
+    outcome: Mapping = None
 
 
 def stamp(factory, t):
@@ -323,8 +326,10 @@ def diagnostic_fields(state, status):
               ('paused', bool(status.paused)),
               ('commands_rejected', int(sum(rejected.values())))]
     values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
+    values += outcome_values(status.outcome)
+    fell = status.outcome is not None and status.outcome['fell']
     return DiagnosticFields(
-        level=0 if status.stable else 2,  # OK / ERROR
+        level=2 if not status.stable else 1 if fell else 0,  # ERROR / WARN / OK
         name='rft_sim: simulation',
         message=status.problem if not status.stable else 'paused' if status.paused else 'running',
         hardware_id=status.scene,
@@ -334,10 +339,11 @@ def diagnostic_fields(state, status):
 def diagnostics_message(factory, state, status):
     """diagnostic_msgs/DiagnosticArray with one status 'rft_sim: simulation'.
 
-    level OK (message 'running' or 'paused'), or ERROR once the run diverged (message = the
-    problem). Values (floats round-trip through float()): sim_time_s, zeta_n_per_cm3,
-    real_time_factor, plates_active, stable, paused, commands_rejected (total) and
-    commands_rejected.<reason>.
+    level OK (message 'running' or 'paused'), WARN once the robot has fallen (the outcome),
+    or ERROR once the run diverged (message = the problem). Values (floats round-trip
+    through float()): sim_time_s, zeta_n_per_cm3, real_time_factor, plates_active, stable,
+    paused, commands_rejected (total) and commands_rejected.<reason>, and the outcome's
+    (`diagnostics.outcome_values`) where the status has one.
     """
     fields = diagnostic_fields(state, status)
     diagnostic = factory.make(

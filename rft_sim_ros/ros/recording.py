@@ -63,14 +63,15 @@ class BagRecorder:
                          real_time_factor=(state.time - sim_start) / wall
                          if wall > 0 and state.time > sim_start else float('nan'),
                          stable=self._sim.diverged is None, problem=self._sim.diverged or '',
-                         commands_rejected=rejected)
+                         commands_rejected=rejected, outcome=self._sim.outcome())
 
     def record(self, state):
         """One publish cycle of `state` (SimState), plus the sand surface and /diagnostics
         when due: decided now, from the simulation as it is now; written in batches of
         BATCH cycles."""
         update = self._terrain.update(state.time)
-        key = status_key(state.zeta, self._sim.diverged is None, False)  # (never paused)
+        key = status_key(state.zeta, self._sim.diverged is None, False,  # (never paused)
+                         self._sim.fell)
         status = self._status(state) if self._schedule.due(state.time, key) else None
         self._pending.append((state, update, status))
         self._last = state

@@ -150,7 +150,8 @@ class SimRuntime:
         """The run's `RunStatus` (for /diagnostics), with a measured real-time factor."""
         return RunStatus(scene=self.sim.scene.name, real_time_factor=real_time_factor,
                          stable=self.diverged is None, problem=self.diverged or '',
-                         commands_rejected=self.rejections, paused=self.paused)
+                         commands_rejected=self.rejections, paused=self.paused,
+                         outcome=self.sim.outcome())
 
     # --- stepping and publishing ------------------------------------------------------------
 
@@ -215,8 +216,8 @@ class SimRuntime:
             self._publish_terrain(due=True)
 
     def _diagnostics(self, now):
-        status = self.status()
-        if self._schedule.due(now, status_key(self.last_state.zeta, status.stable, status.paused)):
+        key = status_key(self.last_state.zeta, self.diverged is None, self.paused, self.sim.fell)
+        if self._schedule.due(now, key):
             rate = self._meter.rate(self.last_state.time, now)
             self._sink.write_diagnostics(self.last_state, self.status(0.0 if self.paused else rate))
 

@@ -51,6 +51,7 @@ class SceneConfig:
     plate_geoms: str  # rft.plate_geoms: 'collision' or 'visual'
     plates_per_body: int
     plate_density_per_mm2: float
+    other_bodies_density_per_mm2: float  # or None: only sand_bodies carry plates
     plates_by_body: dict
     normalisation: str
     low_velocity: dict
@@ -313,6 +314,7 @@ def _validate(raw, path, locator):
         plate_geoms=values['rft.plate_geoms'],
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
+        other_bodies_density_per_mm2=values['rft.other_bodies_density_per_mm2'],
         plates_by_body=dict(values['rft.plates']),
         normalisation=values['rft.normalisation'],
         low_velocity={'method': values['rft.low_velocity.method'],

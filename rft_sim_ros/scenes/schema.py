@@ -19,6 +19,7 @@ import yaml
 
 from ..robot.joints import check_servos
 from ..robot.pose import parse_spawn
+from ..robot.sand_bodies import OTHER_BODIES_DENSITY_PER_MM2
 from ..units import zeta_problem
 
 #: The default of a key that must be given.
@@ -310,6 +311,13 @@ KEYS = (
         '(ignored when rft.plate_density_per_mm2 is given).', _count),
     Key('rft.plate_density_per_mm2', 'number > 0', 'plates/mm^2', None, 'Plates per mm^2 '
         'of body surface instead of a count (replaces rft.plates_per_body).', _positive),
+    Key('rft.other_bodies_density_per_mm2', 'number > 0 or null', 'plates/mm^2',
+        OTHER_BODIES_DENSITY_PER_MM2, 'Plates per mm^2 on every other moving body with '
+        'collision geoms (not chosen by rft.bodies: shins, trunk, head, arms), so that no body '
+        'passes through the sand (a fallen robot lies on it); coarser than the sand bodies, '
+        'and free while above the sand; null: only the rft.bodies carry plates, the others '
+        'pass through the sand (rft_sim_ros/robot/sand_bodies.py).',
+        lambda v: None if v is None else _positive(v)),
     Key('rft.plates', 'mapping body -> integer', 'plates', {}, 'Per-body plate counts that '
         'replace the default count.', _mapping_of(_count)),
     Key('rft.normalisation', "'treers' or 'rft_sim'", '', 'treers', 'Which normalisation of '

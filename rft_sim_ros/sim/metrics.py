@@ -10,11 +10,13 @@ Simulation they came from; `result()` gives (SI units, world frame = odom, z up)
                                state on, / elapsed time;
   final_speed_mps              |base linear velocity| at the last sample;
   max_depth_m_<body>           deepest point of the sand body's plates below the sand
-                               surface over it;
+                               surface over it (sand bodies only: the other bodies'
+                               depths are in the summary's `outcome`, sim/outcome.py);
   mean_stance_depth_m_<body>   that depth averaged over the samples where it is > 0 (the
                                body in the sand; 0 if it never was);
   mean_force_z_N_<leg>, peak_force_z_N_<leg>
-                               vertical sand force on the leg, mean and largest;
+                               vertical sand force on the leg (its sand bodies and the
+                               other bodies of its branch), mean and largest;
   stable                       the run ended without diverging (set by the runner).
 """
 import numpy as np
@@ -38,10 +40,12 @@ class GenericMetrics:
 
     def __init__(self, sim):
         engine = sim.engine
+        count = len(sim.sand_bodies)  # (the engine's first bodies; then the other bodies,
+        # which the outcome watches: sim/outcome.py)
         self._surface = engine.surface
-        self._bodies = engine.body_names
-        self._body_ids = engine.body_ids
-        self._plates = _stacked_plates(engine.local_pos, engine.plate_start)
+        self._bodies = engine.body_names[:count]
+        self._body_ids = engine.body_ids[:count]
+        self._plates = _stacked_plates(engine.local_pos, engine.plate_start[:count + 1])
         # scratch, reused at every sample: [rotation | position] per body, world positions
         # (bodies, 3, P) and depths (bodies, P) of the plates
         self._poses = np.empty((len(self._body_ids), 3, 4))

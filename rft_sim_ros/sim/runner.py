@@ -258,6 +258,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         'spawn_settle_steps': sim.settle_steps,
         'plates_total': sim.engine.plates_total,
         'sand_bodies': list(sim.sand_bodies),
+        'other_bodies': list(sim.other_bodies),
         'legs': {leg: list(bodies) for leg, bodies in sim.legs.items()},
         'notices': list(sim.notices),
         'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
@@ -273,6 +274,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         'implicit_rows_handed_back_steps': handed_back,
         'normalisation': scene.normalisation,
         'stable': stable,
+        'outcome': sim.outcome(),
         'interrupted': interrupted,
         'reason': reason,
         'metrics': finite(metrics),

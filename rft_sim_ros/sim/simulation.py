@@ -24,7 +24,7 @@ from ..robot.joints import (JointInterfaces, add_joint_interfaces, movable_joint
 from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, initial_keyframe,
                           lift_to, parse_spawn, set_initial_pose)
 from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
-                                 resolve_sand_bodies)
+                                 other_bodies, resolve_sand_bodies)
 from ..sand.engine import LowVelocity, SandEngine, cold_start_estimate, kernels_cached
 from ..sand.geoms import body_plates
 from ..sand.deformable import DeformableSand
@@ -33,7 +33,8 @@ from ..sand.surface import (CHECKED_SLOPE_DEG, GRID, SURFACE_KINDS, Surface, hfi
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
-from .caveats import caveats
+from .caveats import caveats, first_few
+from .outcome import TILT_LIMIT_DEG, OutcomeWatch
 from .sand_entry import SandEntryWatch
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
@@ -42,13 +43,16 @@ from ..rft.force_law import DynamicTerm
 RUNAWAY_SPEED = 1.0e3
 #: Hz of sim time at which the state is checked for a runaway speed and MuJoCo's warnings.
 CHECK_RATE = 100.0
+#: Hz of sim time at which the outcome (sim/outcome.py) looks at the robot: its tilt, and how
+#: deep its geoms near the surface are.
+OUTCOME_RATE = 25.0
 #: s of sim time between the looks for bodies without plates in the sand (`sand_entry`), and
 #: for a fall while spawn rest settles the robot.
 ENTRY_CHECK_S = 0.1
-#: deg: spawn rest counts the robot fallen once its base has turned this far from how it was
-#: set down (a quadruped on its side, a humanoid on its back; standing robots settle within a
-#: few degrees).
-FALL_TILT_DEG = 45.0
+#: deg: spawn rest counts the robot fallen when its base has come to rest turned this far from
+#: how it was set down (a quadruped on its side, a humanoid on its back; standing robots
+#: settle within a few degrees): the outcome's limit (sim/outcome.py).
+FALL_TILT_DEG = TILT_LIMIT_DEG
 
 _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
                                   mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -216,6 +220,9 @@ class Simulation:
         if list(scene.sand_bodies) != list(self.sand_bodies):
             self.notices.append(f'sand bodies ({", ".join(scene.sand_bodies)}): '
                                 f'{", ".join(self.sand_bodies)}')
+        self.other_bodies = ()
+        if scene.other_bodies_density_per_mm2 is not None:
+            self.other_bodies = tuple(other_bodies(self.model, self.sand_bodies))
         for body in scene.plates_by_body:
             if body not in self.sand_bodies:
                 raise scene.locator.error('rft.plates', f'{body!r} is not a sand body '
@@ -235,8 +242,10 @@ class Simulation:
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
-        self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
+        self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id,
+                                len(self.sand_bodies))
         self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
+        self._outcome = OutcomeWatch(self.model, self._base_id, self.engine.body_ids)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
             for actuator, _ in position_servos(self.model):
                 self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
@@ -261,6 +270,8 @@ class Simulation:
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
         self._check_every = max(1, int(round(
             1.0 / (CHECK_RATE * self._control_every * scene.timestep))))
+        self._outcome_every = max(1, int(round(
+            1.0 / (OUTCOME_RATE * self._control_every * scene.timestep))))
         self._ctrl = self.data.ctrl
         self._warning_numbers = self.data.warning.number  # a view of mjData's warning counts
         self._time_offset = 0.0
@@ -287,9 +298,10 @@ class Simulation:
             return [AUTO]
 
     def _plates(self, scene):
-        """{sand body: Plates} as the scene asks (a count or a density per body); a body
-        whose geoms make more plates than its count even at their coarsest is named in a
-        notice."""
+        """{body: Plates}: the sand bodies' as the scene asks (a count or a density per body;
+        a body whose geoms make more plates than its count even at their coarsest is named
+        in a notice), then the other bodies' at rft.other_bodies_density_per_mm2 (one whose
+        geoms cannot carry plates, a plane, is left out of them and named in a notice)."""
         plates, over = {}, []
         for body in self.sand_bodies:
             count = scene.plates_by_body.get(body, scene.plates_per_body)
@@ -304,6 +316,23 @@ class Simulation:
         if over:
             self.notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
                                 'tessellate (a mesh decimates) no coarser')
+        density, without = scene.other_bodies_density_per_mm2, []
+        for body in self.other_bodies:
+            try:
+                plates[body] = body_plates(self.model, self.model.body(body).id,
+                                           density_per_mm2=density)
+            except ValueError as error:
+                without.append(f'{body} ({error})')
+        if without:
+            self.notices.append(f'other bodies without plates, which pass through the sand: '
+                                f'{first_few(without)}')
+        self.other_bodies = tuple(b for b in self.other_bodies if b in plates)
+        if self.other_bodies:
+            count = sum(len(plates[b].areas) for b in self.other_bodies)
+            self.notices.append(
+                f'other bodies: {first_few(list(self.other_bodies))} carry {count} plates '
+                f'({density:g} per mm^2), so that the sand holds them too (they are no legs; '
+                'rft.other_bodies_density_per_mm2: null leaves them without)')
         return plates
 
     def _named_joints(self):
@@ -384,11 +413,13 @@ class Simulation:
                 'robot.keyframe give another start)')
 
     def _set_legs(self, scene):
-        """Legs: the scene's, or one per branch of the kinematic tree (robot/sand_bodies.py)."""
+        """Legs: the scene's, or one per branch of the kinematic tree that holds sand bodies,
+        with the other bodies of that branch (robot/sand_bodies.py)."""
         legs = scene.legs
         if legs == 'auto':
-            legs = legs_from_tree(self.model, self.sand_bodies, self._base_id)
-        for leg, bodies in legs.items():
+            legs = legs_from_tree(self.model, self.sand_bodies, self._base_id,
+                                  self.other_bodies)
+        for leg, bodies in scene.legs.items() if scene.legs != 'auto' else ():
             for body in bodies:
                 if body not in self.sand_bodies:
                     raise scene.locator.error(f'legs.{leg}', f'{body!r} is not a sand body '
@@ -412,6 +443,7 @@ class Simulation:
         self.diverged = None
         self._ticks = 0
         self._since_start = 0  # engine steps since this (re)start: the ticks' phase
+        self._steps_before = self.steps  # (the outcome counts from here)
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
         self._next_entry_check = 0.0  # sim time, s
@@ -420,10 +452,12 @@ class Simulation:
         kind, height = self._spawn
         if kind != 'model':
             bodies = [self.model.body(b).id for b in self.sand_bodies]
+            root = self.model.body_rootid[self._base_id]  # its plated bodies clear the sand
+            plated = [b for b in self.engine.body_ids if self.model.body_rootid[b] == root]
             surface = self.engine.surface
-            try:  # turned to, and onto (or above), the sand surface under its sand bodies
+            try:  # turned to the sand surface under its sand bodies, onto (or above) it
                 turned = align_to(self.model, self.data, self._base_id, bodies, surface.height)
-                lift_to(self.model, self.data, self._base_id, bodies, height or 0.0,
+                lift_to(self.model, self.data, self._base_id, plated, height or 0.0,
                         surface.highest)
             except ValueError as error:
                 raise self.scene.locator.error('robot.spawn', str(error)) from None
@@ -439,14 +473,19 @@ class Simulation:
                                            self.data.qpos[self._command_qpos])
         if kind == 'rest':
             self._settle()
+        self._unsettled_before = self._engine_counts()[1] - self._settle_counts[1]
+        self._outcome.start(self.data, self.time)
 
     def _settle(self):
         """Spawn 'rest': step, the joints holding their targets, until the base is at rest
         (robot/pose.py), then start the clock at 0 from there. A robot that does not come to
-        rest standing (still moving after SETTLE_LIMIT_S, as one that cannot stand without its
-        controller; or fallen: its base turned more than FALL_TILT_DEG from how it was set
-        down, onto its side or back) starts instead from the state before, at rest on the
-        sand, as spawn drop:0 would."""
+        rest standing (still moving after SETTLE_LIMIT_S; or at rest fallen: its base turned
+        more than FALL_TILT_DEG from how it was set down, onto its side or back, as one that
+        cannot stand without its controller falls) starts instead from the state before, at
+        rest on the sand, as spawn drop:0 would. A notice says what was seen where it was
+        not a plain settling: the base's turn at the end and its largest on the way (a
+        robot that rocks far and then stands is not called fallen), its speed if still
+        moving, and what was done."""
         if self.commands is not None:
             self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
         kind = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -457,6 +496,7 @@ class Simulation:
         check = max(1, int(round(ENTRY_CHECK_S / self.timestep)))
         failure = None
         before = self._engine_counts()
+        most, most_at = 0.0, 0.0  # the base's largest turn (deg) and when (s of settling)
         for step in range(1, int(round(SETTLE_LIMIT_S / self.timestep)) + 1):
             self.engine.step()
             self.settle_steps += 1
@@ -466,21 +506,32 @@ class Simulation:
                 raise SceneError(f'scene {self.scene.name}: spawn rest: the robot did not '
                                  'settle (diverged)')
             still = still + 1 if speed < REST_SPEED else 0
-            if still >= hold or step % check == 0:
+            if step % check == 0:
                 up = self.data.xmat[self._base_id].reshape(3, 3)[:, 2]
                 tilt = float(np.degrees(np.arccos(np.clip(up @ set_down, -1.0, 1.0))))
-                if tilt > FALL_TILT_DEG:
-                    failure = (f'fell: its base ({self.base_body}) turned {tilt:.3g} deg from '
-                               'how it was set down, onto its side or back')
-                    break
+                if tilt > most:
+                    most, most_at = tilt, step * self.timestep
             if still >= hold:
                 break
-        else:
-            failure = (f'still moving after {SETTLE_LIMIT_S:g} s (base speed {speed:.2g} '
-                       'm/s), ' + (f'touching rigid geoms ({self.data.ncon} contacts), on '
-                                   'which it may slide' if self.data.ncon else
-                                   'as a robot that cannot stand without its controller (a '
-                                   'humanoid) falls'))
+        up = self.data.xmat[self._base_id].reshape(3, 3)[:, 2]
+        tilt = float(np.degrees(np.arccos(np.clip(up @ set_down, -1.0, 1.0))))
+        if tilt > most:
+            most, most_at = tilt, step * self.timestep
+        turns = (f'{tilt:.3g} deg from how it was set down (up to {most:.3g} deg, '
+                 f'{most_at:.2f} s into settling)')
+        if still < hold:
+            failure = (f'still moving after {SETTLE_LIMIT_S:g} s: its base ({self.base_body}) '
+                       f'at {speed:.2g} m/s, turned {turns}'
+                       + (f', touching rigid geoms ({self.data.ncon} contacts), on which it '
+                          'may slide' if self.data.ncon else ''))
+        elif tilt > FALL_TILT_DEG:
+            failure = (f'fell: its base ({self.base_body}) came to rest turned {turns}, on '
+                       'its side or back')
+        elif most > FALL_TILT_DEG:
+            notice = (f'spawn rest: its base ({self.base_body}) came to rest after '
+                      f'{step * self.timestep:.2f} s turned {turns}: it starts from there')
+            if notice not in self.notices:  # (a reset settles again)
+                self.notices.append(notice)
         if failure is not None:
             notice = (f'spawn rest: {failure}; so it starts as spawn drop:0 starts it instead, '
                       'where it was set down on the sand, the clock running at once')
@@ -496,6 +547,20 @@ class Simulation:
     def _engine_counts(self):
         e = self.engine
         return np.array([e.solves, e.unsettled_steps, e.handed_back_steps], dtype=np.int64)
+
+    @property
+    def fell(self):
+        """Whether the robot has fallen since the last (re)start (sim/outcome.py)."""
+        return self._outcome.fell_at is not None
+
+    def outcome(self):
+        """What happened since the last (re)start, the state now included, as
+        summary.json's `outcome` says it (sim/outcome.py): fell, how deep any body went, the
+        unsettled share, in words."""
+        self._outcome.observe(self.data, self.engine.surface, self.time)
+        unsettled = self._engine_counts()[1] - self._settle_counts[1] - self._unsettled_before
+        return self._outcome.result(self.data, self.engine.surface,
+                                    self.steps - self._steps_before, int(unsettled))
 
     def implicit_counts(self):
         """The implicit solve's counts over the steps the run took (`step`, resets
@@ -552,6 +617,8 @@ class Simulation:
             problem = self._check()
             if problem:
                 self._diverge(problem)
+        if self._ticks % self._outcome_every == 0:
+            self._outcome.observe(self.data, self.engine.surface, self.time)
         self.scenario.control(self)
         commands = self.commands
         if commands is not None:
@@ -656,7 +723,8 @@ class Simulation:
         body, depth = found
         return (f'by t = {self.time:.2f} s body {body} reached {depth * 100:.3g} cm into the '
                 'sand: it carries no plates, so the sand does not act on it and it passes '
-                "through; name it a sand body (rft.bodies; '*' takes every body)")
+                "through; name it a sand body (rft.bodies; '*' takes every body) or give the "
+                'other bodies plates (rft.other_bodies_density_per_mm2)')
 
     def leg_wrenches(self):
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean

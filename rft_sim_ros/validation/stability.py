@@ -58,7 +58,7 @@ def _feet(sim):
     """Indices (into the engine's sand bodies) of the bodies that stand in the sand: each
     leg's last body (its foot), or every sand body of a scene without legs."""
     names = list(sim.engine.body_names)
-    feet = {bodies[-1] for bodies in sim.legs.values()} or set(names)
+    feet = {bodies[-1] for bodies in sim.legs.values()} or set(sim.sand_bodies)
     return [names.index(body) for body in names if body in feet]
 
 
