@@ -354,7 +354,8 @@ def build_parser():
                           'URDF says: welded where a fixed joint hangs it from a world link)')
     run.add_argument('--keyframe', metavar='NAME',
                      help="initial pose: the model's keyframe NAME (robot.keyframe; "
-                          "default: its 'home' keyframe where it has one)")
+                          'default: the first of home, stand, standing, default it has, else '
+                          "its first keyframe; '': its qpos0)")
     run.add_argument('--spawn', metavar='rest|drop:HEIGHT|model',
                      help='where the robot starts (robot.spawn): settled on the sand, its '
                           'sand bodies HEIGHT m above it, or as the model puts it')
