@@ -194,3 +194,18 @@ def test_a_robot_file_and_a_scene_naming_it_start_alike(tmp_path):
     assert differ == {'name', 'description', 'model'}  # (model: resolved, or as given)
     assert bare.model_path == named.model_path
     assert bare.values['robot.spawn'] == 'auto' and bare.scenario == 'external'
+
+
+def test_joint_states_report_the_passive_joint_and_array_commands_leave_it_out(tmp_path):
+    """The node's paths (ROS-free runtime): /joint_states (and the bag's, the same states)
+    list every named joint, the passive one too; a position array has one value per
+    commanded joint, `joint_names` order."""
+    from ros_test_support import Harness, position_array
+    harness = Harness(arm_scene(tmp_path))
+    assert harness.runtime.joint_names == ('shoulder',)
+    harness.runtime.tick()
+    assert harness.sink.states[0].joint_names == ('shoulder', 'elbow')
+    harness.runtime.on_positions(position_array([0.3]))
+    assert harness.targets().tolist() == [0.3]
+    harness.runtime.on_positions(position_array([0.3, 0.0]))  # (the passive joint: no)
+    assert harness.targets().tolist() == [0.3] and harness.warnings
