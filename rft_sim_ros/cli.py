@@ -104,12 +104,13 @@ def parse_timed_assignment(text):
     return at, SettingChange(key, value)
 
 
-def say_if_cold(scene=None):
+def say_if_cold(scene=None, quiet=False):
     """Before building a simulation of `scene` (SceneConfig; None: a default scene, for the
     commands that run many): say at once when its kernels must first be compiled
-    (sim.simulation.compile_notice), instead of leaving a cold start silent."""
+    (sim.simulation.compile_notice), instead of leaving a cold start silent (`quiet`: say
+    nothing)."""
     from .sim.simulation import compile_notice
-    line = compile_notice(scene or load_scene('hexapod'))
+    line = None if quiet else compile_notice(scene or load_scene('hexapod'))
     if line:
         print(f'rft-sim: {line} (`rft-sim warmup` compiles them ahead)', file=sys.stderr,
               flush=True)
@@ -233,8 +234,7 @@ def cmd_run(args):
                 warn(f'--set-at {text} comes after the run ends ({duration:g} s): not applied')
         out = Path(args.out) if args.out else fresh_folder(scene.name)
         replace = earlier_run(out, args.overwrite)
-        if not args.quiet:
-            say_if_cold(scene)
+        say_if_cold(scene, quiet=args.quiet)
         if stop.is_set():  # before anything is written: nothing is
             print('rft-sim: interrupted before the run started: nothing written',
                   file=sys.stderr)
@@ -256,7 +256,10 @@ def cmd_run(args):
                     shutil.rmtree(created, ignore_errors=True)
                 else:  # (an empty folder given: left empty)
                     for entry in out.iterdir():
-                        shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+                        if entry.is_dir():
+                            shutil.rmtree(entry)
+                        else:
+                            entry.unlink()
                 raise
     if args.json:
         print(json.dumps(significant(run_report(summary)), indent=2))

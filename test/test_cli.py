@@ -296,7 +296,7 @@ def test_a_cold_kernel_cache_is_announced_before_compiling(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'empty-cache'))
     child = subprocess.Popen(
         [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--out',
-         str(tmp_path / 'run'), '--quiet'], env=env, stdout=subprocess.DEVNULL,
+         str(tmp_path / 'run')], env=env, stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE, text=True)
     try:
         started = time.monotonic()
