@@ -264,7 +264,7 @@ def cmd_run(args):
     if args.json:
         print(json.dumps(significant(run_report(summary)), indent=2))
     elif not args.quiet:
-        print('\n'.join(human_summary(summary, out, bag=not args.no_bag)))
+        print('\n'.join(human_summary(summary, out)))
     if summary.get('scenario_traceback'):
         print(f'rft-sim: error: {summary["reason"]} (traceback: '
               f'{out / summary["scenario_traceback"]})', file=sys.stderr)
@@ -292,7 +292,7 @@ def run_report(summary):
 SHOWN_METRICS = 4
 
 
-def human_summary(summary, out, bag=True):
+def human_summary(summary, out):
     """The few lines `rft-sim run` prints at the end: how the run ended, what happened to
     the robot (the summary's outcome words, where it has them), its key metrics (the
     scenario's first SHOWN_METRICS, else the base's displacement and final speed), and where
@@ -319,7 +319,7 @@ def human_summary(summary, out, bag=True):
     if shown:
         lines.append('  ' + ', '.join(f'{key} {_number(value)}' for key, value
                                       in list(shown.items())[:SHOWN_METRICS]))
-    files = ['summary.json', 'timeseries.csv'] + (['bag/'] if bag else [])
+    files = [name for name in ('summary.json', 'timeseries.csv', 'bag') if (out / name).exists()]
     lines.append(f'  wrote {out}/: {", ".join(files)} (all metrics: summary.json)')
     return lines
 
@@ -464,8 +464,9 @@ def build_parser():
                      help='bodies that touch sand (rft.bodies): names, glob patterns and '
                           "auto (auto,crate: auto's picks and the crate)")
     run.add_argument('--base', choices=('floating', 'fixed'),
-                     help='URDF root link: free or welded to the world (default: as the '
-                          'URDF says: welded where a fixed joint hangs it from a world link)')
+                     help='root body: free or welded to the world (robot.base; default: '
+                          'as the file says: a URDF welded where a fixed joint hangs it from '
+                          'a world link, an MJCF as written)')
     run.add_argument('--keyframe', metavar='NAME',
                      help="initial pose: the model's keyframe NAME (robot.keyframe; "
                           'default: the first of home, stand, standing, default it has, else '

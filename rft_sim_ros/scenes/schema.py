@@ -348,9 +348,10 @@ KEYS = (
         'moves freely. Defaults from the robot mass (docs/robots.md).', _servos),
     Key('robot', 'mapping', '', {}, 'How the robot file is loaded, its initial pose and '
         'spawn.', _section),
-    Key('robot.base', "'floating', 'fixed' or null", '', None, 'A URDF root link: free '
-        '(6-DOF) or welded to the world; null: as the URDF says (welded where a fixed joint '
-        'hangs it from a `world` link, else free). MJCF is used as written.',
+    Key('robot.base', "'floating', 'fixed' or null", '', None, 'The root body: free '
+        '(6-DOF) or welded to the world; null: as the file says (a URDF welded where a fixed '
+        'joint hangs it from a `world` link, else free; an MJCF as written). An MJCF root '
+        'body moving on other joints than one free joint is refused.',
         _choice('floating', 'fixed', None)),
     Key('robot.package_paths', 'mapping package -> folder', '', {}, 'Folders of the ROS '
         'packages that $(find PKG) and package://PKG name (relative to the scene file); '
