@@ -209,3 +209,39 @@ def test_joint_states_report_the_passive_joint_and_array_commands_leave_it_out(t
     assert harness.targets().tolist() == [0.3]
     harness.runtime.on_positions(position_array([0.3, 0.0]))  # (the passive joint: no)
     assert harness.targets().tolist() == [0.3] and harness.warnings
+
+
+#: A parallelogram linkage under a post fixed to the world: the crank driven by a position
+#: servo, the rocker and the coupler's hinge passive, the loop closed by a connect equality
+#: between the coupler's end and the rocker's.
+LOOP = """<mujoco><compiler angle="radian"/>
+  <option timestep="0.001" integrator="implicitfast"/>
+  <default><geom contype="0" conaffinity="0"/><joint axis="0 1 0" damping="0.05"/></default>
+  <worldbody><body name="post" pos="0 0 0.5"><geom type="box" size="0.2 0.02 0.02" mass="1"/>
+    <body name="crank"><joint name="crank"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.1" size="0.005" mass="0.05"/>
+      <body name="coupler" pos="0 0 -0.1"><joint name="coupler_hinge"/>
+        <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.005" mass="0.1"/></body></body>
+    <body name="rocker" pos="0.2 0 0"><joint name="rocker"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.1" size="0.005" mass="0.05"/></body>
+  </body></worldbody>
+  <equality><connect body1="coupler" body2="rocker" anchor="0.2 0 0"/></equality>
+  <actuator><position name="crank" joint="crank" kp="20" kv="0.5"/></actuator>
+</mujoco>"""
+
+
+def test_a_closed_loop_is_kept_and_its_unactuated_joints_follow_it(tmp_path):
+    (tmp_path / 'loop.xml').write_text(LOOP)
+    sim = Simulation(load_scene(tmp_path / 'loop.xml', {
+        'rft.bodies': ['coupler'], 'rft.plates_per_body': 50, 'sand.surface_height': -1.0}))
+    assert sim.model.neq == 1 and sim.model.eq_active0[0]
+    assert sim.servo_joint_names == ('crank',)
+    assert set(sim.passive_joint_names) == {'coupler_hinge', 'rocker'}
+    assert sim.commands.set_positions([0.3], now=sim.time).accepted
+    sim.step(1000)
+    m, d = sim.model, sim.data
+    angle = {name: float(d.qpos[m.jnt_qposadr[m.joint(name).id]])
+             for name in ('crank', 'rocker', 'coupler_hinge')}
+    assert angle['crank'] == pytest.approx(0.3, abs=0.02)
+    assert angle['rocker'] == pytest.approx(angle['crank'], abs=2e-3)  # a parallelogram
+    assert angle['coupler_hinge'] == pytest.approx(-angle['crank'], abs=2e-3)
