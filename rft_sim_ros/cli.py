@@ -5,7 +5,8 @@
                     [--keyframe NAME] [--spawn rest|drop:HEIGHT]
                     [--package-path NAME=DIR ...] [--xacro-arg K=V ...] [--duration S]
                     [--zeta Z] [--timestep DT] [--plates-per-body N] [--set key=value ...]
-                    [--set-at T:zeta=Z ...] [--out DIR] [--no-bag] [--plates]
+                    [--set-at T:zeta=Z ...] [--out DIR] [--overwrite] [--no-bag]
+                    [--plates] [--json] [--quiet]
   rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
   rft-sim warmup
@@ -15,7 +16,10 @@
 A ROBOT_FILE (MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro) runs in the scene
 `scenes.config.robot_scene` makes for it (external commands, paper sand, 1 ms steps).
 `run` writes DIR/summary.json, the time series and plots, and a rosbag2 (MCAP) under
-DIR/bag/ with the topics the ROS node publishes. `validate` and `bench` write into a fresh
+DIR/bag/ with the topics the ROS node publishes, into a new or empty DIR (one that holds an
+earlier run's outputs is refused, or with --overwrite replaced once the run has started),
+and prints a few lines saying how it ended (the JSON with --json; only errors with
+--quiet). `validate` and `bench` write into a fresh
 runs/<command>-<time> unless `--out` names a folder (e.g. the committed validation/).
 
 Errors in what the user asked for (unknown scene, bad value, an output folder that cannot
@@ -100,12 +104,13 @@ def parse_timed_assignment(text):
     return at, SettingChange(key, value)
 
 
-def say_if_cold(scene=None):
+def say_if_cold(scene=None, quiet=False):
     """Before building a simulation of `scene` (SceneConfig; None: a default scene, for the
     commands that run many): say at once when its kernels must first be compiled
-    (sim.simulation.compile_notice), instead of leaving a cold start silent."""
+    (sim.simulation.compile_notice), instead of leaving a cold start silent (`quiet`: say
+    nothing)."""
     from .sim.simulation import compile_notice
-    line = compile_notice(scene or load_scene('hexapod'))
+    line = None if quiet else compile_notice(scene or load_scene('hexapod'))
     if line:
         print(f'rft-sim: {line} (`rft-sim warmup` compiles them ahead)', file=sys.stderr,
               flush=True)
@@ -135,8 +140,52 @@ def output_folder(path):
 
 
 def fresh_folder(name):
-    """runs/<name>-<local time>: where a command writes unless --out says otherwise."""
-    return Path('runs') / f'{name}-{datetime.datetime.now():%Y%m%d-%H%M%S}'
+    """runs/<name>-<local time> (-2, -3, ... where that exists already): where a command
+    writes unless --out says otherwise."""
+    path = Path('runs') / f'{name}-{datetime.datetime.now():%Y%m%d-%H%M%S}'
+    count = 1
+    while (path.parent / f'{path.name}{"" if count == 1 else f"-{count}"}').exists():
+        count += 1
+    return path.parent / f'{path.name}{"" if count == 1 else f"-{count}"}'
+
+
+#: What marks a folder as an earlier run's (`rft-sim run` writes them first or always).
+RUN_MARKERS = ('summary.json', 'bag', 'timeseries.csv', 'mujoco.log')
+
+
+def earlier_run(out, overwrite):
+    """Check the output folder `out` of a run: it must be new or empty, or, with
+    `overwrite`, hold an earlier run's outputs (RUN_MARKERS). Returns whether it holds
+    outputs to replace; raises UsageError saying why the run cannot write there."""
+    if not out.is_dir():
+        return False
+    entries = sorted(entry.name for entry in out.iterdir())
+    if not entries:
+        return False
+    listed = ', '.join(entries[:4]) + (', ...' if len(entries) > 4 else '')
+    if not any(name in entries for name in RUN_MARKERS):
+        raise UsageError(f'--out {out} holds other files ({listed}): a run writes into a new '
+                         'or empty folder; choose another --out')
+    if not overwrite:
+        raise UsageError(f"--out {out} holds an earlier run's outputs ({listed}): choose "
+                         'another --out, or --overwrite to replace them')
+    return True
+
+
+@contextlib.contextmanager
+def replacing(out):
+    """Context of a run that replaces the earlier run in `out`: that folder is set aside
+    (renamed) for the run; deleted once the run has ended, put back where the run is
+    refused while it is set up (an exception), so that bad input loses nothing."""
+    aside = out.with_name(f'.{out.name}.replaced-{os.getpid()}')
+    out.rename(aside)
+    try:
+        yield
+    except BaseException:
+        shutil.rmtree(out, ignore_errors=True)
+        aside.rename(out)
+        raise
+    shutil.rmtree(aside, ignore_errors=True)
 
 
 def cmd_scenes(args):
@@ -164,9 +213,13 @@ def cmd_scenes(args):
 
 
 def cmd_run(args):
+    say = (lambda line: None) if args.quiet else (  # noqa: E731
+        lambda line: print(f'rft-sim: {line}', file=sys.stderr))
     with stop_on_signals() as stop:  # from the start: a Ctrl-C in the set-up is no exception
+        from .scenes.scenarios import load_scenario
         from .sim.runner import run_duration, run_scene
         scene = load_scene(args.scene, _scene_overrides(args))
+        load_scenario(scene)  # (one that cannot be imported: one error, nothing written)
         if args.duration is not None and not args.duration > 0:
             raise SceneError(f'--duration must be > 0 s, got {args.duration}')
         schedule = [parse_timed_assignment(text) for text in args.set_at or []]
@@ -177,42 +230,102 @@ def cmd_run(args):
                              'one value')
         duration = run_duration(scene, args.duration)
         for (at, change), text in zip(schedule, args.set_at or []):
-            if at > duration:
+            if at > duration and not args.quiet:
                 warn(f'--set-at {text} comes after the run ends ({duration:g} s): not applied')
         out = Path(args.out) if args.out else fresh_folder(scene.name)
-        if not args.no_bag and (out / 'bag').exists():
-            raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
-                             'or pass --no-bag')
-        say_if_cold(scene)
+        replace = earlier_run(out, args.overwrite)
+        say_if_cold(scene, quiet=args.quiet)
         if stop.is_set():  # before anything is written: nothing is
             print('rft-sim: interrupted before the run started: nothing written',
                   file=sys.stderr)
             return 128 + stop.signal
-        created = next((folder for folder in reversed((out, *out.parents))
-                        if not folder.exists()), None)  # the first folder this run makes
-        output_folder(out)
-        try:
-            recorders = []
-            if not args.no_bag:
-                from .ros.recording import BagRecorder
-                recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
-            summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
-                                recorders=recorders, schedule=schedule, stop=stop,
-                                log=lambda line: print(f'rft-sim: {line}', file=sys.stderr))
-        except (SceneError, ValueError):  # refused before it ran (e.g. the model does not load)
-            if created is not None:
-                shutil.rmtree(created, ignore_errors=True)
-            raise
-    keys = ('scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s', 'real_time_factor',
-            'plates_total', 'plates_active_mean', 'stable', 'interrupted', 'reason')
-    print(json.dumps(significant({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
-                                  'generic_metrics': summary['generic_metrics']}), indent=2))
-    print(f'rft-sim: outcome: {summary["outcome"]["words"]}', file=sys.stderr)
-    print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag'),
-          file=sys.stderr)
+        with replacing(out) if replace else contextlib.nullcontext():
+            created = next((folder for folder in reversed((out, *out.parents))
+                            if not folder.exists()), None)  # the first folder this run makes
+            output_folder(out)
+            try:
+                recorders = []
+                if not args.no_bag:
+                    from .ros.recording import BagRecorder
+                    recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
+                summary = run_scene(scene, out, duration=args.duration,
+                                    progress=not args.quiet, recorders=recorders,
+                                    schedule=schedule, stop=stop, log=say)
+            except (SceneError, ValueError):  # refused before it ran (the model does not load)
+                if created is not None:
+                    shutil.rmtree(created, ignore_errors=True)
+                else:  # (an empty folder given: left empty)
+                    for entry in out.iterdir():
+                        if entry.is_dir():
+                            shutil.rmtree(entry)
+                        else:
+                            entry.unlink()
+                raise
+    if args.json:
+        print(json.dumps(significant(run_report(summary)), indent=2))
+    elif not args.quiet:
+        print('\n'.join(human_summary(summary, out)))
+    if summary.get('scenario_traceback'):
+        print(f'rft-sim: error: {summary["reason"]} (traceback: '
+              f'{out / summary["scenario_traceback"]})', file=sys.stderr)
     if stop.signal is not None:
         return 128 + stop.signal
     return 0 if summary['stable'] else 1
+
+
+#: The summary keys `rft-sim run --json` prints (with the metrics and the outcome).
+REPORT_KEYS = ('scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s', 'real_time_factor',
+               'plates_total', 'plates_active_mean', 'stable', 'interrupted', 'reason')
+
+
+def run_report(summary):
+    """What `rft-sim run --json` prints of a run's `summary`: REPORT_KEYS, its `outcome`
+    where it has one, its metrics and generic metrics."""
+    report = {key: summary[key] for key in REPORT_KEYS}
+    if 'outcome' in summary:
+        report['outcome'] = summary['outcome']
+    return {**report, 'metrics': summary['metrics'],
+            'generic_metrics': summary['generic_metrics']}
+
+
+#: Scenario metrics the human summary shows at most.
+SHOWN_METRICS = 4
+
+
+def human_summary(summary, out):
+    """The few lines `rft-sim run` prints at the end: how the run ended, what happened to
+    the robot (the summary's outcome words, where it has them), its key metrics (the
+    scenario's first SHOWN_METRICS, else the base's displacement and final speed), and where
+    its files are."""
+    if summary['interrupted']:
+        ended = 'interrupted'
+    elif summary['stable']:
+        ended = 'stable'
+    else:
+        ended = 'NOT STABLE'
+    lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
+             f'{summary["wall_time_s"]:.3g} s (real-time factor {summary["real_time_factor"]:.3g})']
+    if summary['reason']:
+        lines.append(f'  reason: {summary["reason"]}')
+    words = (summary.get('outcome') or {}).get('words')
+    if words:
+        lines.append(f'  outcome: {words}')
+    shown = {key: value for key, value in summary['metrics'].items()
+             if isinstance(value, (int, float)) and not isinstance(value, bool)}
+    if not shown:
+        shown = {key: summary['generic_metrics'][key]
+                 for key in ('base_displacement_m', 'final_speed_mps')
+                 if key in summary['generic_metrics']}
+    if shown:
+        lines.append('  ' + ', '.join(f'{key} {_number(value)}' for key, value
+                                      in list(shown.items())[:SHOWN_METRICS]))
+    files = [name for name in ('summary.json', 'timeseries.csv', 'bag') if (out / name).exists()]
+    lines.append(f'  wrote {out}/: {", ".join(files)} (all metrics: summary.json)')
+    return lines
+
+
+def _number(value):
+    return 'null' if value is None else f'{value:.4g}'
 
 
 class StopRequest(threading.Event):
@@ -351,11 +464,13 @@ def build_parser():
                      help='bodies that touch sand (rft.bodies): names, glob patterns and '
                           "auto (auto,crate: auto's picks and the crate)")
     run.add_argument('--base', choices=('floating', 'fixed'),
-                     help='URDF root link: free or welded to the world (default: as the '
-                          'URDF says: welded where a fixed joint hangs it from a world link)')
+                     help='root body: free or welded to the world (robot.base; default: '
+                          'as the file says: a URDF welded where a fixed joint hangs it from '
+                          'a world link, an MJCF as written)')
     run.add_argument('--keyframe', metavar='NAME',
                      help="initial pose: the model's keyframe NAME (robot.keyframe; "
-                          "default: its 'home' keyframe where it has one)")
+                          'default: the first of home, stand, standing, default it has, else '
+                          "its first keyframe; '': its qpos0)")
     run.add_argument('--spawn', metavar='rest|drop:HEIGHT|model',
                      help='where the robot starts (robot.spawn): settled on the sand, its '
                           'sand bodies HEIGHT m above it, or as the model puts it')
@@ -378,7 +493,15 @@ def build_parser():
     run.add_argument('--no-bag', action='store_true', help='do not write DIR/bag (rosbag2)')
     run.add_argument('--plates', action='store_true',
                      help='record the active plates (/rft/plates markers) in the bag')
-    run.add_argument('--quiet', action='store_true', help='no progress bar')
+    run.add_argument('--overwrite', action='store_true',
+                     help="replace an earlier run's outputs in --out (without it, a run "
+                          'writes into a new or empty folder only)')
+    run.add_argument('--json', action='store_true',
+                     help='print the summary (key figures, outcome, metrics) as JSON on '
+                          'stdout instead of the short human summary')
+    run.add_argument('--quiet', action='store_true',
+                     help='print only errors (no progress bar, notices or summary; --json '
+                          'still prints its JSON)')
     run.set_defaults(func=cmd_run)
     commands.add_parser(
         'warmup', help='compile the kernels now (a first run does it otherwise, ~15 s)'

@@ -100,7 +100,7 @@ def test_cli_run_writes_summary_timeseries_and_plot(tmp_path, capsys):
     out = tmp_path / 'run'
     code = main(['run', 'plate_drop', '--duration', '0.4', '--zeta', '2.5', '--timestep',
                  '0.0005', '--plates-per-body', '150', '--set', 'drop_height=0.05',
-                 '--out', str(out), '--quiet'])
+                 '--out', str(out), '--quiet', '--json'])
     assert code == 0
     summary = json.loads((out / 'summary.json').read_text())
     assert SUMMARY_FIELDS <= set(summary)

@@ -160,7 +160,7 @@ def test_unknown_scenario_lists_the_known_ones(tmp_path, capsys):
 def test_set_at_past_the_end_warns_and_the_schedule_is_recorded(tmp_path, capsys):
     out = tmp_path / 'run'
     assert main(['run', 'plate_drop', '--duration', '0.2', '--zeta', '5', '--set-at',
-                 '0.1:zeta=1', '--set-at', '99:zeta=2', '--out', str(out), '--quiet',
+                 '0.1:zeta=1', '--set-at', '99:zeta=2', '--out', str(out),
                  '--no-bag']) == 0
     err = capsys.readouterr().err
     assert 'rft-sim: warning: --set-at 99:zeta=2 comes after the run ends (0.2 s)' in err
@@ -205,8 +205,8 @@ def _long_run_recording(out):
     Simulation(load_scene('plate_drop'))  # kernels in numba's cache: the child starts warm
     child = subprocess.Popen(
         [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--duration', '600',
-         '--out', str(out), '--quiet'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, preexec_fn=_as_in_a_terminal)
+         '--out', str(out), '--quiet', '--json'], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, preexec_fn=_as_in_a_terminal)
     bag_file = out / 'bag' / 'bag.mcap'
     deadline = time.monotonic() + 120
     while not (bag_file.exists() and bag_file.stat().st_size > 0):  # stepping, recording
@@ -296,7 +296,7 @@ def test_a_cold_kernel_cache_is_announced_before_compiling(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'empty-cache'))
     child = subprocess.Popen(
         [sys.executable, '-m', 'rft_sim_ros.cli', 'run', 'plate_drop', '--out',
-         str(tmp_path / 'run'), '--quiet'], env=env, stdout=subprocess.DEVNULL,
+         str(tmp_path / 'run')], env=env, stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE, text=True)
     try:
         started = time.monotonic()

@@ -7,8 +7,11 @@ from pathlib import Path
 import pytest
 
 from rft_sim_ros.cli import main
-from rft_sim_ros.scenes.config import ROBOT_PLATES, SceneError, load_scene
+from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.scenes.schema import BY_PATH
+
+#: Plates per sand body of a robot file's scene: the schema's default, as a scene file's.
+ROBOT_PLATES = BY_PATH['rft.plates_per_body'].default
 
 PACKAGE = Path(__file__).parent / 'robots' / 'sandbot_description'
 XACRO = PACKAGE / 'urdf' / 'sandbot.urdf.xacro'
@@ -23,7 +26,7 @@ def test_robot_file_scene_defaults():
     assert (scene.timestep, scene.zeta) == (0.001, 3.75)
     assert scene.duration == BY_PATH['duration'].default
     assert scene.plates_per_body == ROBOT_PLATES and scene.robot['base'] is None  # (as the
-    assert scene.spawn == 'rest'                                                # URDF says)
+    assert scene.spawn == 'auto'  # URDF says; spawn auto: rest under the external scenario)
 
 
 def test_robot_file_runs_in_sand_with_the_plates_asked(tmp_path):

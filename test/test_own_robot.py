@@ -61,12 +61,13 @@ def test_the_models_home_keyframe_is_the_initial_pose_unless_the_scene_names_one
                                                                                  robot):
     """Vendors name their standing pose `home` (Unitree's Go2 stood up from it, and fell
     over backwards from its zero pose): it is the default, said at start-up; '' is none."""
-    sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 50}'))
+    sim = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 50}',
+                           robot='{spawn: model}'))
     assert sim.notices[0].startswith("initial pose: the model's keyframe 'home'")
     thigh = sim.model.jnt_qposadr[sim.model.joint('FL_thigh_joint').id]
     assert sim.data.qpos[thigh] == HOME_THIGH
     bare = Simulation(scene(tmp_path, robot, rft='{plates_per_body: 50}',
-                            robot="{keyframe: ''}"))
+                            robot="{keyframe: '', spawn: model}"))
     assert bare.data.qpos[thigh] == bare.model.qpos0[thigh] != HOME_THIGH
     assert not [n for n in bare.notices if 'initial pose' in n]
 
@@ -213,7 +214,7 @@ def test_rft_sim_run_takes_the_robot_file_with_keyframe_and_spawn(robot, tmp_pat
     metrics."""
     out = tmp_path / 'run'
     assert main(['run', str(robot), '--keyframe', 'home', '--spawn', 'drop:0.02',
-                 '--plates-per-body', '100', '--duration', '0.3', '--no-bag', '--quiet',
+                 '--plates-per-body', '100', '--duration', '0.3', '--no-bag',
                  '--out', str(out)]) == 0
     err = capsys.readouterr().err
     assert 'rft-sim: sand bodies (auto): FL_calf, FR_calf, RL_calf, RR_calf' in err
@@ -224,7 +225,7 @@ def test_rft_sim_run_takes_the_robot_file_with_keyframe_and_spawn(robot, tmp_pat
     assert generic['stable'] and 0 < generic['max_depth_m_FL_calf'] < 0.1
     assert generic['peak_force_z_N_FL_hip'] > 0
     assert main(['run', str(robot), '--spawn', 'hover', '--out', str(tmp_path / 'x')]) == 2
-    assert 'robot.spawn: must be model, rest or drop:HEIGHT' in capsys.readouterr().err
+    assert 'robot.spawn: must be auto, model, rest or drop:HEIGHT' in capsys.readouterr().err
 
 
 def test_a_xacro_urdf_robot_gets_its_limits_initial_values_and_feet(tmp_path):

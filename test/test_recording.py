@@ -104,7 +104,7 @@ def test_an_existing_bag_is_not_overwritten(tmp_path, capsys):
     out = tmp_path / 'run'
     (out / 'bag').mkdir(parents=True)
     assert main(['run', 'plate_press', '--duration', '0.02', '--out', str(out), '--quiet']) == 2
-    assert 'exists' in capsys.readouterr().err
+    assert "holds an earlier run's outputs (bag)" in capsys.readouterr().err
     assert not list((out / 'bag').iterdir()) and not (out / 'summary.json').exists()
 
 

@@ -109,7 +109,7 @@ WORLD_FLOATING = """<robot name="w">
 def test_a_root_hung_from_world_by_a_floating_joint_keeps_that_free_joint(tmp_path):
     """As vendors' URDFs for MuJoCo have it (Unitree's AS2, its B2 for MuJoCo): that joint
     is the free base (a second one failed: more than 6 dofs); `fixed` drops it. A robot file
-    with a fixed base starts where the model puts it (spawn rest needs a free base)."""
+    with a fixed base starts where the model puts it (spawn auto: rest needs a free base)."""
     path = tmp_path / 'w.urdf'
     path.write_text(WORLD_FLOATING)
     floating = load_description(path, log=lambda notice: None).spec.compile()
@@ -117,8 +117,8 @@ def test_a_root_hung_from_world_by_a_floating_joint_keeps_that_free_joint(tmp_pa
     fixed = load_description(path, base='fixed', log=lambda notice: None).spec.compile()
     assert fixed.nq == 1
     sim = Simulation(load_scene(path, {'robot.base': 'fixed', 'rft.plates_per_body': 50}))
-    assert sim.settle_steps == 0 and [n for n in sim.notices
-                                      if n.startswith('robot.spawn rest: body base is fixed')]
+    assert sim.settle_steps == 0 and sim.scene.spawn == 'auto'
+    assert not [n for n in sim.notices if n.startswith('robot.spawn')]  # (nothing asked)
     sim.step(10)
 
 
@@ -167,7 +167,8 @@ def test_a_mimic_joint_follows_its_joint_and_takes_no_commands(tmp_path):
 def test_an_mjcf_without_names_runs_its_bodies_called_by_id(tmp_path):
     """MuJoCo's own examples leave bodies and joints unnamed (slider_crank.xml, cards.xml):
     bodies get body<id> (sand bodies and legs name them), an unnamed joint no interfaces
-    (no command could name it), a fixed base no spawn; each said at start-up."""
+    (no command could name it), each said at start-up; a fixed base starts where it is
+    (spawn auto)."""
     path = tmp_path / 'anon.xml'
     path.write_text('''<mujoco><worldbody>
       <body pos="0 0 0.3"><joint type="hinge" axis="0 1 0"/>
@@ -182,7 +183,7 @@ def test_an_mjcf_without_names_runs_its_bodies_called_by_id(tmp_path):
     said = '\n'.join(sim.notices)
     assert '2 bodies without a name, called by their id: body1, body3_' in said
     assert '1 hinge or slide joint(s) without a name: no command interfaces' in said
-    assert 'robot.spawn rest: body body1 is fixed to the world' in said
+    assert sim.settle_steps == 0
     sim.step(10)
 
 
@@ -197,8 +198,7 @@ def test_a_root_fixed_to_a_world_link_stays_welded_unless_the_base_is_set(tmp_pa
     assert load_description(path, base='floating',
                             log=lambda notice: None).spec.compile().nq == 7 + 1
     sim = Simulation(load_scene(path, {'rft.plates_per_body': 50}))
-    assert sim.model.nq == 1
-    assert [n for n in sim.notices if n.startswith('robot.spawn rest: body base is fixed')]
+    assert sim.model.nq == 1 and sim.settle_steps == 0
     sandbot = load_description(XACRO, package_paths=PATHS, log=lambda notice: None)
     assert sandbot.spec.compile().joint(FLOATING_JOINT).type == mujoco.mjtJoint.mjJNT_FREE
 

@@ -35,7 +35,7 @@ def test_hexapod_walks_forward_at_zeta_3_75_without_nan():
     assert abs(m['lateral_drift_m']) < 0.3 * m['forward_distance_m']
     assert 0.0 < m['mean_sinkage_m'] < 0.176  # in the sand, base_link above it
     weight = 9.81 * m['total_mass_kg']
-    peaks = [m[f'peak_force_z_N_{leg}'] for leg in hexapod.LEG_NAMES]
+    peaks = [m[f'walk_peak_force_z_N_{leg}'] for leg in hexapod.LEG_NAMES]
     assert all(weight / 6 < p < 3 * weight for p in peaks)  # each leg carries load
 
 

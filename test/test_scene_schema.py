@@ -68,7 +68,7 @@ def test_defaults_fill_a_minimal_scene(tmp_path):
      "keyframe 'home' is not in the model"),
     (('name: mini', 'name: mini\nservos: {"*": {kp: -1}}'), 2, 'servos', '*.kp: must be'),
     (('name: mini', 'name: mini\nrobot: {spawn: "drop:x"}'), 2, 'robot.spawn',
-     'must be model, rest or drop:HEIGHT'),
+     'must be auto, model, rest or drop:HEIGHT'),
     (('name: mini', 'name: mini\nrft_bodies: 1'), 2, 'rft_bodies', 'unknown key'),
     (('model: plate.xml\n', ''), None, 'model', 'missing (required)'),  # no line to name
     (('name: mini', 'name: mini\nsand:\n  surface_height: [1]'), 3, 'sand.surface_height',

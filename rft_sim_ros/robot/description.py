@@ -8,9 +8,16 @@ named FLOATING_JOINT (`base='floating'`; a root link hung from a `world` link by
 (`base='fixed'`, that joint dropped); `base=None` (the default) does as the URDF says: a
 root link hung from a `world` link by a `fixed` joint (an arm on its mount) stays welded,
 any other floats. A root link joined only by a fixed joint to the real trunk is fine (it
-is a massless body carrying the trunk). MJCF is used as written (`base` applies to URDF
-only).
-Notices (dropped visuals, ignored tags, converted meshes) are logged once through `log`.
+is a massless body carrying the trunk). MJCF is used as written, except where `base` asks:
+'fixed' welds the robot's root (the first body under the world: its free joint removed;
+already welded, nothing to do), 'floating' frees it (a free joint FLOATING_JOINT added to
+a root without joints; a free root as it is); a root that moves on other joints (slides,
+hinges: a planar robot) is refused with the reason, as MuJoCo's importer never guesses. A
+visual-only mesh geom (contype and conaffinity 0) whose mesh file is missing is dropped with
+the same notice as a URDF's (plain MuJoCo refuses the file); a missing mesh that a colliding
+geom uses is refused, naming it.
+Notices (dropped visuals, ignored tags, converted meshes, a welded or freed root) are logged
+once through `log`.
 """
 import logging
 from dataclasses import dataclass, field
@@ -18,7 +25,7 @@ from pathlib import Path
 
 import mujoco
 
-from .meshes import MeshError
+from .meshes import MeshError, dropped_visuals_notice
 from .packages import PackageResolver
 from .urdf import UrdfError, parse_xml, prepare_urdf
 from .xacro_files import XacroError, expand_xacro
@@ -67,7 +74,8 @@ def load_description(source, *, package_paths=None, xacro_args=None, base=None,
 
     package_paths: {package: folder} or ['NAME=DIR', ...] for $(find)/package:// (the
     ament index and ROS_PACKAGE_PATH are searched after them); xacro_args: {name: value};
-    base: 'floating', 'fixed' or None (URDF; module docstring). Raises DescriptionError.
+    base: 'floating', 'fixed' or None (as the file says; module docstring). Raises
+    DescriptionError.
     """
     if base not in BASES:
         raise DescriptionError(f"base must be 'floating', 'fixed' or None, got {base!r}")
@@ -96,7 +104,7 @@ def load_description(source, *, package_paths=None, xacro_args=None, base=None,
         if root.tag == 'robot':
             description = _from_urdf(root, where, base_dir, resolver, base)
         elif root.tag == 'mujoco':
-            description = _from_mjcf(text, path, where)
+            description = _from_mjcf(text, path, where, base)
         else:
             raise DescriptionError(f'{where}: root element <{root.tag}> is neither <robot> '
                                    '(URDF) nor <mujoco> (MJCF)')
@@ -139,10 +147,15 @@ def _fixed_to_world(root):
                and joint.find('parent').get('link') == 'world' for joint in root.iter('joint'))
 
 
-def _from_mjcf(text, path, where):
+def _from_mjcf(text, path, where, base):
     spec = _spec(lambda: (mujoco.MjSpec.from_file(str(path)) if path is not None
                           else mujoco.MjSpec.from_string(text)), where)
     notices = _name_bodies(spec, where)
+    dropped = _drop_missing_visual_meshes(spec, where, path)
+    if dropped:
+        notices.append(dropped_visuals_notice(where, dropped))
+    if base is not None:
+        notices.append(_set_mjcf_base(spec, where, base))
     # effort limits read from the spec, not a compiled model: compiling here would also
     # process every visual mesh (seconds for a vendor model), which the simulation discards
     effort = {}
@@ -153,6 +166,65 @@ def _from_mjcf(text, path, where):
         if limited and joint.name:
             effort[joint.name] = float(max(abs(joint.actfrcrange)))
     return RobotDescription(spec=spec, kind='mjcf', effort_limits=effort, notices=notices)
+
+
+def _set_mjcf_base(spec, where, base):
+    """Weld ('fixed') or free ('floating') the root of MJCF `spec`: its first body under the
+    world (module docstring). Returns the notice saying what was done; raises
+    DescriptionError where it cannot be done as the file stands."""
+    roots = list(spec.worldbody.bodies)
+    if not roots:
+        raise DescriptionError(f'{where}: robot.base {base}: the model has no body to '
+                               f'{"weld" if base == "fixed" else "free"}')
+    root = roots[0]
+    free = [j for j in root.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
+    others = [j.name or f'#{i}' for i, j in enumerate(root.joints)
+              if j.type != mujoco.mjtJoint.mjJNT_FREE]
+    if others:
+        raise DescriptionError(
+            f'{where}: robot.base {base}: root body {root.name} moves on joints '
+            f'{", ".join(others)}, not on one free joint, so it cannot be '
+            f'{"welded" if base == "fixed" else "freed"} without changing the model: edit its '
+            'joints in the file, or leave robot.base unset (the model as written)')
+    if base == 'fixed':
+        for joint in free:
+            spec.delete(joint)
+        return (f'{where}: robot.base fixed: root body {root.name} welded to the world '
+                f'({"its free joint removed" if free else "it had no joint"})')
+    if not free:
+        root.add_freejoint(name=FLOATING_JOINT)
+    return (f'{where}: robot.base floating: root body {root.name} '
+            f'{"free as written" if free else f"freed (free joint {FLOATING_JOINT} added)"}')
+
+
+def _drop_missing_visual_meshes(spec, where, path):
+    """Drop from MJCF `spec` each mesh whose file is missing, with the visual-only geoms
+    (contype and conaffinity 0) that use it; returns '<file> (missing)' for each dropped.
+    Raises DescriptionError where a colliding geom uses such a mesh. Mesh files are looked
+    for as MuJoCo does: absolute as given, else under the model file's folder (`path`; the
+    working directory for a string) joined with the compiler's meshdir."""
+    folder = (Path(path).resolve().parent if path is not None else Path.cwd()) / spec.meshdir
+    missing = {mesh.name: mesh for mesh in spec.meshes
+               if mesh.file and not (folder / mesh.file).is_file()}
+    if not missing:
+        return []
+    users = {}
+    for geom in spec.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH and geom.meshname in missing:
+            users.setdefault(geom.meshname, []).append(geom)
+    for name, geoms in users.items():
+        colliding = [g for g in geoms if g.contype or g.conaffinity]
+        if colliding:
+            raise DescriptionError(
+                f'{where}: mesh {name}: file {missing[name].file} not found (looked for '
+                f'{folder / missing[name].file}), and geom {colliding[0].name or "(unnamed)"} '
+                'of a body collides with it: give the file, or drop the geom')
+    for geoms in users.values():
+        for geom in geoms:
+            spec.delete(geom)
+    for mesh in missing.values():
+        spec.delete(mesh)
+    return [f'{mesh.file} (missing)' for mesh in missing.values()]
 
 
 def _name_bodies(spec, where):

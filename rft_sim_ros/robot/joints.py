@@ -1,8 +1,13 @@
 """Joint command interfaces as a ros2_control robot has them: position and effort per joint.
 
-Every movable joint (hinge or slide) gets a position command interface and an effort one,
+Every actuated joint (hinge or slide) gets a position command interface and an effort one,
 set up on the model spec before it is compiled (`add_joint_interfaces`) and tuned on the
-compiled model (`JointInterfaces`):
+compiled model (`JointInterfaces`). Actuated: a joint the model drives with an actuator of
+its own; in a model that declares no actuator at all (a URDF, whose joints ros2_control
+drives; an MJCF without <actuator>), every movable joint. A joint without an actuator in a
+model that has actuators stays passive as written (its spring, damping, friction and limits
+are the model's; a closed loop's or a spring leg's free joints stay free) unless the scene's
+`servos` names it (a matching pattern with kp, kd or effort): then it gets interfaces too.
 
 * position: a MuJoCo position actuator already on the joint is used as it is. A joint driven
   by a torque `<motor>`, or by no actuator, gets a PD actuator that MuJoCo integrates itself
@@ -20,11 +25,13 @@ else the description's limit (URDF `<limit effort>`), else none.
 One mode at a time, as ros2_control switches controllers: a position command puts every
 joint in position mode (PD/position actuators on, motors at 0), an effort command puts them
 in effort mode (position actuators' gains off). A joint whose `servos` entry is `passive`,
-that is driven by another actuator kind (velocity, integrated velocity, tendon...), that has
-no name (no command could name it; /joint_states leaves it out too), or that
-an active joint equality sets from another joint or a constant (a URDF `<mimic>` joint,
-which MuJoCo's importer makes one; MJCF `<equality><joint joint1=...>`) gets no interfaces:
-it follows, as a ros2_control mimic joint does, instead of a servo fighting the equality.
+that has no actuator where the model has some (above), that is driven by another actuator
+kind (velocity, integrated velocity, tendon...), that has no name (no command could name it;
+/joint_states leaves it out too), or that an active joint equality sets from another joint
+or a constant (a URDF `<mimic>` joint, which MuJoCo's importer makes one; MJCF
+`<equality><joint joint1=...>`) gets no interfaces: it follows, as a ros2_control mimic
+joint does, instead of a servo fighting the equality. Other equality constraints (an MJCF's
+closed loops: `connect`, `weld`) are kept as written.
 """
 import fnmatch
 import math
@@ -103,23 +110,38 @@ def position_servos(model):
                 model.actuator_dyntype[a], model.actuator_gainprm[a], model.actuator_biasprm[a])]
 
 
+@dataclass(frozen=True)
+class JointPlan:
+    """What `add_joint_interfaces` did: `commanded`, the joints that got interfaces (in
+    model order); `passive`, the named movable joints left without an actuator of the
+    model's (no servo asked for them), as the model has them."""
+    commanded: tuple
+    passive: tuple
+
+
 def add_joint_interfaces(spec, servos):
-    """Add the PD and effort actuators that the movable joints of `spec` (mujoco.MjSpec)
-    lack (module docstring). Returns the names of the joints that got interfaces; the
-    actuators are named pd_<joint> / effort_<joint>. Switches an Euler integrator to
-    implicitfast when a PD actuator was added (its damping must be implicit)."""
+    """Add the PD and effort actuators that the actuated joints of `spec` (mujoco.MjSpec)
+    lack (module docstring), and those `servos` asks for on joints without an actuator.
+    Returns a JointPlan; the actuators are named pd_<joint> / effort_<joint>. Switches an
+    Euler integrator to implicitfast when a PD actuator was added (its damping must be
+    implicit)."""
     by_joint = {}
     for actuator in spec.actuators:
         if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT:
             by_joint.setdefault(actuator.target, []).append(actuator)
+    every_joint = not spec.actuators  # no actuator of its own: every joint is commanded
     followers = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT
                  and e.active}
-    joints, added_pd = [], False
+    joints, passive, added_pd = [], [], False
     for joint in spec.joints:
-        if (joint.type not in _MOVABLE or joint.name in followers
-                or servo_settings(servos, joint.name) == PASSIVE):
+        settings = servo_settings(servos, joint.name)
+        if joint.type not in _MOVABLE or joint.name in followers or settings == PASSIVE:
             continue
         actuators = by_joint.get(joint.name, [])
+        if not (actuators or every_joint or settings):
+            if joint.name:
+                passive.append(joint.name)
+            continue  # no actuator in the model, and the scene asks for no servo
         position = [a for a in actuators if _is_position_servo(
             a.gaintype, a.biastype, a.dyntype, a.gainprm, a.biasprm)]
         motors = [a for a in actuators if _is_motor(a.gaintype, a.biastype, a.dyntype)]
@@ -134,7 +156,7 @@ def add_joint_interfaces(spec, servos):
         joints.append(joint.name)
     if added_pd and spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER:
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    return joints
+    return JointPlan(tuple(joints), tuple(passive))
 
 
 def _add_actuator(spec, name, joint):

@@ -1,4 +1,5 @@
-"""Mesh files MuJoCo cannot read, made readable: converted with trimesh to binary STL.
+"""Mesh files MuJoCo cannot read, made readable: converted with trimesh to binary STL; and the
+notice of the visual meshes a description drops (`dropped_visuals_notice`).
 
 MuJoCo reads STL, OBJ and MSH meshes. Collision meshes in other formats (COLLADA .dae, PLY,
 glTF, OFF, ...) are loaded with trimesh (COLLADA through pycollada) and handed to MuJoCo
@@ -38,3 +39,11 @@ def converted_stl(path):
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f'collision mesh {path}: no triangles found to convert')
     return loaded.export(file_type='stl')
+
+
+def dropped_visuals_notice(where, dropped):
+    """The notice of visual meshes dropped from a description (URDF or MJCF): `dropped`,
+    one text a mesh."""
+    return (f'{where}: dropped {len(dropped)} visual mesh(es) MuJoCo cannot read (MuJoCo does '
+            'not collide visuals; with rft.plate_geoms: visual their bodies keep their '
+            f'collision geoms): {", ".join(sorted(set(dropped)))}')

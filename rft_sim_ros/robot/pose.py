@@ -1,10 +1,14 @@
 """A robot's initial pose and where it starts above the sand.
 
-Initial pose: the model's own (qpos0), then a named keyframe (`robot.keyframe`), then single
-joints set by name (`robot.initial_positions`, rad or m; a robot description's ros2_control
+Initial pose: the model's own (qpos0), then a keyframe (`robot.keyframe` names it; by default
+the first of DEFAULT_KEYFRAMES the model has, else its first keyframe), then single joints
+set by name (`robot.initial_positions`, rad or m; a robot description's ros2_control
 initial values come this way too).
 
 Spawn (`robot.spawn`), for a robot whose root body has a free joint:
+  auto        (the default) rest under the `external` scenario (a robot that holds its pose
+              for commands: a robot file's scene, and a scene file naming the same robot,
+              start alike), model under any other (its scenario sets the start);
   model       the pose as the model (or scenario) gives it;
   drop:H      turned to the sand surface under its sand bodies where that is not level (a
               slope: `align_to`), then moved vertically so that its sand bodies' geoms are
@@ -35,8 +39,15 @@ ALIGN_SAMPLES = 9
 LEVEL_GRADIENT = 1e-9
 
 
-def parse_spawn(text):
-    """'model' | 'rest' | 'drop:H' -> (kind, height m or None); raises ValueError."""
+#: The scenario under which spawn 'auto' is 'rest'.
+HOLDING_SCENARIO = 'external'
+
+
+def parse_spawn(text, scenario=HOLDING_SCENARIO):
+    """'auto' | 'model' | 'rest' | 'drop:H' -> (kind, height m or None), 'auto' resolved
+    for `scenario` (the scene's scenario reference; module docstring); raises ValueError."""
+    if text == 'auto':
+        return ('rest' if scenario == HOLDING_SCENARIO else 'model'), None
     if text in ('model', 'rest'):
         return text, None
     kind, _, height = str(text).partition(':')
@@ -45,32 +56,45 @@ def parse_spawn(text):
     except ValueError:
         value = float('nan')
     if kind != 'drop' or not value >= 0 or value == float('inf'):
-        raise ValueError(f"must be model, rest or drop:HEIGHT (m, >= 0), got {text!r}")
+        raise ValueError(f"must be auto, model, rest or drop:HEIGHT (m, >= 0), got {text!r}")
     return 'drop', value
 
 
-#: The keyframe the initial pose starts from when the scene names none: the standing pose of
-#: vendors' and MuJoCo Menagerie's models (Unitree's Go2, B2, H1 name theirs so).
-HOME_KEYFRAME = 'home'
+#: The keyframes the initial pose starts from when the scene names none, in the order looked
+#: for: the standing pose of vendors' and MuJoCo Menagerie's models (Unitree's Go2, B2 and
+#: H1 call theirs home; Menagerie's humanoids stand, standing or default); a model with none
+#: of these starts from its first keyframe, and a model without keyframes from its qpos0.
+DEFAULT_KEYFRAMES = ('home', 'stand', 'standing', 'default')
 
 
 def initial_keyframe(model, keyframe=None):
-    """The keyframe the initial pose starts from: `keyframe` (robot.keyframe) where given ('':
-    none, the model's qpos0), else the model's HOME_KEYFRAME where it has one, else None."""
+    """The keyframe the initial pose starts from: `keyframe` (robot.keyframe: a name) where
+    given ('': none, the model's qpos0); else the first of DEFAULT_KEYFRAMES the model has,
+    else its first keyframe (its id where it has no name), else None."""
     if keyframe is not None:
         return keyframe or None
-    home = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, HOME_KEYFRAME) >= 0
-    return HOME_KEYFRAME if home else None
+    for name in DEFAULT_KEYFRAMES:
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name) >= 0:
+            return name
+    if model.nkey:
+        return model.key(0).name or 0
+    return None
+
+
+def keyframe_label(keyframe):
+    """How a notice names `keyframe` (a name, or the id of one without a name)."""
+    return f'#{keyframe}' if isinstance(keyframe, int) else repr(keyframe)
 
 
 def set_initial_pose(model, data, keyframe=None, initial_positions=None):
-    """Put `keyframe` (name) and then `initial_positions` ({joint: rad or m}) into data.qpos
+    """Put `keyframe` (a name, or an id) and then `initial_positions` ({joint: rad or m}) into data.qpos
     (and the keyframe's qvel, act, ctrl, mocap), then move each hinge or slide joint outside
     its range to the range's nearest end (`into_ranges`: a URDF's zero pose may lie outside
     a knee's range, and a servo holding it there fights the limit for ever). Returns what
     `into_ranges` moved; raises ValueError naming what is unknown."""
-    if keyframe:
-        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+    if keyframe is not None and keyframe != '':
+        key = (keyframe if isinstance(keyframe, int)
+               else mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe))
         if key < 0:
             names = [model.key(k).name for k in range(model.nkey)]
             raise ValueError(f'keyframe {keyframe!r} is not in the model (keyframes: '

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .meshes import converted_stl, mujoco_reads
+from .meshes import converted_stl, dropped_visuals_notice, mujoco_reads
 
 #: Tags of other simulators and of ros2_control that MuJoCo does not use.
 IGNORED_TAGS = ('ros2_control', 'gazebo', 'transmission')
@@ -175,10 +175,7 @@ def _prepare_meshes(root, where, base_dir, resolver, prepared):
             f'{where}: converted {len(converted)} collision mesh(es) to STL with trimesh '
             f'(MuJoCo reads STL, OBJ and MSH): {", ".join(str(p) for p in converted)}')
     if dropped:
-        prepared.notices.append(
-            f'{where}: dropped {len(dropped)} visual mesh(es) MuJoCo cannot read (MuJoCo does '
-            'not collide visuals; with rft.plate_geoms: visual their bodies keep their '
-            f'collision geoms): {", ".join(sorted(set(dropped)))}')
+        prepared.notices.append(dropped_visuals_notice(where, dropped))
 
 
 #: kg m^2: the least principal moment a replaced inertia gets, above the least MuJoCo takes

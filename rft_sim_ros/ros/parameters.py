@@ -47,8 +47,8 @@ PARAMETERS = (
     ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.bodies): 'A,B*' names or glob "
                                "patterns, 'auto', or auto beside them ('auto,crate')", False),
     ParameterSpec(KEYFRAME, "initial pose: the model's keyframe of this name (robot.keyframe), "
-                            "held until commands arrive (unset: its 'home' keyframe where it "
-                            'has one)', False),
+                            'held until commands arrive (unset: the first of home, stand, '
+                            'standing, default it has, else its first keyframe)', False),
     ParameterSpec(SCENE_OVERRIDES, "scene values as 'key=value' strings (as rft-sim run --set)",
                   False),
     ParameterSpec(ZETA, "sand stiffness, N/cm^3, 0 < zeta <= 100 (default: the scene's); "

@@ -22,9 +22,6 @@ from ..robot.description import is_robot_file
 from .schema import BY_PATH, Locator, SceneError, check_scene, load_with_lines, load_yaml
 
 
-#: Plates per sand body of a bare robot file's scene.
-ROBOT_PLATES = 300
-
 #: Settings that replace each other: overriding one removes the other.
 _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
                  'rft.plate_density_per_mm2': 'rft.plates_per_body'}
@@ -127,18 +124,17 @@ def load_scene(name_or_path, overrides=None, given_by='--set'):
 
 
 def robot_scene(model_path):
-    """The scene of a bare robot file (the mapping a scene YAML would hold): scenario
-    `external` (the robot holds its pose and takes commands), paper sand (zeta 3.75
-    N/cm^3), 1 ms steps, ROBOT_PLATES plates per sand body, the schema's default duration,
-    the base as the description says (`robot.base`), lowered onto the sand and settled
-    (spawn rest; a base fixed to the world starts where the model puts it: `Simulation`);
+    """The scene of a bare robot file (the mapping a scene YAML would hold): its model, a name
+    and a description, and every other key at the schema's default, so that it starts and
+    runs as a scene file naming the same robot does: scenario `external` (the robot holds its
+    pose and takes commands), paper sand (zeta 3.75 N/cm^3), 1 ms steps, the default plates
+    per sand body, the base as the description says (`robot.base`), spawn auto (rest: lowered
+    onto the sand and settled; a base fixed to the world starts where the model puts it),
     sand bodies and legs auto unless `rft.bodies` (`rft-sim run --sand-bodies`) names
     them."""
-    return {'name': Path(model_path).name.split('.')[0], 'scenario': 'external',
+    return {'name': Path(model_path).name.split('.')[0],
             'description': f'{Path(model_path).name} in sand (external commands)',
-            'model': str(Path(model_path).resolve()), 'timestep': 0.001, 'zeta': 3.75,
-            'rft': {'plates_per_body': ROBOT_PLATES}, 'legs': 'auto',
-            'robot': {'spawn': 'rest'}}
+            'model': str(Path(model_path).resolve())}
 
 
 def parse_assignment(text, given_by='--set'):

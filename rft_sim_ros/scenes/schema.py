@@ -307,7 +307,7 @@ KEYS = (
         'geoms), or its visual geoms, the shape as drawn (a model whose feet collide as a few '
         'small spheres; a body without visual geoms keeps its collision geoms).',
         _choice('collision', 'visual')),
-    Key('rft.plates_per_body', 'integer >= 1', 'plates', 500, 'Plates on each sand body '
+    Key('rft.plates_per_body', 'integer >= 1', 'plates', 300, 'Plates on each sand body '
         '(ignored when rft.plate_density_per_mm2 is given).', _count),
     Key('rft.plate_density_per_mm2', 'number > 0', 'plates/mm^2', None, 'Plates per mm^2 '
         'of body surface instead of a count (replaces rft.plates_per_body).', _positive),
@@ -356,9 +356,10 @@ KEYS = (
         'moves freely. Defaults from the robot mass (docs/robots.md).', _servos),
     Key('robot', 'mapping', '', {}, 'How the robot file is loaded, its initial pose and '
         'spawn.', _section),
-    Key('robot.base', "'floating', 'fixed' or null", '', None, 'A URDF root link: free '
-        '(6-DOF) or welded to the world; null: as the URDF says (welded where a fixed joint '
-        'hangs it from a `world` link, else free). MJCF is used as written.',
+    Key('robot.base', "'floating', 'fixed' or null", '', None, 'The root body: free '
+        '(6-DOF) or welded to the world; null: as the file says (a URDF welded where a fixed '
+        'joint hangs it from a `world` link, else free; an MJCF as written). An MJCF root '
+        'body moving on other joints than one free joint is refused.',
         _choice('floating', 'fixed', None)),
     Key('robot.package_paths', 'mapping package -> folder', '', {}, 'Folders of the ROS '
         'packages that $(find PKG) and package://PKG name (relative to the scene file); '
@@ -366,15 +367,19 @@ KEYS = (
     Key('robot.xacro_args', 'mapping name -> value', '', {}, 'xacro arguments ($(arg NAME)).',
         _text_mapping),
     Key('robot.keyframe', 'text or null', '', None, 'Named keyframe of the model for the '
-        "initial pose (held until commands arrive); null: the model's 'home' keyframe where "
-        "it has one (vendors' standing pose), else its qpos0; '': its qpos0.", _optional_text),
+        'initial pose (held until commands arrive); null: the first of home, stand, standing '
+        "and default the model has (vendors' and MuJoCo Menagerie's standing poses), else its "
+        "first keyframe, else its qpos0 (the choice is printed at start-up); '': its qpos0.",
+        _optional_text),
     Key('robot.initial_positions', 'mapping joint -> number', 'rad or m', {}, 'Joint '
         'positions of the initial pose, applied after the keyframe.', _mapping_of(_finite)),
-    Key('robot.spawn', "'model', 'rest' or 'drop:HEIGHT'", 'm', 'model', 'Where the robot '
-        'starts: as the model/scenario puts it; rest = lowered onto the sand and settled '
-        'before the run; drop:H = lowest sand-body point H m above the sand, released. Rest '
-        'and drop first turn the robot to the plane of a sloped surface under its sand '
-        'bodies.',
+    Key('robot.spawn', "'auto', 'model', 'rest' or 'drop:HEIGHT'", 'm', 'auto', 'Where the '
+        'robot starts: as the model/scenario puts it; rest = lowered onto the sand and settled '
+        'before the run; drop:H = lowest sand-body point H m above the sand, released; auto '
+        '= rest under the external scenario (a robot file, or a scene naming it, starts so), '
+        'model under any other. Rest and drop first turn the robot to the plane of a sloped '
+        'surface under its sand bodies; a base fixed to the world starts where the model puts '
+        'it.',
         _spawn),
     Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
         'each can be overridden with `--set NAME=VALUE`.', _mapping),

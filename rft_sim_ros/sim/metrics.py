@@ -1,5 +1,7 @@
 """Metrics every run reports, whatever its scenario: how the base moved, how deep each sand
-body went, how hard the sand pushed on each leg, and whether the run stayed stable.
+body went, how hard the sand pushed on each leg, and whether the run stayed stable. Each
+covers the whole run, from the initial state on; a scenario's own metrics use other names
+(the runner warns where one does not).
 
 `GenericMetrics` is fed the SimState snapshots of a run (at the publish rate) and the
 Simulation they came from; `result()` gives (SI units, world frame = odom, z up):
@@ -16,7 +18,8 @@ Simulation they came from; `result()` gives (SI units, world frame = odom, z up)
                                body in the sand; 0 if it never was);
   mean_force_z_N_<leg>, peak_force_z_N_<leg>
                                vertical sand force on the leg (its sand bodies and the
-                               other bodies of its branch), mean and largest;
+                               other bodies of its branch), mean and largest, over the
+                               whole run (a drop's landing included);
   stable                       the run ended without diverging (set by the runner).
 """
 import numpy as np

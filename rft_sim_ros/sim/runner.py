@@ -22,7 +22,7 @@ from ..sand.timestep import timestep_bound, timestep_problem
 from .metrics import GenericMetrics
 from ..scenes.scenarios import load_scenario
 from .publishing import PublishSchedule
-from .simulation import Simulation, SimulationDiverged
+from .simulation import ScenarioFailed, Simulation, SimulationDiverged
 from .summary import finite, json_default, significant
 
 
@@ -126,6 +126,10 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     Ctrl-C): checked at every published state; the summary then says `interrupted` (and the
     object's `reason`, if it has one).
     MuJoCo's messages go to out_dir/mujoco.log (see `mujoco_log`).
+    An exception in the scenario's code while the run steps, or in its metrics, ends the run
+    as a divergence does (`ScenarioFailed`): stable false, the reason 'scenario failed at t =
+    T s: the scenario raised at FILE:LINE: Type: message', what was recorded kept, and the
+    traceback in out_dir/SCENARIO_TRACEBACK (the summary's `scenario_traceback` names it).
     log: called with each start-up notice of the Simulation (e.g. the sand bodies `auto`
     chose), before the first step.
     A timestep longer than the sand coupling resolves at the run's largest zeta
@@ -140,9 +144,13 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     with mujoco_log(None if out is None else out / 'mujoco.log'):
-        summary, series, sim = _run(scene, duration, recorders, progress, schedule, stop,
-                                    log, surface)
+        summary, series, sim, details = _run(scene, duration, recorders, progress, schedule,
+                                             stop, log, surface)
+    if details is not None:
+        summary['scenario_traceback'] = SCENARIO_TRACEBACK if out is not None else details
     if out is not None:
+        if details is not None:
+            (out / SCENARIO_TRACEBACK).write_text(details)
         (out / 'summary.json').write_text(
             json.dumps(significant(summary), indent=2, default=json_default))
         _write_series(out / 'timeseries.csv', series, scene)
@@ -157,11 +165,17 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     return summary
 
 
+#: The file of a run's folder that holds the traceback of an exception in its scenario.
+SCENARIO_TRACEBACK = 'scenario_traceback.log'
+
+
 def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
-    """The run itself: (summary, time series rows, the Simulation)."""
+    """The run itself: (summary, time series rows, the Simulation, the traceback of an
+    exception in the scenario's code or None)."""
     bar = None
     loop_started = None
     interrupted = False
+    details = None
     recording = 0.0  # s in the recorders: recording each state, and finishing
     try:  # recorders are closed however the run ends (a bag is only complete once closed)
         duration = run_duration(scene, duration)
@@ -220,6 +234,8 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
                     if log is not None:
                         log(f'warning: {line}')
             _run_due(actions, done, sim, changes)
+    except ScenarioFailed as error:
+        reason, details = f'scenario failed {error}', error.details
     except SimulationDiverged as error:
         reason = f'diverged {error}'
     finally:
@@ -232,7 +248,17 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         if loop_started is not None:
             wall = time.perf_counter() - loop_started
     sim_time = sim.steps * sim.timestep
-    metrics = {**sim.scenario.metrics(sim), **sim.terrain_metrics()} if done else {}
+    metrics = {}
+    if done:
+        try:
+            metrics = dict(sim.scenario.metrics(sim))
+        except Exception as error:  # the scenario's: as if it had raised while stepping
+            failure = sim.scenario_failure(error)
+            if failure is None:
+                raise
+            if details is None:
+                reason, details = f'scenario failed {failure} (in its metrics)', failure.details
+        metrics.update(sim.terrain_metrics())
     if reason is None and coarse:
         reason = coarse
     stable = reason is None  # neither diverged nor too coarse a timestep
@@ -241,6 +267,15 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
             f'interrupted at t = {sim_time:.4f} s of {duration:g} s '
             f'({getattr(stop, "reason", None) or "stopped on request"})', reason)))
     solves, unsettled, handed_back = sim.implicit_counts()
+    generic_metrics = generic.result(stable=stable)
+    shared = sorted(set(metrics) & set(generic_metrics))
+    if shared:  # one name, one quantity: a scenario's metric must not take a generic name
+        line = (f'warning: metric{"s" * (len(shared) > 1)} {", ".join(shared)}: the scenario '
+                'reports a metric under the name of a generic one (sim/metrics.py), which may '
+                "be another quantity: rename the scenario's")
+        sim.notices.append(line)
+        if log is not None:
+            log(line)
     summary = {
         'scene': scene.name,
         'description': scene.description,
@@ -260,6 +295,10 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         'sand_bodies': list(sim.sand_bodies),
         'other_bodies': list(sim.other_bodies),
         'legs': {leg: list(bodies) for leg, bodies in sim.legs.items()},
+        # the joints commands address (array commands in this order), and those left
+        # passive as the model has them (robot/joints.py)
+        'commanded_joints': list(sim.servo_joint_names),
+        'passive_joints': list(sim.passive_joint_names),
         'notices': list(sim.notices),
         'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
                             for i, name in enumerate(sim.engine.body_names)},
@@ -278,7 +317,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         'interrupted': interrupted,
         'reason': reason,
         'metrics': finite(metrics),
-        'generic_metrics': finite(generic.result(stable=stable)),
+        'generic_metrics': finite(generic_metrics),
         'scene_config': scene.raw,
         'scene_values': scene.values,
         'surface': sim.engine.surface.describe() if surface is None else {
@@ -287,7 +326,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
     }
     if sim.engine.deformable:  # where the nodes of the final surface (terrain.npy) lie
         summary['terrain_grid'] = sim.engine.surface.placement()
-    return summary, series, sim
+    return summary, series, sim, details
 
 
 def _record(recorders, state):

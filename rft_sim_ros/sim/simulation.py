@@ -14,6 +14,8 @@ on with garbage: MuJoCo resets a non-finite state (caught every step by sim time
 back) and counts instability warnings; those and a runaway speed are checked at CHECK_RATE
 Hz of sim time.
 """
+import traceback
+
 import mujoco
 import numpy as np
 
@@ -21,8 +23,9 @@ from ..control.commands import CommandHandler
 from ..robot.description import DescriptionError, load_description
 from ..robot.joints import (JointInterfaces, add_joint_interfaces, movable_joints,
                             position_servos)
-from ..robot.pose import (REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, initial_keyframe,
-                          lift_to, parse_spawn, set_initial_pose)
+from ..robot.pose import (DEFAULT_KEYFRAMES, REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to,
+                          initial_keyframe, keyframe_label, lift_to, parse_spawn,
+                          set_initial_pose)
 from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
                                  other_bodies, resolve_sand_bodies)
 from ..sand.engine import LowVelocity, SandEngine, cold_start_estimate, kernels_cached
@@ -31,7 +34,7 @@ from ..sand.deformable import DeformableSand
 from ..sand.surface import (CHECKED_SLOPE_DEG, GRID, SURFACE_KINDS, Surface, hfield_geom,
                             hfield_label, surface_from_settings)
 from ..sand.zeta_map import zeta_map_from_settings
-from ..scenes.scenarios import load_scenario
+from ..scenes.scenarios import failure_line, load_scenario, scenario_files
 from ..scenes.config import SceneError
 from .caveats import caveats, first_few
 from .outcome import TILT_LIMIT_DEG, OutcomeWatch
@@ -133,6 +136,16 @@ class SimulationDiverged(RuntimeError):
     """Raised by `step` when the state stops being finite/bounded; message = the reason."""
 
 
+class ScenarioFailed(SimulationDiverged):
+    """Raised by `step` when the scenario's code raised: the run ends as a divergence does.
+    message: 'at t = T s: the scenario raised at FILE:LINE: Type: message'; `details`: the
+    whole traceback (text)."""
+
+    def __init__(self, message, details):
+        super().__init__(message)
+        self.details = details
+
+
 def _dynamic_term(config):
     if not config:
         return None
@@ -165,23 +178,35 @@ class Simulation:
         self._initial_positions = {**(self.description.initial_positions or {}),
                                    **scene.initial_positions}
         spec = self.description.spec
-        self.scenario.edit_model(spec)
+        self._in_scenario(self.scenario.edit_model, spec)
         visual = scene.plate_geoms == 'visual'
         patterns = scene.sand_bodies
         if visual and AUTO in patterns:  # auto's bodies' visuals are marked before compiling
             patterns = self._auto_sand_bodies(spec) + [p for p in patterns if p != AUTO]
         keep_sand_visuals(spec, patterns, visual)
         spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
-        interface_joints = add_joint_interfaces(spec, scene.servos)
+        joint_plan = add_joint_interfaces(spec, scene.servos)
+        self.passive_joint_names = joint_plan.passive
+        if joint_plan.passive:
+            names = joint_plan.passive
+            self.notices.append(
+                f'joint{"s" * (len(names) > 1)} {", ".join(names)}: no actuator in the model, '
+                f'so {"they stay" if len(names) > 1 else "it stays"} passive as written '
+                '(spring, damping, limits) and commands leave them out; servos: {NAME: {kp: '
+                '..., kd: ...}} gives one a servo')
         try:
             self.model = spec.compile()
         except Exception as error:
             raise SceneError(f'scene {scene.name}: model does not compile: {error}') from None
         self.model.opt.timestep = scene.timestep
         self._keyframe = initial_keyframe(self.model, scene.keyframe)
-        if self._keyframe and scene.keyframe is None:
-            self.notices.append(f"initial pose: the model's keyframe {self._keyframe!r} "
-                                "(robot.keyframe names another; '' the model's qpos0)")
+        if self._keyframe is not None and scene.keyframe is None:
+            names = [self.model.key(k).name or f'#{k}' for k in range(self.model.nkey)]
+            self.notices.append(
+                f"initial pose: the model's keyframe {keyframe_label(self._keyframe)} (by "
+                f'default the first of {", ".join(DEFAULT_KEYFRAMES)} it has, else its first '
+                f'keyframe; it has {", ".join(names)}): robot.keyframe or --keyframe NAME '
+                "picks another, '' the model's qpos0")
         try:
             surface = self._surface(surface)
             zeta_map = zeta_map_from_settings(scene.zeta_map)
@@ -252,19 +277,20 @@ class Simulation:
                 self.model.actuator_biasprm[actuator, 1] = -scene.servo_kp
         mujoco.mj_forward(self.model, self.data)
         self.interfaces = JointInterfaces(
-            self.model, self.data, interface_joints, scene.servos, scene.timestep,
+            self.model, self.data, joint_plan.commanded, scene.servos, scene.timestep,
             effort_limits=self.description.effort_limits)
         self.servo_joint_names = self.interfaces.joint_names
         self._command_qpos = self.model.jnt_qposadr[
             [self.model.joint(name).id for name in self.servo_joint_names]].astype(int)
         try:
-            self._spawn = parse_spawn(scene.spawn)
+            self._spawn = parse_spawn(scene.spawn, scene.scenario)
         except ValueError as error:
             raise scene.locator.error('robot.spawn', str(error)) from None
         if self._spawn[0] != 'model' and free_root_joint(self.model, self._base_id) is None:
-            self.notices.append(f'robot.spawn {scene.spawn}: body {self.base_body} is fixed to '
-                                'the world (no free joint at its root), so it starts where the '
-                                'model puts it')
+            if scene.spawn != 'auto':  # (the default: a welded robot starts where it is)
+                self.notices.append(f'robot.spawn {scene.spawn}: body {self.base_body} is fixed '
+                                    'to the world (no free joint at its root), so it starts '
+                                    'where the model puts it')
             self._spawn = ('model', None)
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
@@ -278,7 +304,29 @@ class Simulation:
         self.steps = 0  # engine steps since the start, resets included (the run's count)
         self.settle_steps = 0  # engine steps spawn rest took to settle, resets included
         self._settle_counts = np.zeros(3, dtype=np.int64)  # their `_engine_counts`
-        self._start()
+        self._in_scenario(self._start)
+
+    def _in_scenario(self, call, *args):
+        """call(*args) at start-up; an exception that the scenario's code raised is a
+        SceneError naming its file and line (the run does not start)."""
+        try:
+            return call(*args)
+        except SceneError:
+            raise
+        except Exception as error:
+            line = failure_line(error, scenario_files(type(self.scenario)))
+            if line is None:
+                raise
+            raise SceneError(f'scene {self.scene.name}: the scenario raised at {line}') from None
+
+    def scenario_failure(self, error):
+        """ScenarioFailed for exception `error` where the scenario's code raised it (a frame
+        of its traceback in the scenario's source), else None; sets `diverged`."""
+        line = failure_line(error, scenario_files(type(self.scenario)))
+        if line is None:
+            return None
+        self.diverged = f'at t = {self.time:.4f} s: the scenario raised at {line}'
+        return ScenarioFailed(self.diverged, ''.join(traceback.format_exception(error)))
 
     def _auto_sand_bodies(self, spec):
         """The body names auto picks, found on a compiled copy of `spec` (visual geoms
@@ -593,23 +641,31 @@ class Simulation:
     def step(self, count=1):
         """Advance `count` steps: at control ticks the scenario's control and the servo
         targets, then sand + MuJoCo. Raises SimulationDiverged, and keeps `diverged` set,
-        once the state blows up."""
+        once the state blows up, or ScenarioFailed (one) once the scenario's code raised."""
         if self.diverged:
             raise SimulationDiverged(self.diverged)
         scenario, engine_step, data = self.scenario, self.engine.step, self.data
         observe_every, control_every = scenario.observe_interval, self._control_every
-        for _ in range(count):
-            if self._since_start % control_every == 0:
-                self._control_tick()
-            before = data.time
-            engine_step()
-            self.steps += 1
-            self._since_start += 1
-            if data.time <= before:  # MuJoCo reset a non-finite state
-                self._diverge(self._check() or 'MuJoCo reset an unstable state',
-                              self._time_offset + before)
-            if self._since_start % observe_every == 0:
-                scenario.observe(self)
+        try:
+            for _ in range(count):
+                if self._since_start % control_every == 0:
+                    self._control_tick()
+                before = data.time
+                engine_step()
+                self.steps += 1
+                self._since_start += 1
+                if data.time <= before:  # MuJoCo reset a non-finite state
+                    self._diverge(self._check() or 'MuJoCo reset an unstable state',
+                                  self._time_offset + before)
+                if self._since_start % observe_every == 0:
+                    scenario.observe(self)
+        except SimulationDiverged:
+            raise
+        except Exception as error:  # the scenario's: ends the run as a divergence does
+            failure = self.scenario_failure(error)
+            if failure is None:
+                raise
+            raise failure from None
 
     def _control_tick(self):
         self._ticks += 1

@@ -8,9 +8,11 @@ importable class (`scenario: my_package.module:MyScenario`). Each is a class der
 """
 import importlib
 import importlib.util
+import inspect
 import math
 from pathlib import Path
 import pkgutil
+import traceback
 
 from ..config import SceneError
 
@@ -87,7 +89,10 @@ class BaseScenario:
 
 
 def load_scenario(scene):
-    """Instantiate the scenario that `scene` (a SceneConfig) names (see module docstring)."""
+    """Instantiate the scenario that `scene` (a SceneConfig) names (see module docstring).
+    Raises SceneError, one line, where it is unknown or cannot be imported or made (a syntax
+    error, an import that fails, an exception in its module or constructor: the file and
+    line, and the exception's last line)."""
     reference = scene.scenario
     where = f'scene {scene.name}: scenario {reference!r}'
     if reference.endswith('.py'):
@@ -96,7 +101,12 @@ def load_scenario(scene):
             raise SceneError(f'{where}: no such file')
         spec = importlib.util.spec_from_file_location(f'rft_scenario_{path.stem}', path)
         module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
+        try:
+            spec.loader.exec_module(module)
+        except Exception as error:
+            raise SceneError(f'{where}: cannot be imported: '
+                             f'{failure_line(error, {str(path)}) or failure_line(error)}'
+                             ) from None
         class_name = 'Scenario'
     else:
         module_name, _, class_name = reference.partition(':')
@@ -109,12 +119,44 @@ def load_scenario(scene):
                 raise SceneError(f'{where}: unknown scenario (not a bundled one, a .py file '
                                  'or an importable module:Class); bundled: '
                                  f'{", ".join(scenario_names())}') from None
-            raise
+            raise SceneError(f'{where}: cannot be imported: {failure_line(error)}') from None
+        except Exception as error:
+            raise SceneError(f'{where}: cannot be imported: {failure_line(error)}') from None
     scenario_class = getattr(module, class_name, None)
     if not (isinstance(scenario_class, type) and issubclass(scenario_class, BaseScenario)):
         raise SceneError(f'{where}: {module.__name__} has no class {class_name} derived from '
                          'rft_sim_ros.scenes.scenarios.BaseScenario')
-    return scenario_class(scene)
+    try:
+        return scenario_class(scene)
+    except SceneError:
+        raise
+    except Exception as error:
+        line = failure_line(error, scenario_files(scenario_class)) or failure_line(error)
+        raise SceneError(f'{where}: cannot be made: {line}') from None
+
+
+def scenario_files(scenario_class):
+    """The source files (absolute paths) of the methods a scenario class and its bases other
+    than BaseScenario define: where an exception raised in its code is told by its
+    traceback (`failure_line`)."""
+    return {function.__code__.co_filename for klass in scenario_class.__mro__
+            if klass not in (BaseScenario, object) for function in vars(klass).values()
+            if inspect.isfunction(function)}
+
+
+def failure_line(error, files=None):
+    """'FILE:LINE: Type: message' of exception `error`: the deepest line of its traceback in
+    one of `files` (None: the deepest line of all; a SyntaxError: the line it names), and its
+    last line as Python prints it; None where no frame of its traceback is in `files`."""
+    last = traceback.format_exception_only(type(error), error)[-1].strip()
+    if isinstance(error, SyntaxError) and error.filename and (
+            files is None or error.filename in files):
+        return f'{error.filename}:{error.lineno}: {last}'
+    frames = [frame for frame in traceback.extract_tb(error.__traceback__)
+              if files is None or frame.filename in files]
+    if not frames:
+        return None if files is not None else last
+    return f'{frames[-1].filename}:{frames[-1].lineno}: {last}'
 
 
 def scenario_names():

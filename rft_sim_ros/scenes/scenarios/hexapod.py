@@ -24,7 +24,10 @@ Metrics:
                         only samples moving faster than MOTION_NOISE_MPS (so a robot that
                         stands still, jittering by nanometres, has 0, not a ratio of noise);
   settled_base_height_m base_link height at the start of the walk;
-  peak_force_z_N_<leg>  largest vertical sand force on the leg during the walk;
+  walk_peak_force_z_N_<leg>
+                        largest vertical sand force on the leg during the walk (from
+                        settle_time on; the generic peak_force_z_N_<leg> covers the whole
+                        run, the landing included);
   total_mass_kg         mass of the compiled model.
 """
 from functools import partial
@@ -149,5 +152,5 @@ class Scenario(BaseScenario):
             'total_mass_kg': total_mass,
         }
         for i, leg in enumerate(LEG_NAMES):
-            metrics[f'peak_force_z_N_{leg}'] = float(legs_fz[:, i].max())
+            metrics[f'walk_peak_force_z_N_{leg}'] = float(legs_fz[:, i].max())
         return metrics
