@@ -17,6 +17,7 @@ from typing import Callable
 
 import yaml
 
+from ..control.hybrid import gain_patterns
 from ..robot.joints import check_servos
 from ..robot.pose import parse_spawn
 from ..units import zeta_problem
@@ -346,6 +347,11 @@ KEYS = (
         'Position-interface gains per joint (glob patterns, later ones win): kp N m/rad or '
         'N/m, kd N m s/rad or N s/m, effort limit N m or N; passive: no interfaces, the joint '
         'moves freely. Defaults from the robot mass (docs/robots.md).', _servos),
+    Key('joint_gains', 'mapping joint pattern -> {kp, kd}', '', {}, 'Gains of the hybrid '
+        'joint commands (a sensor_msgs/JointState on the joint commands topic: tau = kp (q* - '
+        'q) + kd (dq* - dq) + tau_ff, docs/ros.md), glob patterns, later ones win: kp N m/rad '
+        "or N/m, kd N m s/rad or N s/m, each >= 0; joints not named: their position servo's "
+        'gains.', lambda v: gain_patterns(_mapping(v))),
     Key('robot', 'mapping', '', {}, 'How the robot file is loaded, its initial pose and '
         'spawn.', _section),
     Key('robot.base', "'floating', 'fixed' or null", '', None, 'A URDF root link: free '

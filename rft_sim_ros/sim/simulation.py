@@ -34,6 +34,7 @@ from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import load_scenario
 from ..scenes.config import SceneError
 from .caveats import caveats
+from .hybrid_drive import HybridDrive
 from .sand_entry import SandEntryWatch
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
@@ -240,6 +241,8 @@ class Simulation:
             self.model, self.data, interface_joints, scene.servos, scene.timestep,
             effort_limits=self.description.effort_limits)
         self.servo_joint_names = self.interfaces.joint_names
+        self.hybrid_drive = HybridDrive(self.model, self.interfaces,
+                                        scene.values.get('joint_gains'))
         self._command_qpos = self.model.jnt_qposadr[
             [self.model.joint(name).id for name in self.servo_joint_names]].astype(int)
         try:
@@ -426,6 +429,7 @@ class Simulation:
             if turned and notice not in self.notices:  # (a reset spawns again)
                 self.notices.append(notice)
         mujoco.mj_forward(self.model, self.data)
+        self.hybrid_drive.release()
         self.interfaces.set_mode('position')
         self.commands = None
         if self.servo_joint_names:
@@ -549,7 +553,17 @@ class Simulation:
         self.scenario.control(self)
         commands = self.commands
         if commands is not None:
-            interfaces, efforts = self.interfaces, commands.efforts
+            interfaces, efforts, hybrid = self.interfaces, commands.efforts, commands.hybrid
+            drive = self.hybrid_drive
+            if hybrid is not None:
+                if not drive.engaged:
+                    drive.engage()
+                    self._ctrl[interfaces.effort_actuators] = 0.0
+                self._ctrl[interfaces.position_actuators] = drive.controls(hybrid)
+                commands.track(self.data.qpos[self._command_qpos], self.time)
+                return
+            if drive.engaged:
+                drive.release()
             if efforts is None:
                 if interfaces.mode != 'position':
                     interfaces.set_mode('position')
