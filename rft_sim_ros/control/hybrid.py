@@ -35,21 +35,26 @@ def _gain_value(pattern, key, value):
     return float(value)
 
 
+def _gain_entry(text):
+    """(pattern, settings) of a 'PATTERN: {kp: X, kd: Y}' string (the pattern unquoted, as
+    globs like '*_knee' are no YAML)."""
+    pattern, _, settings = text.partition(':')
+    try:
+        settings = yaml.safe_load(settings) if pattern.strip() else None
+    except yaml.YAMLError:
+        settings = None
+    if not isinstance(settings, dict):
+        raise ValueError(f"joint gains entry {text!r}: write 'PATTERN: {{kp: X, kd: Y}}'")
+    return pattern.strip(), settings
+
+
 def gain_patterns(entries):
     """{pattern: {'kp'?: float, 'kd'?: float}} from a mapping of the same shape or a list of
     'PATTERN: {kp: X, kd: Y}' strings (YAML); raises ValueError naming the bad entry."""
     if isinstance(entries, dict):
         items = list(entries.items())
     elif isinstance(entries, (list, tuple)):
-        items = []
-        for text in entries:
-            try:
-                item = yaml.safe_load(str(text))
-            except yaml.YAMLError:
-                item = None
-            if not isinstance(item, dict) or len(item) != 1:
-                raise ValueError(f"joint gains entry {text!r}: write 'PATTERN: {{kp: X, kd: Y}}'")
-            items += list(item.items())
+        items = [_gain_entry(str(text)) for text in entries]
     else:
         raise ValueError(f'joint gains must map joint patterns to {{kp, kd}}, got {entries!r}')
     patterns = {}
