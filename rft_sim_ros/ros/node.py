@@ -3,7 +3,9 @@
 This module only connects ROS entities to `rft_sim_ros.ros.runtime.SimRuntime`, which makes
 every decision (pacing, checks, command dispatch, what to publish when). Interface
 (docs/ros.md): parameters of `rft_sim_ros.ros.parameters`; publishers of
-`topics.published_topics`; subscriptions to the ros2_control command topics;
+`topics.published_topics`; subscriptions to the ros2_control command topics; the topic
+hardware interface's JointState commands and state (parameters joint_commands_topic,
+joint_states_topic);
 joint_trajectory_controller's FollowJointTrajectory action server (control_msgs); services
 ~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger). The
 robot comes from the parameters scene / model / robot_description, or, with none of them
@@ -146,6 +148,9 @@ class SimNode(Node):
             trajectory_controller=self._declare(parameters.TRAJECTORY_CONTROLLER,
                                                 topics.TRAJECTORY_CONTROLLER),
             namespace=self.get_namespace(),
+            joint_commands_topic=parameters.topic_name(self._declare(
+                parameters.JOINT_COMMANDS_TOPIC, topics.ROBOT_JOINT_COMMANDS),
+                parameters.JOINT_COMMANDS_TOPIC),
             real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
             paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
             warn=logger.warning, error=logger.error)
@@ -159,6 +164,7 @@ class SimNode(Node):
                 (topics.EFFORT_COMMANDS_TYPE, topics.EFFORT_COMMANDS, self.runtime.on_efforts)):
             self.create_subscription(self._factory.message_class(msgtype), topics.relative(topic),
                                      callback, QUEUE_DEPTH)
+        self._serve_topic_hardware()
         self._serve_follow_joint_trajectory()
         set_bool = self._factory.message_class('std_srvs/srv/SetBool')
         trigger = self._factory.message_class('std_srvs/srv/Trigger')
@@ -177,6 +183,26 @@ class SimNode(Node):
         logger.info(f'scene {sim.scene.name}: publishing every {self.runtime.publish_period:g} s '
                     f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
                     f'{" (paused)" if self.runtime.paused else ""}')
+
+    def _serve_topic_hardware(self):
+        """ros2_control's topic hardware interface: its JointState commands in, the joint
+        states out (topics.ROBOT_JOINT_COMMANDS / ROBOT_JOINT_STATES, renamed by parameters),
+        and the gains of its hybrid commands."""
+        joint_state = self._factory.message_class(topics.JOINT_STATE_TYPE)
+        states = parameters.topic_name(self._declare(parameters.JOINT_STATES_TOPIC,
+                                                     topics.ROBOT_JOINT_STATES),
+                                       parameters.JOINT_STATES_TOPIC)
+        self._hardware_states = self.create_publisher(joint_state, topics.relative(states),
+                                                      QUEUE_DEPTH)
+        self.create_subscription(joint_state, topics.relative(self.runtime.joint_commands_topic),
+                                 self.runtime.on_joint_commands,
+                                 topics.ROBOT_JOINT_COMMANDS_DEPTH)
+        gains = self._declare(parameters.JOINT_GAINS, Parameter.Type.STRING_ARRAY)
+        if gains:
+            problem = self.runtime.parameter_problem(parameters.JOINT_GAINS, gains)
+            if problem:
+                raise ValueError(problem)
+            self.runtime.set_parameter(parameters.JOINT_GAINS, gains)
 
     def _on_subscriber(self, **resend):
         """Publisher events: a subscriber joining makes the runtime re-send the terrain
@@ -223,6 +249,8 @@ class SimNode(Node):
         """Publish one cycle of `state` (SimState)."""
         for topic, message in messages.state_messages(self._factory, state, plates=self._plates):
             self._topic_publishers[topic].publish(message)
+            if topic == topics.JOINT_STATES:
+                self._hardware_states.publish(message)
 
     def write_terrain(self, update):
         """Publish the sand surface of `update` (terrain.TerrainUpdate): its cloud and one

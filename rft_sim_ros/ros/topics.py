@@ -40,6 +40,15 @@ VELOCITY_COMMANDS = '/velocity_controller/commands'
 EFFORT_COMMANDS = '/effort_controller/commands'
 FOLLOW_JOINT_TRAJECTORY = follow_trajectory_action()
 
+#: ros2_control's topic hardware interfaces (joint_state_topic_hardware_interface/
+#: JointStateTopicSystem, topic_based_ros2_control/TopicBasedSystem): their default topics
+#: (hardware parameters joint_commands_topic, joint_states_topic). Commands: reliable, depth 1,
+#: as they publish them; the state: reliable, which their SensorDataQoS (best effort)
+#: subscriptions accept.
+ROBOT_JOINT_COMMANDS = '/robot_joint_commands'
+ROBOT_JOINT_STATES = '/robot_joint_states'
+ROBOT_JOINT_COMMANDS_DEPTH = 1
+
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'

@@ -19,8 +19,8 @@ from rft_sim_ros.control.hybrid import resolve_gains
 class HybridDrive:
     """Hybrid mode of a model's `robot.joints.JointInterfaces` (`interfaces`).
 
-    gains: {pattern: {kp, kd}} (`control.hybrid.gain_patterns`); joints not named keep their
-    position servo's gains (`interfaces.gains`).
+    gains: {pattern: {kp, kd}} (`control.hybrid.gain_patterns`, a scene's joint_gains); joints
+    not named keep their position servo's gains (`interfaces.gains`).
     """
 
     def __init__(self, model, interfaces, gains=None):
@@ -28,13 +28,13 @@ class HybridDrive:
         self._interfaces = interfaces
         self._actuators = interfaces.position_actuators
         names = interfaces.joint_names
-        self._default = ([interfaces.gains[n].kp for n in names],
-                         [interfaces.gains[n].kd for n in names])
+        self._default = resolve_gains(gains or {}, names, [interfaces.gains[n].kp for n in names],
+                                      [interfaces.gains[n].kd for n in names])
         limits = np.array([interfaces.gains[n].effort for n in names], dtype=float)
         self._limited = np.isfinite(limits)
         self._limits = limits
         self._saved = None
-        self.set_gains(gains or {})
+        self.set_gains({})
 
     @property
     def engaged(self):
@@ -42,8 +42,8 @@ class HybridDrive:
         return self._saved is not None
 
     def set_gains(self, patterns):
-        """Use the gains of `patterns` (`gain_patterns`; {} = the servos' own) from the next
-        control tick on."""
+        """Use the gains of `patterns` (`gain_patterns`) over those given at construction
+        ({}: those alone) from the next control tick on."""
         self.kp, self.kd = resolve_gains(patterns, self._interfaces.joint_names, *self._default)
         if self.engaged:
             self._set_bias()
