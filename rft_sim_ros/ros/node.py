@@ -77,6 +77,8 @@ class SimNode(Node):
             parameters.SAND_BODIES)}
         self._overrides = parameters.scene_overrides(
             self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
+        for sensor in ('sensors.imu', 'sensors.contacts'):  # (on in the node unless set off)
+            self._overrides.setdefault(sensor, True)
         keyframe = self._declare(parameters.KEYFRAME, '')
         if keyframe:
             self._overrides['robot.keyframe'] = keyframe
@@ -137,7 +139,9 @@ class SimNode(Node):
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
                 event_callbacks=joined.get(topic))
             for topic, msgtype in topics.published_topics(
-                list(sim.legs), plates=self._plates, terrain=terrain.active).items()}
+                list(sim.legs), plates=self._plates, terrain=terrain.active,
+                sensors=sim.sensors.layout).items()}
+        self._imu_topic = sim.sensors.imu_topic
         logger = self.get_logger()
         for notice in sim.notices:  # e.g. the sand bodies `auto` chose
             logger.info(notice)
@@ -247,7 +251,8 @@ class SimNode(Node):
 
     def write_state(self, state):
         """Publish one cycle of `state` (SimState)."""
-        for topic, message in messages.state_messages(self._factory, state, plates=self._plates):
+        for topic, message in messages.state_messages(self._factory, state, plates=self._plates,
+                                                      imu_topic=self._imu_topic):
             self._topic_publishers[topic].publish(message)
             if topic == topics.JOINT_STATES:
                 self._hardware_states.publish(message)

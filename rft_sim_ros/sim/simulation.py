@@ -36,6 +36,7 @@ from ..scenes.config import SceneError
 from .caveats import caveats
 from .hybrid_drive import HybridDrive
 from .sand_entry import SandEntryWatch
+from .sensors import Sensors, scene_settings
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
 
@@ -230,6 +231,11 @@ class Simulation:
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
+        try:
+            self.sensors = Sensors(self.model, self._base_id, self._leg_names,
+                                   scene_settings(scene.values))
+        except ValueError as error:
+            raise scene.locator.error('sensors', str(error)) from None
         self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
         self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
         if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
@@ -688,6 +694,8 @@ class Simulation:
         if with_plates:
             positions, forces, areas = self.engine.active_plates()
             plates = ActivePlates(positions, forces, areas)
+        legs = self.leg_wrenches()
+        sensors = self.sensors.read(d, legs, self.engine.surface) if self.sensors.active else None
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
@@ -699,8 +707,9 @@ class Simulation:
             base_quaternion_wxyz=d.xquat[self._base_id].copy(),
             base_linear_velocity=velocity[3:],  # (this call's own array)
             base_angular_velocity=velocity[:3],
-            legs=self.leg_wrenches(),
+            legs=legs,
             zeta=self.engine.zeta,
             plates_active=int(self.engine.plates_active),
             active_plates=plates,
+            sensors=sensors,
         )
