@@ -7,7 +7,10 @@ every decision (pacing, checks, command dispatch, what to publish when). Interfa
 hardware interface's JointState commands and state (parameters joint_commands_topic,
 joint_states_topic);
 joint_trajectory_controller's FollowJointTrajectory action server (control_msgs); services
-~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger). The
+~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger);
+simulation_interfaces' get_simulator_features, reset_simulation, step_simulation,
+get_simulation_state and set_simulation_state where that package is installed
+(`simulation_services`). The
 robot comes from the parameters scene / model / robot_description, or, with none of them
 set, from the first valid message on /robot_description (rft_sim_ros.ros.robot_source). The
 node publishes /clock itself and must not run on sim time; its timer runs on the steady
@@ -31,6 +34,7 @@ from rft_sim_ros.ros import follow_messages, messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.ros.simulation_services import SimulationServices
 from rft_sim_ros.ros.terrain import DEFAULT_RATE, TerrainFeed
 from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
                                           load_node_scene, needs_topic)
@@ -180,6 +184,7 @@ class SimNode(Node):
                             lambda req, res: self._answer(self.runtime.step(), res))
         self.create_service(trigger, '~/reset_terrain',
                             lambda req, res: self._answer(self.runtime.reset_terrain(), res))
+        self._serve_simulation_interfaces()
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(self.runtime.tick_period, self._tick,
@@ -207,6 +212,45 @@ class SimNode(Node):
             if problem:
                 raise ValueError(problem)
             self.runtime.set_parameter(parameters.JOINT_GAINS, gains)
+
+    def _serve_simulation_interfaces(self):
+        """simulation_interfaces' services (`simulation_services`), where the package is
+        installed; else said once."""
+        try:
+            from simulation_interfaces import srv
+        except ImportError:
+            self.get_logger().info('simulation_interfaces is not installed: its simulator '
+                                   'services are off (~/pause, ~/step, ~/reset serve instead)')
+            return
+        services = SimulationServices(self.runtime)
+
+        def answer(response, outcome):
+            response.result.result, response.result.error_message = (outcome.result,
+                                                                      outcome.message)
+            self._sync_paused()
+            return response
+
+        def features(request, response):
+            (response.features.features, response.features.spawn_formats,
+             response.features.custom_info) = services.features()
+            return response
+
+        def state(request, response):
+            outcome = services.state()
+            response.state.state = outcome.state
+            return answer(response, outcome)
+
+        for kind, name, callback in (
+                (srv.GetSimulatorFeatures, 'get_simulator_features', features),
+                (srv.ResetSimulation, 'reset_simulation',
+                 lambda request, response: answer(response, services.reset(request.scope))),
+                (srv.StepSimulation, 'step_simulation',
+                 lambda request, response: answer(response, services.step(request.steps))),
+                (srv.GetSimulationState, 'get_simulation_state', state),
+                (srv.SetSimulationState, 'set_simulation_state',
+                 lambda request, response: answer(response,
+                                                   services.set_state(request.state.state)))):
+            self.create_service(kind, name, callback)
 
     def _on_subscriber(self, **resend):
         """Publisher events: a subscriber joining makes the runtime re-send the terrain
