@@ -177,10 +177,14 @@ class Imu:
 class Sensors:
     """The sensors a scene asks for (`settings`: the scene's sensors.* values by leaf name:
     imu, imu_topic, imu_frame, imu_noise, contacts, contact_threshold, model_sensors) on a
-    compiled `model` whose base body is `base_body` (id) and legs `leg_names`."""
+    compiled `model` whose base body is `base_body` (id) and legs `leg_names`, over the sand
+    `surface` (a `sand.surface.Surface`; its normals are looked up at every reading unless it
+    is level everywhere for good: not `deformable` and no slope)."""
 
-    def __init__(self, model, base_body, leg_names, settings):
+    def __init__(self, model, base_body, leg_names, settings, surface, deformable):
         self._model = model
+        self._surface = surface
+        self._level = not deformable and surface.steepest_deg() == 0.0
         self.imu = None
         self.imu_topic = settings.get('imu_topic')
         if settings.get('imu'):
@@ -217,18 +221,19 @@ class Sensors:
     def active(self):
         return bool(self.imu or self.contact_legs is not None or self._model_sensors)
 
-    def read(self, data, legs, surface):
+    def read(self, data, legs):
         """SensorReadings of `data` now; legs: the state's LegWrenches (their mean forces and
-        points), surface: the sand's (for its normal under each leg)."""
+        points)."""
         imu = self.imu.read(data) if self.imu is not None else None
         contacts = None
         if self.contact_legs is not None:
-            if legs:
-                points = np.array([leg.point for leg in legs])
-                normals = surface.normal(points[:, 0], points[:, 1])
-                force = np.einsum('ij,ij->i', np.array([leg.force for leg in legs]), normals)
+            forces = np.array([leg.force for leg in legs]).reshape(-1, 3)
+            if self._level:
+                force = forces[:, 2]
             else:
-                force = np.zeros(0)
+                points = np.array([leg.point for leg in legs]).reshape(-1, 3)
+                normals = self._surface.normal(points[:, 0], points[:, 1])
+                force = np.einsum('ij,ij->i', forces, normals)
             contacts = FootContacts(self.contact_legs, force > self.contact_threshold, force)
         model_sensors = tuple(ModelSensor(name, kind, frame, data.sensordata[span].copy())
                               for name, kind, frame, span in self._model_sensors)

@@ -233,7 +233,8 @@ class Simulation:
         self._set_legs(scene)
         try:
             self.sensors = Sensors(self.model, self._base_id, self._leg_names,
-                                   scene_settings(scene.values))
+                                   scene_settings(scene.values), self.engine.surface,
+                                   self.engine.deformable)
         except ValueError as error:
             raise scene.locator.error('sensors', str(error)) from None
         self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id)
@@ -685,7 +686,8 @@ class Simulation:
 
     def state(self, with_plates=False):
         """A SimState snapshot of the current state; its leg wrenches are the means over the
-        steps since the previous snapshot (see `leg_wrenches`)."""
+        steps since the previous snapshot (see `leg_wrenches`); with the sensor readings the
+        scene enables (sensors.*)."""
         d = self.data
         velocity = np.empty(6)
         mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_XBODY, self._base_id,
@@ -695,7 +697,7 @@ class Simulation:
             positions, forces, areas = self.engine.active_plates()
             plates = ActivePlates(positions, forces, areas)
         legs = self.leg_wrenches()
-        sensors = self.sensors.read(d, legs, self.engine.surface) if self.sensors.active else None
+        sensors = self.sensors.read(d, legs) if self.sensors.active else None
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
