@@ -232,6 +232,9 @@ def cmd_run(args):
         for (at, change), text in zip(schedule, args.set_at or []):
             if at > duration and not args.quiet:
                 warn(f'--set-at {text} comes after the run ends ({duration:g} s): not applied')
+        if args.commands:
+            from .ros.replay import load_commands
+            schedule += load_commands(args.commands).schedule()
         out = Path(args.out) if args.out else fresh_folder(scene.name)
         replace = earlier_run(out, args.overwrite)
         say_if_cold(scene, quiet=args.quiet)
@@ -489,6 +492,10 @@ def build_parser():
                      help='change a value when sim time reaches T s (repeatable; recorded in '
                           'summary.json); '
                           f'KEY: {", ".join(RUNTIME_SETTINGS)}, e.g. --set-at 1.5:zeta=1.0')
+    run.add_argument('--commands', metavar='FILE',
+                     help='replay recorded joint commands in sim time: a rosbag2 folder '
+                          '(JointTrajectory, Float64MultiArray, JointState commands), or a CSV '
+                          '/ YAML of timed joint targets (docs/ros.md)')
     run.add_argument('--out', help='output folder (default: runs/<scene>-<time>)')
     run.add_argument('--no-bag', action='store_true', help='do not write DIR/bag (rosbag2)')
     run.add_argument('--plates', action='store_true',

@@ -48,9 +48,9 @@ def test_static_parameters_are_read_only(name):
     assert 'read-only' in parameter_problem(name, 'anything')
 
 
-def test_dynamic_parameters_are_exactly_zeta_rate_and_paused():
+def test_dynamic_parameters_are_exactly_zeta_rate_paused_and_gains():
     assert {s.name for s in parameters.PARAMETERS if s.dynamic} == {
-        'zeta', 'real_time_factor', 'paused'}
+        'zeta', 'real_time_factor', 'paused', 'joint_gains'}
 
 
 def test_unknown_parameter_is_named():

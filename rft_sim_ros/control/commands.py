@@ -28,6 +28,11 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
   targets (`efforts` is then not None) until the next position command or trajectory; the
   simulation reports the joints' positions meanwhile (`track`), so that a trajectory then
   starts where the joints are.
+* `set_joint_states` (a `joint_state_commands.JointStateCommand`, read from the
+  sensor_msgs/JointState of ros2_control's topic hardware interface): hybrid mode, per joint
+  position, velocity and feed-forward effort under the law of `control.hybrid` (`hybrid` is
+  then not None) until the next position command, trajectory or effort command; positions
+  are tracked as in effort mode.
 
 Every command is validated first; a bad one is rejected with a `CommandResult` naming the
 problem, counted per `Reason`, and changes nothing (`CommandResult.check` turns a rejection
@@ -45,6 +50,7 @@ from typing import NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
+from rft_sim_ros.control.hybrid import HybridTargets
 
 class Reason(str, enum.Enum):
     """Why a command was rejected (the key of `CommandHandler.rejections`)."""
@@ -241,6 +247,7 @@ class CommandHandler:
         self._active = _Spline.hold(0.0, initial)
         self._pending = None
         self._efforts = None
+        self._hybrid = None
         self._rejections = Counter()
 
     @property
@@ -269,7 +276,7 @@ class CommandHandler:
         `positions` must be a float array of one finite value per joint (`joint_names`
         order), and is held as it is (the caller must not change it afterwards)."""
         self._pending = None
-        self._efforts = None
+        self._efforts = self._hybrid = None
         self._active = _Spline.hold(now, positions)
 
     def set_velocities(self, velocities, now):
@@ -281,7 +288,7 @@ class CommandHandler:
             return self._reject(rejected)
         start = self.sample(now).positions
         self._pending = None
-        self._efforts = None
+        self._efforts = self._hybrid = None
         self._active = _Ramp(now, start, values)
         return ACCEPTED
 
@@ -293,15 +300,30 @@ class CommandHandler:
             values = self._joint_array(efforts, 'effort command')
         except _Rejected as rejected:
             return self._reject(rejected)
-        self._pending = None
+        self._pending = self._hybrid = None
         self._efforts = values
         return ACCEPTED
 
+    def set_joint_states(self, command, now):
+        """Apply a `JointStateCommand` (already read and checked: `joint_state_commands`) at
+        sim time `now` (s): hybrid mode from now on (module docstring); entering it, every
+        joint's position target is its target now, velocity and effort 0."""
+        if self._hybrid is None:
+            self._hybrid = HybridTargets(self.sample(now).positions)
+        self._pending = self._efforts = None
+        self._hybrid.update(command)
+        return ACCEPTED
+
+    @property
+    def hybrid(self):
+        """The `HybridTargets` in hybrid mode (`set_joint_states`); None otherwise."""
+        return self._hybrid
+
     def track(self, positions, now):
-        """In effort mode: the joints are at `positions` (`joint_names` order) at sim time
+        """In effort or hybrid mode: the joints are at `positions` (`joint_names` order) at sim time
         `now`; a later trajectory starts from there (as joint_trajectory_controller starts
         from the current state), not from the targets held before the efforts."""
-        if self._efforts is not None:
+        if self._efforts is not None or self._hybrid is not None:
             self._active = _Spline.hold(now, np.asarray(positions, dtype=float))
 
     @property
@@ -335,7 +357,7 @@ class CommandHandler:
         if plan is None:
             return result
         self._start_pending(now)
-        self._efforts = None
+        self._efforts = self._hybrid = None
         if plan.start > now:
             self._pending = plan
         else:

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import mujoco
 
+from .control_block import command_interfaces
 from .meshes import MeshError, dropped_visuals_notice
 from .packages import PackageResolver
 from .urdf import UrdfError, parse_xml, prepare_urdf
@@ -48,13 +49,16 @@ class RobotDescription:
     """A loaded robot. spec: mujoco.MjSpec (compilable); kind: 'mjcf' or 'urdf';
     source_path: the file (None for a string); effort_limits {joint: N m or N};
     velocity_limits {joint: rad/s or m/s}; initial_positions {joint: rad or m} (URDF
-    <ros2_control> initial values); notices: one-line remarks already logged."""
+    <ros2_control> initial values); command_interfaces {joint: (position, effort, ...)} (URDF
+    <ros2_control> command interfaces, `control_block`); notices: one-line remarks already
+    logged."""
     spec: mujoco.MjSpec
     kind: str
     source_path: Path = None
     effort_limits: dict = field(default_factory=dict)
     velocity_limits: dict = field(default_factory=dict)
     initial_positions: dict = field(default_factory=dict)
+    command_interfaces: dict = field(default_factory=dict)
     notices: list = field(default_factory=list)
 
 
@@ -119,6 +123,7 @@ def load_description(source, *, package_paths=None, xacro_args=None, base=None,
 def _from_urdf(root, where, base_dir, resolver, base):
     if base is None:
         base = 'fixed' if _fixed_to_world(root) else 'floating'
+    declared = command_interfaces(root)  # (before prepare_urdf drops the block)
     prepared = prepare_urdf(root, where, base_dir, resolver)
     spec = _spec(lambda: mujoco.MjSpec.from_string(prepared.text, assets=prepared.assets),
                  where)
@@ -137,7 +142,7 @@ def _from_urdf(root, where, base_dir, resolver, base):
     return RobotDescription(spec=spec, kind='urdf', effort_limits=prepared.effort_limits,
                             velocity_limits=prepared.velocity_limits,
                             initial_positions=prepared.initial_positions,
-                            notices=prepared.notices)
+                            command_interfaces=declared, notices=prepared.notices)
 
 
 def _fixed_to_world(root):

@@ -151,14 +151,17 @@ class BagWriter:
     leg_names: the scene's legs (one wrench topic each). plates: whether /rft/plates is
     recorded (as the node's parameter of the same meaning). terrain: whether /rft/terrain
     (PointCloud2) and /rft/terrain/marker (one MarkerArray a publication) are recorded
-    (`write_terrain`). Use as a context manager or call `close()`; the bag is only complete
+    (`write_terrain`). sensors: the run's `sensors.SensorLayout` (the states' sensor readings
+    are recorded on its topics), or None. Use as a context manager or call `close()`; the bag is only complete
     once closed.
     """
 
-    def __init__(self, path, leg_names, *, plates=False, terrain=False):
+    def __init__(self, path, leg_names, *, plates=False, terrain=False, sensors=None):
         self.factory = RosbagsFactory(jazzy_typestore())
         self._plates = plates
-        self._types = topics.published_topics(leg_names, plates=plates, terrain=terrain)
+        self._imu_topic = sensors.imu_topic if sensors is not None else None
+        self._types = topics.published_topics(leg_names, plates=plates, terrain=terrain,
+                                              sensors=sensors)
         self._writer = _Rosbag2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._connections = {
@@ -207,6 +210,12 @@ class BagWriter:
                 batch = []
                 self.write(topics.PLATES, messages.plates_message(self.factory, state),
                            time_ns)
+            if state.sensors is not None:
+                self._write_cycles(batch)
+                batch = []
+                for topic, message in messages.sensor_messages(self.factory, state,
+                                                               self._imu_topic):
+                    self.write(topic, message, time_ns)
         self._write_cycles(batch)
 
     def _write_cycles(self, cycles):

@@ -356,9 +356,97 @@ def diagnostics_message(factory, state, status):
                         header=header(factory, state.time, ''), status=[diagnostic])
 
 
-def state_messages(factory, state, *, plates):
+#: Covariance of a part an Imu message does not carry (REP 145: element 0 is -1).
+UNKNOWN_COVARIANCE = np.array([-1.0] + [0.0] * 8)
+_ZERO_COVARIANCE = np.zeros(9)
+_NO_QUATERNION = (1.0, 0.0, 0.0, 0.0)
+
+
+def _imu(factory, t, frame, quaternion_wxyz, angular_velocity, linear_acceleration,
+         covariances):
+    return factory.make(
+        topics.IMU_TYPE, header=header(factory, t, frame),
+        orientation=_quaternion(factory, quaternion_wxyz),
+        orientation_covariance=factory.float64_array(covariances[0], 9),
+        angular_velocity=_vector3(factory, angular_velocity),
+        angular_velocity_covariance=factory.float64_array(covariances[1], 9),
+        linear_acceleration=_vector3(factory, linear_acceleration),
+        linear_acceleration_covariance=factory.float64_array(covariances[2], 9))
+
+
+def imu_message(factory, t, reading):
+    """sensor_msgs/Imu of an `ImuReading` at sim time `t` (s), in the IMU's frame: orientation
+    in odom, angular velocity (rad/s) and specific force (m/s^2, +g up at rest) in IMU axes,
+    the reading's covariances (0: exact)."""
+    return _imu(factory, t, reading.frame, reading.quaternion_wxyz, reading.angular_velocity,
+                reading.linear_acceleration,
+                (reading.orientation_covariance, reading.angular_velocity_covariance,
+                 reading.linear_acceleration_covariance))
+
+
+def foot_contacts_message(factory, t, contacts):
+    """sensor_msgs/JointState of `FootContacts` at sim time `t` (s): name = the legs,
+    position = stance (1.0) or swing (0.0), velocity empty, effort = normal force (N)."""
+    return factory.make(
+        topics.JOINT_STATE_TYPE, header=header(factory, t, ''), name=list(contacts.legs),
+        position=factory.float64_sequence(contacts.stance.astype(float)),
+        velocity=factory.float64_sequence([]),
+        effort=factory.float64_sequence(contacts.normal_force))
+
+
+def model_sensor_message(factory, t, sensor):
+    """The message of a `ModelSensor` at sim time `t` (s), of its kind's type
+    (`topics.MODEL_SENSOR_TYPES`), in its site's or body's frame: touch -> WrenchStamped
+    force.z (N, the site's normal), force / torque -> WrenchStamped force / torque (site
+    axes), gyro / accelerometer / framequat -> Imu with that part only (the others' covariance
+    element 0 is -1: not carried), any other -> Float64MultiArray of its values (one
+    dimension labelled with the sensor's name)."""
+    kind, values = sensor.kind, [float(v) for v in sensor.values]
+    msgtype = topics.MODEL_SENSOR_TYPES.get(kind, topics.FLOAT64_ARRAY_TYPE)
+    zero = (0.0, 0.0, 0.0)
+    if msgtype == topics.WRENCH_TYPE:
+        force = (0.0, 0.0, values[0]) if kind == 'touch' else values if kind == 'force' else zero
+        torque = values if kind == 'torque' else zero
+        wrench = factory.make('geometry_msgs/msg/Wrench', force=_vector3(factory, force),
+                              torque=_vector3(factory, torque))
+        return factory.make(msgtype, header=header(factory, t, sensor.frame), wrench=wrench)
+    if msgtype == topics.IMU_TYPE:
+        parts = {'framequat': 0, 'gyro': 1, 'accelerometer': 2}
+        covariances = [UNKNOWN_COVARIANCE] * 3
+        covariances[parts[kind]] = _ZERO_COVARIANCE
+        return _imu(factory, t, sensor.frame,
+                    values if kind == 'framequat' else _NO_QUATERNION,
+                    values if kind == 'gyro' else zero,
+                    values if kind == 'accelerometer' else zero, covariances)
+    dimension = factory.make('std_msgs/msg/MultiArrayDimension', label=sensor.name,
+                             size=len(values), stride=len(values))
+    return factory.make(msgtype, layout=factory.make('std_msgs/msg/MultiArrayLayout',
+                                                     dim=[dimension], data_offset=0),
+                        data=factory.float64_sequence(values))
+
+
+def sensor_messages(factory, state, imu_topic=topics.IMU):
+    """[(topic, message)] of the state's sensor readings (`state.sensors`; none when None):
+    the IMU on `imu_topic`, the foot contacts, each model sensor on its own topic."""
+    readings = state.sensors
+    if readings is None:
+        return []
+    out = []
+    if readings.imu is not None:
+        out.append((imu_topic, imu_message(factory, state.time, readings.imu)))
+    if readings.contacts is not None:
+        out.append((topics.FOOT_CONTACTS,
+                    foot_contacts_message(factory, state.time, readings.contacts)))
+    out += [(topics.model_sensor_topic(sensor.name),
+             model_sensor_message(factory, state.time, sensor))
+            for sensor in readings.model_sensors]
+    return out
+
+
+def state_messages(factory, state, *, plates, imu_topic=topics.IMU):
     """[(topic, message)] of one publishing cycle: /clock, /joint_states, /odom, /tf, one
-    wrench per leg and, if `plates` and the state carries active plates, /rft/plates."""
+    wrench per leg, if `plates` and the state carries active plates, /rft/plates, then the
+    sensor readings it carries (`sensor_messages`, the IMU on `imu_topic`)."""
     out = [(topics.CLOCK, clock_message(factory, state)),
            (topics.JOINT_STATES, joint_state_message(factory, state)),
            (topics.ODOM, odometry_message(factory, state)),
@@ -367,7 +455,7 @@ def state_messages(factory, state, *, plates):
             for leg in state.legs]
     if plates and state.active_plates is not None:
         out.append((topics.PLATES, plates_message(factory, state)))
-    return out
+    return out + sensor_messages(factory, state, imu_topic)
 
 
 def duration(factory, seconds):

@@ -3,9 +3,14 @@
 This module only connects ROS entities to `rft_sim_ros.ros.runtime.SimRuntime`, which makes
 every decision (pacing, checks, command dispatch, what to publish when). Interface
 (docs/ros.md): parameters of `rft_sim_ros.ros.parameters`; publishers of
-`topics.published_topics`; subscriptions to the ros2_control command topics;
+`topics.published_topics`; subscriptions to the ros2_control command topics; the topic
+hardware interface's JointState commands and state (parameters joint_commands_topic,
+joint_states_topic);
 joint_trajectory_controller's FollowJointTrajectory action server (control_msgs); services
-~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger). The
+~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger);
+simulation_interfaces' get_simulator_features, reset_simulation, step_simulation,
+get_simulation_state and set_simulation_state where that package is installed
+(`simulation_services`). The
 robot comes from the parameters scene / model / robot_description, or, with none of them
 set, from the first valid message on /robot_description (rft_sim_ros.ros.robot_source). The
 node publishes /clock itself and must not run on sim time; its timer runs on the steady
@@ -29,6 +34,7 @@ from rft_sim_ros.ros import follow_messages, messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.ros.simulation_services import SimulationServices
 from rft_sim_ros.ros.terrain import DEFAULT_RATE, TerrainFeed
 from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
                                           load_node_scene, needs_topic)
@@ -75,6 +81,8 @@ class SimNode(Node):
             parameters.SAND_BODIES)}
         self._overrides = parameters.scene_overrides(
             self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
+        for sensor in ('sensors.imu', 'sensors.contacts'):  # (on in the node unless set off)
+            self._overrides.setdefault(sensor, True)
         keyframe = self._declare(parameters.KEYFRAME, '')
         if keyframe:
             self._overrides['robot.keyframe'] = keyframe
@@ -135,7 +143,9 @@ class SimNode(Node):
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
                 event_callbacks=joined.get(topic))
             for topic, msgtype in topics.published_topics(
-                list(sim.legs), plates=self._plates, terrain=terrain.active).items()}
+                list(sim.legs), plates=self._plates, terrain=terrain.active,
+                sensors=sim.sensors.layout).items()}
+        self._imu_topic = sim.sensors.imu_topic
         logger = self.get_logger()
         for notice in sim.notices:  # e.g. the sand bodies `auto` chose
             logger.info(notice)
@@ -146,6 +156,9 @@ class SimNode(Node):
             trajectory_controller=self._declare(parameters.TRAJECTORY_CONTROLLER,
                                                 topics.TRAJECTORY_CONTROLLER),
             namespace=self.get_namespace(),
+            joint_commands_topic=parameters.topic_name(self._declare(
+                parameters.JOINT_COMMANDS_TOPIC, topics.ROBOT_JOINT_COMMANDS),
+                parameters.JOINT_COMMANDS_TOPIC),
             real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
             paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
             warn=logger.warning, error=logger.error)
@@ -159,6 +172,7 @@ class SimNode(Node):
                 (topics.EFFORT_COMMANDS_TYPE, topics.EFFORT_COMMANDS, self.runtime.on_efforts)):
             self.create_subscription(self._factory.message_class(msgtype), topics.relative(topic),
                                      callback, QUEUE_DEPTH)
+        self._serve_topic_hardware()
         self._serve_follow_joint_trajectory()
         set_bool = self._factory.message_class('std_srvs/srv/SetBool')
         trigger = self._factory.message_class('std_srvs/srv/Trigger')
@@ -170,6 +184,7 @@ class SimNode(Node):
                             lambda req, res: self._answer(self.runtime.step(), res))
         self.create_service(trigger, '~/reset_terrain',
                             lambda req, res: self._answer(self.runtime.reset_terrain(), res))
+        self._serve_simulation_interfaces()
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(self.runtime.tick_period, self._tick,
@@ -177,6 +192,65 @@ class SimNode(Node):
         logger.info(f'scene {sim.scene.name}: publishing every {self.runtime.publish_period:g} s '
                     f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
                     f'{" (paused)" if self.runtime.paused else ""}')
+
+    def _serve_topic_hardware(self):
+        """ros2_control's topic hardware interface: its JointState commands in, the joint
+        states out (topics.ROBOT_JOINT_COMMANDS / ROBOT_JOINT_STATES, renamed by parameters),
+        and the gains of its hybrid commands."""
+        joint_state = self._factory.message_class(topics.JOINT_STATE_TYPE)
+        states = parameters.topic_name(self._declare(parameters.JOINT_STATES_TOPIC,
+                                                     topics.ROBOT_JOINT_STATES),
+                                       parameters.JOINT_STATES_TOPIC)
+        self._hardware_states = self.create_publisher(joint_state, topics.relative(states),
+                                                      QUEUE_DEPTH)
+        self.create_subscription(joint_state, topics.relative(self.runtime.joint_commands_topic),
+                                 self.runtime.on_joint_commands,
+                                 topics.ROBOT_JOINT_COMMANDS_DEPTH)
+        gains = self._declare(parameters.JOINT_GAINS, Parameter.Type.STRING_ARRAY)
+        if gains:
+            problem = self.runtime.parameter_problem(parameters.JOINT_GAINS, gains)
+            if problem:
+                raise ValueError(problem)
+            self.runtime.set_parameter(parameters.JOINT_GAINS, gains)
+
+    def _serve_simulation_interfaces(self):
+        """simulation_interfaces' services (`simulation_services`), where the package is
+        installed; else said once."""
+        try:
+            from simulation_interfaces import srv
+        except ImportError:
+            self.get_logger().info('simulation_interfaces is not installed: its simulator '
+                                   'services are off (~/pause, ~/step, ~/reset serve instead)')
+            return
+        services = SimulationServices(self.runtime)
+
+        def answer(response, outcome):
+            response.result.result, response.result.error_message = (outcome.result,
+                                                                      outcome.message)
+            self._sync_paused()
+            return response
+
+        def features(request, response):
+            (response.features.features, response.features.spawn_formats,
+             response.features.custom_info) = services.features()
+            return response
+
+        def state(request, response):
+            outcome = services.state()
+            response.state.state = outcome.state
+            return answer(response, outcome)
+
+        for kind, name, callback in (
+                (srv.GetSimulatorFeatures, 'get_simulator_features', features),
+                (srv.ResetSimulation, 'reset_simulation',
+                 lambda request, response: answer(response, services.reset(request.scope))),
+                (srv.StepSimulation, 'step_simulation',
+                 lambda request, response: answer(response, services.step(request.steps))),
+                (srv.GetSimulationState, 'get_simulation_state', state),
+                (srv.SetSimulationState, 'set_simulation_state',
+                 lambda request, response: answer(response,
+                                                   services.set_state(request.state.state)))):
+            self.create_service(kind, name, callback)
 
     def _on_subscriber(self, **resend):
         """Publisher events: a subscriber joining makes the runtime re-send the terrain
@@ -221,8 +295,11 @@ class SimNode(Node):
 
     def write_state(self, state):
         """Publish one cycle of `state` (SimState)."""
-        for topic, message in messages.state_messages(self._factory, state, plates=self._plates):
+        for topic, message in messages.state_messages(self._factory, state, plates=self._plates,
+                                                      imu_topic=self._imu_topic):
             self._topic_publishers[topic].publish(message)
+            if topic == topics.JOINT_STATES:
+                self._hardware_states.publish(message)
 
     def write_terrain(self, update):
         """Publish the sand surface of `update` (terrain.TerrainUpdate): its cloud and one

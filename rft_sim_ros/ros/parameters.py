@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from rft_sim_ros.control.hybrid import gain_patterns
 from rft_sim_ros.scenes.config import SceneError, anchor_paths, parse_assignment
 from rft_sim_ros.units import zeta_problem
 
@@ -36,6 +37,9 @@ PAUSED = 'paused'
 PLATES = 'plates'
 TERRAIN_RATE = 'terrain_rate'
 TRAJECTORY_CONTROLLER = 'trajectory_controller'
+JOINT_COMMANDS_TOPIC = 'joint_commands_topic'
+JOINT_STATES_TOPIC = 'joint_states_topic'
+JOINT_GAINS = 'joint_gains'
 
 PARAMETERS = (
     ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
@@ -67,6 +71,15 @@ PARAMETERS = (
     ParameterSpec(TRAJECTORY_CONTROLLER, 'name of the joint_trajectory_controller served: '
                                          'topic /NAME/joint_trajectory, action '
                                          '/NAME/follow_joint_trajectory', False),
+    ParameterSpec(JOINT_COMMANDS_TOPIC, 'sensor_msgs/JointState commands of ros2_control\'s '
+                                        'topic hardware interface (its joint_commands_topic)',
+                  False),
+    ParameterSpec(JOINT_STATES_TOPIC, 'the joint states for ros2_control\'s topic hardware '
+                                      'interface (its joint_states_topic); /joint_states too',
+                  False),
+    ParameterSpec(JOINT_GAINS, "kp, kd of the JointState (hybrid) commands: 'PATTERN: {kp: X, "
+                               "kd: Y}' strings, glob patterns, later ones win (default: the "
+                               "scene's joint_gains, else the position servos' gains)", True),
 )
 
 SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -84,7 +97,8 @@ def parameter_problem(name, value):
     """Why `value` cannot be given to parameter `name` at runtime, or None if it can.
 
     zeta: see `rft_sim_ros.units.zeta_problem`; real_time_factor: a finite number >= 0;
-    paused: a bool. Static parameters are read-only once the node has started.
+    paused: a bool; joint_gains: 'PATTERN: {kp: X, kd: Y}' strings (`control.hybrid.
+    gain_patterns`). Static parameters are read-only once the node has started.
     """
     spec = SPECS.get(name)
     if spec is None:
@@ -93,6 +107,12 @@ def parameter_problem(name, value):
         return f'{name} is read-only while the node runs: restart the node to change it'
     if name == ZETA:
         return zeta_problem(value)
+    if name == JOINT_GAINS:
+        try:
+            gain_patterns(list(value))
+        except (TypeError, ValueError) as error:
+            return f'{JOINT_GAINS}: {error}'
+        return None
     if name == REAL_TIME_FACTOR:
         number = _number(value)
         if number is None:
@@ -117,6 +137,15 @@ def publish_rate(value, name=PUBLISH_RATE):
 #: A ROS name: tokens of letters, digits and underscores, each starting with a letter,
 #: separated by '/' (a leading '/' is allowed).
 _ROS_NAME = re.compile(r'/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*\Z')
+
+
+def topic_name(value, name):
+    """Topic `value` of parameter `name` checked: a ROS name (as written, absolute or
+    relative); raises ValueError."""
+    if not isinstance(value, str) or not _ROS_NAME.match(value):
+        raise ValueError(f"{name} must be a ROS topic name (letters, digits and underscores, "
+                         f"each part starting with a letter, parts joined by '/'), got {value!r}")
+    return value
 
 
 def trajectory_controller(value):

@@ -52,7 +52,7 @@ class BagRecorder:
         self._sim = sim
         self._terrain = TerrainFeed(sim.engine.surface)
         self._writer = BagWriter(self._path, list(sim.legs), plates=self.wants_plates,
-                                 terrain=self._terrain.active)
+                                 terrain=self._terrain.active, sensors=sim.sensors.layout)
         self._started = (sim.time, self._clock())
 
     def _status(self, state):

@@ -10,7 +10,9 @@ rclpy node only forwards events to it:
   for at most `tick_budget_s` of wall time so the executor stays responsive, then
   /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
   initial state.
-* `on_trajectory(msg)` / `on_positions(msg)` / `on_velocities(msg)` / `on_efforts(msg)`:
+* `on_trajectory(msg)` / `on_positions(msg)` / `on_velocities(msg)` / `on_efforts(msg)` /
+  `on_joint_commands(msg)` (sensor_msgs/JointState of ros2_control's topic hardware
+  interface: `control.joint_state_commands`, hybrid mode):
   incoming commands (any message backend) go to `sim.commands` at the current sim time;
   bad ones are rejected with a throttled warning naming the problem and counted per reason
   (reported on /diagnostics). Never raises.
@@ -21,7 +23,8 @@ rclpy node only forwards events to it:
   the end, the outcome. A new goal or any accepted command preempts it (aborted,
   INVALID_GOAL, as joint_trajectory_controller aborts a preempted goal), as do reset and
   divergence; a cancel the listener reports is served at the next tick, paused or not.
-* `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused.
+* `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused,
+  joint_gains.
 * `pause(flag)`, `reset()`, `step()`, `reset_terrain()`: the services, each answering a
   `ServiceResult`.
 * `resend_terrain(cloud=..., markers=...)`: a subscriber of the terrain cloud or of its
@@ -46,7 +49,9 @@ from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_k
 from rft_sim_ros.ros.messages import RunStatus
 from rft_sim_ros.ros.pacing import Pacer
 from rft_sim_ros.control import trajectory_goals as goals
-from rft_sim_ros.control.commands import CommandResult, Reason, Targets
+from rft_sim_ros.control.commands import CommandRejected, CommandResult, Reason, Targets
+from rft_sim_ros.control.hybrid import gain_patterns
+from rft_sim_ros.control.joint_state_commands import read_joint_state_command
 from rft_sim_ros.sim.publishing import PublishSchedule
 from rft_sim_ros.sim.simulation import SimulationDiverged
 from rft_sim_ros.control.throttle import ThrottledLog
@@ -87,7 +92,7 @@ class SimRuntime:
 
     def __init__(self, sim, sink, *, publish_rate, joint_names=None,
                  trajectory_controller=topics.TRAJECTORY_CONTROLLER, namespace='/',
-                 real_time_factor=1.0,
+                 joint_commands_topic=topics.ROBOT_JOINT_COMMANDS, real_time_factor=1.0,
                  paused=False, plates=False, terrain=None, warn=print, error=print, clock=time.monotonic,
                  tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
         self.sim = sim
@@ -101,6 +106,7 @@ class SimRuntime:
         self.trajectory_topic = topics.trajectory_topic(controller)
         self.trajectory_action = topics.follow_trajectory_action(controller)
         self._namespace = namespace
+        self.joint_commands_topic = joint_commands_topic
         self.plates = bool(plates)
         self._terrain = terrain
         self._clock = clock
@@ -118,6 +124,7 @@ class SimRuntime:
         self.diverged = None
         self.last_state = None
         self._goal = None  # (FollowedGoal, listener) of the goal being followed
+        self._command_index = {name: i for i, name in enumerate(servo_joints)}
         # indices of the servo joints among a SimState's joints
         self._servo_in_state = [sim.joint_names.index(name) for name in servo_joints]
 
@@ -251,6 +258,23 @@ class SimRuntime:
         ros2_control's effort forward controller takes them."""
         return self._on_array(msg, 'effort', topics.EFFORT_COMMANDS)
 
+    def on_joint_commands(self, msg):
+        """A sensor_msgs/JointState command as ros2_control's topic hardware interface sends
+        it (`control.joint_state_commands`; the interfaces of the robot's <ros2_control>
+        block read its packed arrays): hybrid mode (`control.hybrid`)."""
+        commands = self.sim.commands
+        if commands is None:
+            result = CommandResult(Reason.UNKNOWN_JOINT, 'this scene has no commanded joints')
+        else:
+            try:
+                command = read_joint_state_command(msg, self._command_index,
+                                                   self.sim.description.command_interfaces)
+            except CommandRejected as rejected:
+                result = rejected.result
+            else:
+                result = commands.set_joint_states(command, now=self.sim.time)
+        return self._outcome(self.joint_commands_topic, result)
+
     def _on_array(self, msg, kind, topic):
         try:
             values = inbound.array_command(msg)
@@ -379,6 +403,8 @@ class SimRuntime:
             self._pacer.set_real_time_factor(float(value), self._clock(), self.sim.time)
         elif name == parameters.PAUSED:
             self._set_paused(bool(value))
+        elif name == parameters.JOINT_GAINS:
+            self.sim.hybrid_drive.set_gains(gain_patterns(list(value)))
         else:
             raise KeyError(f'{name} cannot change while the node runs')
 

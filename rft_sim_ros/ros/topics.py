@@ -40,6 +40,22 @@ VELOCITY_COMMANDS = '/velocity_controller/commands'
 EFFORT_COMMANDS = '/effort_controller/commands'
 FOLLOW_JOINT_TRAJECTORY = follow_trajectory_action()
 
+#: ros2_control's topic hardware interfaces (joint_state_topic_hardware_interface/
+#: JointStateTopicSystem, topic_based_ros2_control/TopicBasedSystem): their default topics
+#: (hardware parameters joint_commands_topic, joint_states_topic). Commands: reliable, depth 1,
+#: as they publish them; the state: reliable, which their SensorDataQoS (best effort)
+#: subscriptions accept.
+ROBOT_JOINT_COMMANDS = '/robot_joint_commands'
+ROBOT_JOINT_STATES = '/robot_joint_states'
+ROBOT_JOINT_COMMANDS_DEPTH = 1
+
+#: Sensors (`rft_sim_ros.sim.sensors`): the IMU's default topic (scene key sensors.imu_topic),
+#: the foot contacts (one sensor_msgs/JointState a cycle: name = legs, position = stance
+#: 1/0, effort = normal force N), and the prefix of the model's own sensors' topics.
+IMU = '/imu/data'
+FOOT_CONTACTS = '/rft/foot_contacts'
+MODEL_SENSORS = '/rft/sensors'
+
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
@@ -53,6 +69,14 @@ POSITION_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 VELOCITY_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 EFFORT_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 FOLLOW_JOINT_TRAJECTORY_TYPE = 'control_msgs/action/FollowJointTrajectory'
+IMU_TYPE = 'sensor_msgs/msg/Imu'
+FLOAT64_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
+
+#: Message types of the model's own sensors by MuJoCo kind (`sensors.ModelSensor.kind`):
+#: forces as the force_torque_sensor_broadcaster publishes them, the imu parts as Imu;
+#: every other kind a Float64MultiArray of its values.
+MODEL_SENSOR_TYPES = {'touch': WRENCH_TYPE, 'force': WRENCH_TYPE, 'torque': WRENCH_TYPE,
+                      'framequat': IMU_TYPE, 'gyro': IMU_TYPE, 'accelerometer': IMU_TYPE}
 
 #: Topics that stay global when the node runs in a namespace, as in ROS convention: one
 #: clock, one tf tree, one diagnostics stream.
@@ -92,13 +116,40 @@ def leg_wrench_topic(leg):
     return f'/rft/{_checked_leg(leg)}/wrench'
 
 
-def published_topics(leg_names, *, plates, terrain=False):
+def model_sensor_topic(name):
+    """Topic of the model's sensor `name`: '/rft/sensors/<name>', every character a ROS name
+    cannot hold replaced by '_' (and '_' put before a leading digit)."""
+    token = re.sub(r'[^A-Za-z0-9_]', '_', name)
+    return f'{MODEL_SENSORS}/{token if token[:1].isalpha() else "_" + token}'
+
+
+def sensor_topics(layout):
+    """{topic: message type} of a `sensors.SensorLayout` (None: {}); raises ValueError when
+    two model sensors' names give one topic."""
+    if layout is None:
+        return {}
+    out = {}
+    if layout.imu_topic:
+        out[layout.imu_topic] = IMU_TYPE
+    if layout.contact_legs is not None:
+        out[FOOT_CONTACTS] = JOINT_STATE_TYPE
+    for name, kind, _ in layout.model_sensors:
+        topic = model_sensor_topic(name)
+        if topic in out:
+            raise ValueError(f'model sensor {name!r}: another sensor is published on {topic} '
+                             'already: rename one')
+        out[topic] = MODEL_SENSOR_TYPES.get(kind, FLOAT64_ARRAY_TYPE)
+    return out
+
+
+def published_topics(leg_names, *, plates, terrain=False, sensors=None):
     """{topic: message type} of everything the simulation publishes.
 
     leg_names: legs of the scene (one wrench topic each). plates: whether the active plates
     are published as markers on /rft/plates. terrain: whether the sand surface is published
     (grid surfaces: `rft_sim_ros.ros.terrain`) on /rft/terrain (a cloud) and
-    /rft/terrain/marker (one MarkerArray a publication).
+    /rft/terrain/marker (one MarkerArray a publication). sensors: the run's
+    `sensors.SensorLayout` (`sensor_topics`), or None.
     """
     topics = {
         CLOCK: CLOCK_TYPE,
@@ -117,4 +168,8 @@ def published_topics(leg_names, *, plates, terrain=False):
     if terrain:
         topics[TERRAIN] = POINT_CLOUD_TYPE
         topics[TERRAIN_MARKER] = MARKER_ARRAY_TYPE
+    for topic, msgtype in sensor_topics(sensors).items():
+        if topic in topics:
+            raise ValueError(f'sensor topic {topic} is a topic of the simulation already')
+        topics[topic] = msgtype
     return topics

@@ -17,6 +17,7 @@ from typing import Callable
 
 import yaml
 
+from ..control.hybrid import gain_patterns
 from ..robot.joints import check_servos
 from ..robot.pose import parse_spawn
 from ..robot.sand_bodies import OTHER_BODIES_DENSITY_PER_MM2
@@ -179,6 +180,18 @@ def _regions(value):
             raise ValueError(f'region {index}: unknown key{"s" * (len(unknown) > 1)} '
                              f'{", ".join(unknown)} (a region is {{x: [low, high], y: [low, '
                              'high], factor: f})')
+    return value
+
+
+def _vector3(value):
+    if not isinstance(value, list) or len(value) != 3:
+        raise ValueError(f'must be [x, y, z], got {value!r}')
+    return [_number(v) for v in value]
+
+
+def _seed(value):
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f'must be an integer >= 0, got {value!r}')
     return value
 
 
@@ -354,6 +367,39 @@ KEYS = (
         'Position-interface gains per joint (glob patterns, later ones win): kp N m/rad or '
         'N/m, kd N m s/rad or N s/m, effort limit N m or N; passive: no interfaces, the joint '
         'moves freely. Defaults from the robot mass (docs/robots.md).', _servos),
+    Key('joint_gains', 'mapping joint pattern -> {kp, kd}', '', {}, 'Gains of the hybrid '
+        'joint commands (a sensor_msgs/JointState on the joint commands topic: tau = kp (q* - '
+        'q) + kd (dq* - dq) + tau_ff, docs/ros.md), glob patterns, later ones win: kp N m/rad '
+        "or N/m, kd N m s/rad or N s/m, each >= 0; joints not named: their position servo's "
+        'gains.', lambda v: gain_patterns(_mapping(v))),
+    Key('sensors', 'mapping', '', {}, 'What the robot senses, published and recorded with '
+        'the state (rft_sim_ros/sim/sensors.py, docs/ros.md); all off by default.', _section),
+    Key('sensors.imu', 'true or false', '', False, 'An IMU (sensor_msgs/Imu): orientation, '
+        'angular velocity, specific force (+g up at rest).', _flag),
+    Key('sensors.imu_topic', 'text', '', '/imu/data', "The IMU's topic.", _text),
+    Key('sensors.imu_frame', 'text or null', '', None, "The IMU's site or body; null: the site "
+        "of the model's imu sensors, else a body named imu*, *_imu or *_imu_link, else the "
+        'base.', _optional_text),
+    Key('sensors.imu_noise', 'mapping', '', {}, "The IMU's noise and biases (none by default).",
+        _section),
+    Key('sensors.imu_noise.gyro_std', 'number >= 0', 'rad/s', 0.0, 'White noise of the '
+        'angular velocity (standard deviation, each axis).', lambda v: _number(v, minimum=0.0)),
+    Key('sensors.imu_noise.accel_std', 'number >= 0', 'm/s^2', 0.0, 'White noise of the '
+        'linear acceleration (standard deviation, each axis).',
+        lambda v: _number(v, minimum=0.0)),
+    Key('sensors.imu_noise.gyro_bias', '[x, y, z]', 'rad/s', [0.0, 0.0, 0.0], 'Constant '
+        'bias of the angular velocity, IMU axes.', lambda v: _vector3(v)),
+    Key('sensors.imu_noise.accel_bias', '[x, y, z]', 'm/s^2', [0.0, 0.0, 0.0], 'Constant '
+        'bias of the linear acceleration, IMU axes.', lambda v: _vector3(v)),
+    Key('sensors.imu_noise.seed', 'integer or null', '', None, 'Seed of the noise (null: a '
+        'new one each run).', lambda v: None if v is None else _seed(v)),
+    Key('sensors.contacts', 'true or false', '', False, 'Foot contacts per leg: stance flag '
+        'and normal force (/rft/foot_contacts).', _flag),
+    Key('sensors.contact_threshold', 'number > 0 or null', 'N', None, 'Normal force above '
+        "which a leg is in stance; null: 5 % of the robot's weight over its legs.",
+        lambda v: None if v is None else _positive(v)),
+    Key('sensors.model_sensors', 'true or false', '', False, "The MJCF model's own named "
+        '<sensor>s, each on a topic named after it (docs/ros.md).', _flag),
     Key('robot', 'mapping', '', {}, 'How the robot file is loaded, its initial pose and '
         'spawn.', _section),
     Key('robot.base', "'floating', 'fixed' or null", '', None, 'The root body: free '

@@ -37,8 +37,10 @@ from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.scenarios import failure_line, load_scenario, scenario_files
 from ..scenes.config import SceneError
 from .caveats import caveats, first_few
+from .hybrid_drive import HybridDrive
 from .outcome import TILT_LIMIT_DEG, OutcomeWatch
 from .sand_entry import SandEntryWatch
+from .sensors import Sensors, scene_settings
 from .state import ActivePlates, LegWrench, SimState
 from ..rft.force_law import DynamicTerm
 
@@ -267,6 +269,12 @@ class Simulation:
         self._qpos_adr = self.model.jnt_qposadr[self._joints]
         self._dof_adr = self.model.jnt_dofadr[self._joints]
         self._set_legs(scene)
+        try:
+            self.sensors = Sensors(self.model, self._base_id, self._leg_names,
+                                   scene_settings(scene.values), self.engine.surface,
+                                   self.engine.deformable)
+        except ValueError as error:
+            raise scene.locator.error('sensors', str(error)) from None
         self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id,
                                 len(self.sand_bodies))
         self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
@@ -280,6 +288,8 @@ class Simulation:
             self.model, self.data, joint_plan.commanded, scene.servos, scene.timestep,
             effort_limits=self.description.effort_limits)
         self.servo_joint_names = self.interfaces.joint_names
+        self.hybrid_drive = HybridDrive(self.model, self.interfaces,
+                                        scene.values.get('joint_gains'))
         self._command_qpos = self.model.jnt_qposadr[
             [self.model.joint(name).id for name in self.servo_joint_names]].astype(int)
         try:
@@ -514,6 +524,7 @@ class Simulation:
             if turned and notice not in self.notices:  # (a reset spawns again)
                 self.notices.append(notice)
         mujoco.mj_forward(self.model, self.data)
+        self.hybrid_drive.release()
         self.interfaces.set_mode('position')
         self.commands = None
         if self.servo_joint_names:
@@ -678,7 +689,17 @@ class Simulation:
         self.scenario.control(self)
         commands = self.commands
         if commands is not None:
-            interfaces, efforts = self.interfaces, commands.efforts
+            interfaces, efforts, hybrid = self.interfaces, commands.efforts, commands.hybrid
+            drive = self.hybrid_drive
+            if hybrid is not None:
+                if not drive.engaged:
+                    drive.engage()
+                    self._ctrl[interfaces.effort_actuators] = 0.0
+                self._ctrl[interfaces.position_actuators] = drive.controls(hybrid)
+                commands.track(self.data.qpos[self._command_qpos], self.time)
+                return
+            if drive.engaged:
+                drive.release()
             if efforts is None:
                 if interfaces.mode != 'position':
                     interfaces.set_mode('position')
@@ -795,7 +816,8 @@ class Simulation:
 
     def state(self, with_plates=False):
         """A SimState snapshot of the current state; its leg wrenches are the means over the
-        steps since the previous snapshot (see `leg_wrenches`)."""
+        steps since the previous snapshot (see `leg_wrenches`); with the sensor readings the
+        scene enables (sensors.*)."""
         d = self.data
         velocity = np.empty(6)
         mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_XBODY, self._base_id,
@@ -804,6 +826,8 @@ class Simulation:
         if with_plates:
             positions, forces, areas = self.engine.active_plates()
             plates = ActivePlates(positions, forces, areas)
+        legs = self.leg_wrenches()
+        sensors = self.sensors.read(d, legs) if self.sensors.active else None
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
@@ -815,8 +839,9 @@ class Simulation:
             base_quaternion_wxyz=d.xquat[self._base_id].copy(),
             base_linear_velocity=velocity[3:],  # (this call's own array)
             base_angular_velocity=velocity[:3],
-            legs=self.leg_wrenches(),
+            legs=legs,
             zeta=self.engine.zeta,
             plates_active=int(self.engine.plates_active),
             active_plates=plates,
+            sensors=sensors,
         )

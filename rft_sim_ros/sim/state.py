@@ -61,6 +61,8 @@ class SimState:
     base frame (the child frame, as nav_msgs/Odometry.twist requires).
     legs: per-leg RFT wrenches. zeta: sand stiffness in N/cm^3 (the paper's unit).
     plates_active: number of plates currently in the sand and leading.
+    sensors: `sensors.SensorReadings` of the IMU, foot contacts and model sensors the scene
+    enables (sensors.*), or None when it enables none.
     """
     time: float
     joint_names: Tuple[str, ...]
@@ -76,6 +78,7 @@ class SimState:
     zeta: float
     plates_active: int
     active_plates: ActivePlates = field(default=None)
+    sensors: object = field(default=None)
 
     @property
     def base_speed(self):

@@ -1,0 +1,126 @@
+"""The simulator-neutral services of ROS 2's `simulation_interfaces` package, answered from a
+`SimRuntime`'s pause / step / reset.
+
+ROS-free: `SimulationServices` decides every answer as plain numbers and text; the node
+fills the package's messages from them (and starts without these services, saying so once,
+where the package is not installed). The constants are those of simulation_interfaces 2.x
+(github.com/ros-simulation/simulation_interfaces: msg/SimulatorFeatures.msg,
+msg/SimulationState.msg, msg/Result.msg, srv/ResetSimulation.srv, srv/SetSimulationState.srv).
+
+What this simulator supports, as GetSimulatorFeatures says it:
+
+* ResetSimulation (SIMULATION_RESET, SIMULATION_RESET_STATE): the scene back to its initial
+  state (robot, sand, commands), as ~/reset. Sim time keeps running forward (a ROS clock never
+  goes back), so SCOPE_TIME alone is not supported (SIMULATION_RESET_TIME is not listed);
+  SCOPE_DEFAULT and SCOPE_ALL reset everything else and say so. Nothing is ever spawned, so
+  SCOPE_SPAWNED has nothing to remove.
+* StepSimulation (STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE): while paused, `steps`
+  iterations of the simulation loop, each one publish period of sim time followed by its
+  state publication, as ~/step.
+* GetSimulationState / SetSimulationState (SIMULATION_STATE_GETTING, _SETTING, _PAUSE):
+  PLAYING, PAUSED, and STOPPED (paused and reset, until played or paused).
+Not supported: spawning, entities, named poses, worlds, the SimulateSteps action, quitting.
+"""
+from dataclasses import dataclass
+
+# simulation_interfaces/msg/SimulatorFeatures
+SIMULATION_RESET, SIMULATION_RESET_TIME, SIMULATION_RESET_STATE = 20, 21, 22
+SIMULATION_STATE_GETTING, SIMULATION_STATE_SETTING, SIMULATION_STATE_PAUSE = 24, 25, 26
+STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE = 31, 32
+# simulation_interfaces/msg/SimulationState
+STATE_STOPPED, STATE_PLAYING, STATE_PAUSED, STATE_QUITTING = 0, 1, 2, 3
+# simulation_interfaces/msg/Result
+RESULT_FEATURE_UNSUPPORTED, RESULT_OK, RESULT_NOT_FOUND = 0, 1, 2
+RESULT_INCORRECT_STATE, RESULT_OPERATION_FAILED = 3, 4
+# simulation_interfaces/srv/ResetSimulation scopes (bits)
+SCOPE_DEFAULT, SCOPE_TIME, SCOPE_STATE, SCOPE_SPAWNED, SCOPE_ALL = 0, 1, 2, 4, 255
+# simulation_interfaces/srv/SetSimulationState results
+ALREADY_IN_TARGET_STATE, STATE_TRANSITION_ERROR, INCORRECT_TRANSITION = 101, 102, 103
+
+#: What GetSimulatorFeatures lists (module docstring).
+FEATURES = (SIMULATION_RESET, SIMULATION_RESET_STATE, SIMULATION_STATE_GETTING,
+            SIMULATION_STATE_SETTING, SIMULATION_STATE_PAUSE, STEP_SIMULATION_SINGLE,
+            STEP_SIMULATION_MULTIPLE)
+CUSTOM_INFO = ('rft_sim (rft_sim_ros): MuJoCo with granular resistive force theory. A step '
+               'is one publish period of sim time; a reset keeps sim time running forward.')
+_STATE_NAMES = {STATE_STOPPED: 'stopped', STATE_PLAYING: 'playing', STATE_PAUSED: 'paused'}
+
+
+@dataclass(frozen=True)
+class Answer:
+    """A service's simulation_interfaces/Result (`result`, `message`) and, for
+    GetSimulationState, the `state`."""
+    result: int
+    message: str = ''
+    state: int = None
+
+
+class SimulationServices:
+    """simulation_interfaces answers for `runtime` (a SimRuntime)."""
+
+    def __init__(self, runtime):
+        self._runtime = runtime
+        self._stopped_at = None  # sim time of the last stop (STOPPED until it moves on)
+
+    @staticmethod
+    def features():
+        """(features, spawn formats, custom_info) of GetSimulatorFeatures."""
+        return list(FEATURES), [], CUSTOM_INFO
+
+    def reset(self, scope):
+        """ResetSimulation with `scope` (bits)."""
+        if scope == SCOPE_TIME:
+            return Answer(RESULT_FEATURE_UNSUPPORTED, 'sim time does not go back (a ROS clock '
+                                                      'never does): reset with SCOPE_STATE')
+        done = self._runtime.reset()
+        if not done.success:
+            return Answer(RESULT_OPERATION_FAILED, done.message)
+        note = '; sim time keeps running forward' if scope in (SCOPE_DEFAULT, SCOPE_ALL) or \
+            scope & SCOPE_TIME else ''
+        return Answer(RESULT_OK, done.message + note)
+
+    def step(self, steps):
+        """StepSimulation of `steps` loop iterations (publish periods); only while paused."""
+        runtime = self._runtime
+        if steps < 1:
+            return Answer(RESULT_OPERATION_FAILED, f'steps must be >= 1, got {steps}')
+        if not runtime.paused:
+            return Answer(RESULT_OPERATION_FAILED, 'the simulation is playing: pause it first '
+                                                   '(SetSimulationState STATE_PAUSED)')
+        for done in range(steps):
+            stepped = runtime.step()
+            if not stepped.success:
+                return Answer(RESULT_OPERATION_FAILED,
+                              f'after {done} of {steps} steps: {stepped.message}')
+        return Answer(RESULT_OK, stepped.message)
+
+    def state(self):
+        """GetSimulationState: STOPPED, PAUSED or PLAYING."""
+        return Answer(RESULT_OK, state=self._state())
+
+    def _state(self):
+        if not self._runtime.paused:
+            return STATE_PLAYING
+        stopped = self._stopped_at is not None and self._stopped_at == self._runtime.sim.time
+        return STATE_STOPPED if stopped else STATE_PAUSED
+
+    def set_state(self, state):
+        """SetSimulationState to `state`."""
+        if state not in _STATE_NAMES:
+            return Answer(RESULT_FEATURE_UNSUPPORTED, f'state {state} is not supported: '
+                                                      'stopped (0), playing (1) or paused (2)')
+        if state == self._state():
+            return Answer(ALREADY_IN_TARGET_STATE, f'already {_STATE_NAMES[state]}')
+        runtime = self._runtime
+        if state == STATE_PLAYING:
+            done = runtime.pause(False)
+            if not done.success:
+                return Answer(STATE_TRANSITION_ERROR, done.message)
+            return Answer(RESULT_OK, done.message)
+        runtime.pause(True)
+        if state == STATE_PAUSED:
+            self._stopped_at = None
+            return Answer(RESULT_OK, f'paused at sim time {runtime.sim.time:.6f} s')
+        done = runtime.reset()
+        self._stopped_at = runtime.sim.time
+        return Answer(RESULT_OK, f'stopped: {done.message}')

@@ -1,0 +1,89 @@
+"""Apply hybrid joint commands (`rft_sim_ros.control.hybrid`) through the position actuators.
+
+A joint's position actuator (MuJoCo: force = gain * ctrl + b0 + b1 q + b2 dq, clamped to its
+force range) is re-parameterised while hybrid mode is on: gain 1, bias (0, -kp, -kd), force
+range +-effort limit, no control range, and
+
+    ctrl = kp q* + kd dq* + tau_ff
+
+so its force is exactly kp (q* - q) + kd (dq* - dq) + tau_ff clipped to the effort limit,
+with the -kd dq term integrated implicitly by MuJoCo (implicitfast) and by the sand engine's
+implicit solve, as the position servos' damping is. Leaving hybrid mode restores every
+parameter it changed. The effort motors stay at 0 meanwhile.
+"""
+import numpy as np
+
+from rft_sim_ros.control.hybrid import resolve_gains
+
+
+class HybridDrive:
+    """Hybrid mode of a model's `robot.joints.JointInterfaces` (`interfaces`).
+
+    gains: {pattern: {kp, kd}} (`control.hybrid.gain_patterns`, a scene's joint_gains); joints
+    not named keep their position servo's gains (`interfaces.gains`).
+    """
+
+    def __init__(self, model, interfaces, gains=None):
+        self._model = model
+        self._interfaces = interfaces
+        self._actuators = interfaces.position_actuators
+        names = interfaces.joint_names
+        self._default = resolve_gains(gains or {}, names, [interfaces.gains[n].kp for n in names],
+                                      [interfaces.gains[n].kd for n in names])
+        limits = np.array([interfaces.gains[n].effort for n in names], dtype=float)
+        self._limited = np.isfinite(limits)
+        self._limits = limits
+        self._saved = None
+        self.set_gains({})
+
+    @property
+    def engaged(self):
+        """Whether the position actuators are set up for hybrid commands."""
+        return self._saved is not None
+
+    def set_gains(self, patterns):
+        """Use the gains of `patterns` (`gain_patterns`) over those given at construction
+        ({}: those alone) from the next control tick on."""
+        self.kp, self.kd = resolve_gains(patterns, self._interfaces.joint_names, *self._default)
+        if self.engaged:
+            self._set_bias()
+
+    def _set_bias(self):
+        m, a = self._model, self._actuators
+        m.actuator_biasprm[a, 0] = 0.0
+        m.actuator_biasprm[a, 1] = -self.kp
+        m.actuator_biasprm[a, 2] = -self.kd
+
+    def engage(self):
+        """Position actuators in hybrid form (module docstring); the effort motors off."""
+        if self.engaged:
+            return
+        m, a = self._model, self._actuators
+        self._interfaces.set_mode('position')  # (the position actuators' own parameters)
+        self._saved = (m.actuator_gainprm[a].copy(), m.actuator_biasprm[a].copy(),
+                       m.actuator_ctrllimited[a].copy(), m.actuator_forcelimited[a].copy(),
+                       m.actuator_forcerange[a].copy())
+        m.actuator_gainprm[a] = 0.0
+        m.actuator_gainprm[a, 0] = 1.0
+        self._set_bias()
+        m.actuator_ctrllimited[a] = 0
+        limited = a[self._limited]
+        m.actuator_forcelimited[limited] = 1
+        m.actuator_forcerange[limited, 0] = -self._limits[self._limited]
+        m.actuator_forcerange[limited, 1] = self._limits[self._limited]
+        self._interfaces.mode = 'hybrid'
+
+    def release(self):
+        """Position actuators back as they were (the interfaces' position mode)."""
+        if not self.engaged:
+            return
+        m, a = self._model, self._actuators
+        (m.actuator_gainprm[a], m.actuator_biasprm[a], m.actuator_ctrllimited[a],
+         m.actuator_forcelimited[a], m.actuator_forcerange[a]) = self._saved
+        self._saved = None
+        self._interfaces.mode = 'position'
+
+    def controls(self, targets):
+        """ctrl values of the position actuators for `targets` (control.hybrid.HybridTargets)."""
+        return self.kp * targets.positions + self.kd * targets.velocities + targets.efforts
+

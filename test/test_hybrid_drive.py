@@ -1,0 +1,94 @@
+"""Hybrid joint commands in the simulation (rft_sim_ros.sim.hybrid_drive): the torque of
+tau = kp (q* - q) + kd (dq* - dq) + tau_ff, clipped to the effort limit, checked against a
+hand computation; the position actuators restored after; a 50 Hz policy-style stream of
+JointState commands holds the bundled quadruped standing in sand."""
+import mujoco
+import numpy as np
+import pytest
+
+from rft_sim_ros.control.joint_state_commands import read_joint_state_command
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation
+
+
+class JointState:
+    """What a topic hardware interface sends (the reader is duck-typed; rosbags' messages
+    are checked in test_joint_state_commands)."""
+
+    def __init__(self, name, position=(), velocity=(), effort=()):
+        self.name, self.position, self.velocity, self.effort = name, position, velocity, effort
+
+
+@pytest.fixture(scope='module')
+def sim():
+    return Simulation(load_scene('quadruped', overrides={'params.gait': 'none'}))
+
+
+def command(sim, **fields):
+    index = {name: i for i, name in enumerate(sim.commands.joint_names)}
+    return read_joint_state_command(JointState(list(sim.servo_joint_names), **fields), index)
+
+
+def actuator_parameters(sim):
+    m = sim.model
+    return [array.copy() for array in (m.actuator_gainprm, m.actuator_biasprm,
+                                       m.actuator_ctrllimited, m.actuator_forcelimited,
+                                       m.actuator_forcerange)]
+
+
+def test_the_torque_is_the_law_clipped_to_the_effort_limit(sim):
+    sim.reset()
+    before = actuator_parameters(sim)
+    names = sim.servo_joint_names
+    sim.hybrid_drive.set_gains({'*': {'kp': 25.0, 'kd': 0.7}, 'fl_knee': {'kp': 0.0}})
+    q0 = sim.data.qpos[sim._command_qpos].copy()
+    target = q0 + np.linspace(-0.2, 0.2, len(names))
+    velocity = np.linspace(1.0, -1.0, len(names))
+    effort = np.full(len(names), 1.5)
+    effort[names.index('fr_knee')] = 500.0     # far beyond its 30 N m
+    effort[names.index('rl_hip_pitch')] = -500.0  # beyond -20 N m
+    sim.commands.set_joint_states(command(sim, position=target, velocity=velocity,
+                                          effort=effort), sim.time)
+    sim.step(3)
+    mujoco.mj_forward(sim.model, sim.data)
+    q = sim.data.qpos[sim._command_qpos]
+    dq = sim.data.qvel[sim.model.jnt_dofadr[[sim.model.joint(n).id for n in names]]]
+    kp = np.full(len(names), 25.0)
+    kp[names.index('fl_knee')] = 0.0
+    limit = np.array([30.0 if n.endswith('knee') else 20.0 for n in names])  # the URDF's
+    by_hand = np.clip(kp * (target - q) + 0.7 * (velocity - dq) + effort, -limit, limit)
+    assert by_hand[names.index('fr_knee')] == 30.0
+    assert by_hand[names.index('rl_hip_pitch')] == -20.0
+    forces = sim.data.actuator_force
+    np.testing.assert_allclose(forces[sim.interfaces.position_actuators], by_hand,
+                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(forces[sim.interfaces.effort_actuators], 0.0)
+    assert sim.interfaces.mode == 'hybrid'
+    sim.commands.set_positions(q0, sim.time)
+    sim.step(sim._control_every)  # (one control tick)
+    for restored, original in zip(actuator_parameters(sim), before):
+        np.testing.assert_array_equal(restored, original)
+    sim.hybrid_drive.set_gains({})
+
+
+def test_a_50_hz_policy_stream_holds_the_quadruped_standing(sim):
+    sim.reset()
+    sim.hybrid_drive.set_gains({'*': {'kp': 40.0, 'kd': 1.0}})  # a policy's gains
+    base = sim.model.body('base').id
+    height0 = sim.data.xpos[base, 2]
+    stand = sim.data.qpos[sim._command_qpos].copy()
+    zero = np.zeros(len(stand))
+    every = int(round(0.02 / sim.timestep))
+    for _ in range(100):  # 2 s of 50 Hz commands
+        sim.commands.set_joint_states(command(sim, position=stand, velocity=zero, effort=zero),
+                                      sim.time)
+        sim.step(every)
+    assert sim.interfaces.mode == 'hybrid'
+    up = sim.data.xmat[base].reshape(3, 3)[:, 2]
+    tilt = np.degrees(np.arccos(up[2]))
+    sag = height0 - sim.data.xpos[base, 2]
+    assert tilt < 3.0 and -0.005 < sag < 0.03, (tilt, sag)  # standing, not sinking or fallen
+    joints = sim.data.qpos[sim._command_qpos]
+    assert np.max(np.abs(joints - stand)) < 0.15  # the soft gains' sag under the weight
+    assert np.linalg.norm(sim.data.qvel[:6]) < 0.05  # at rest
+    sim.hybrid_drive.set_gains({})

@@ -1,0 +1,68 @@
+"""simulation_interfaces' services answered from the runtime (rft_sim_ros.ros.
+simulation_services), ROS-free (rosbags has no simulation_interfaces types): features said
+truthfully, reset, step while paused only, get / set state with the package's codes."""
+import pytest
+
+from rft_sim_ros.ros import simulation_services as si
+from rft_sim_ros.scenes.config import load_scene
+from ros_test_support import SERVO_RIG, Harness
+
+
+@pytest.fixture
+def rig():
+    h = Harness(load_scene(SERVO_RIG))
+    h.runtime.tick()
+    return h, si.SimulationServices(h.runtime)
+
+
+def test_features_list_what_is_served_and_not_time_reset():
+    features, formats, info = si.SimulationServices.features()
+    assert set(features) == {20, 22, 24, 25, 26, 31, 32}
+    assert si.SIMULATION_RESET_TIME not in features and formats == []
+    assert 'publish period' in info
+
+
+def test_play_pause_stop_and_the_codes_of_each_transition(rig):
+    h, services = rig
+    assert services.state().state == si.STATE_PLAYING
+    assert services.set_state(si.STATE_PLAYING).result == si.ALREADY_IN_TARGET_STATE
+    assert services.set_state(si.STATE_PAUSED).result == si.RESULT_OK and h.runtime.paused
+    assert services.state().state == si.STATE_PAUSED
+    h.run(0.2)
+    assert h.sim.time == 0.0  # paused: no time passes
+    assert services.set_state(si.STATE_PLAYING).result == si.RESULT_OK
+    h.run(0.1)
+    assert h.sim.time == pytest.approx(0.1)
+    stop = services.set_state(si.STATE_STOPPED)
+    assert stop.result == si.RESULT_OK and h.runtime.paused
+    assert services.state().state == si.STATE_STOPPED
+    assert services.set_state(si.STATE_QUITTING).result == si.RESULT_FEATURE_UNSUPPORTED
+    assert services.step(2).result == si.RESULT_OK  # stepping leaves the stopped state
+    assert services.state().state == si.STATE_PAUSED
+
+
+def test_step_needs_a_pause_and_advances_whole_publish_periods(rig):
+    h, services = rig
+    refused = services.step(1)
+    assert refused.result == si.RESULT_OPERATION_FAILED and 'pause' in refused.message
+    services.set_state(si.STATE_PAUSED)
+    published = len(h.sink.states)
+    assert services.step(3).result == si.RESULT_OK
+    assert h.sim.time == pytest.approx(3 * h.runtime.publish_period)
+    assert len(h.sink.states) == published + 3
+    assert services.step(0).result == si.RESULT_OPERATION_FAILED
+
+
+def test_reset_restores_the_state_and_says_time_runs_on(rig):
+    h, services = rig
+    h.sim.commands.set_positions([0.5, -0.5], h.sim.time)
+    h.run(0.3)
+    moved = h.sim.data.joint('hip').qpos[0]
+    assert moved == pytest.approx(0.5, abs=0.05)
+    before = h.sim.time
+    answer = services.reset(si.SCOPE_DEFAULT)
+    assert answer.result == si.RESULT_OK and 'keeps running forward' in answer.message
+    assert h.sim.data.joint('hip').qpos[0] == pytest.approx(0.0, abs=1e-9)
+    assert h.sim.time == pytest.approx(before)
+    assert services.reset(si.SCOPE_TIME).result == si.RESULT_FEATURE_UNSUPPORTED
+    assert services.reset(si.SCOPE_STATE).message.startswith('reset at sim time')
