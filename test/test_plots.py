@@ -91,22 +91,6 @@ def test_pareto_labels_do_not_overlap_and_stay_in_their_panel():
     plt.close(fig)
 
 
-def test_a_runs_plot_title_names_the_zeta_schedule(monkeypatch, tmp_path):
-    from rft_sim_ros.scenes.config import load_scene
-    from rft_sim_ros.sim import plots as run_plots
-    monkeypatch.setattr(run_plots.plt, 'close', lambda fig: None)  # keep it for inspection
-    scene = load_scene('plate_drop', {'zeta': 5.0})
-    series = [{'time_s': t, 'base_x_m': 0.0, 'base_y_m': 0.0, 'base_z_m': -0.001 * t,
-               'plates_active': 10, 'plate_force_z_N': 9.81} for t in (0.0, 1.0, 2.0, 3.0)]
-    run_plots.plot_timeseries(tmp_path / 'timeseries.png', series, scene,
-                              [{'time_s': 1.5, 'zeta': 1.0, 'applied': True},
-                               {'time_s': 99.0, 'zeta': 2.0, 'applied': False}])
-    fig = plt.gcf()
-    title = fig._suptitle.get_text()
-    plt.close(fig)
-    assert 'zeta = 5 N/cm$^3$, 1 from 1.5 s' in title and '99' not in title
-
-
 def test_a_study_plot_labels_mapping_values_by_what_sets_them_apart(monkeypatch, tmp_path):
     from rft_sim_ros.study.plots import category_labels, plot_study
     surfaces = [{'type': 'plane'}, {'type': 'slope', 'angle_deg': 10.0},
