@@ -35,6 +35,7 @@ td.number { text-align: right; font-variant-numeric: tabular-nums; }
 .bad { color: #a11; font-weight: bold; }
 img, video { max-width: 100%; border: 1px solid #ddd; }
 code { background: #f3f3f3; padding: 0 0.2em; }
+summary { cursor: pointer; margin: 0.5em 0; }
 """
 
 #: The page's file name in a run (or study) folder.
@@ -156,12 +157,16 @@ def _outcome(summary):
 def _metrics(summary):
     rows = [[label(key), summary[key]] for key in KEY_NUMBERS if key in summary]
     markup = table(['run', 'value'], rows)
-    for key, heading in (('metrics', "scenario's metrics"),
-                         ('generic_metrics', 'metrics of every run')):
-        values = summary.get(key) or {}
-        if values:
-            markup += table([heading, 'value'],
-                            [[label(name), value] for name, value in values.items()])
+    scenario = summary.get('metrics') or {}
+    if scenario:
+        markup += table(["scenario's metrics", 'value'],
+                        [[label(name), value] for name, value in scenario.items()])
+    generic = summary.get('generic_metrics') or {}
+    if generic:  # one row per sand body and leg: folded
+        markup += ('<details><summary>metrics of every run (per sand body and leg)</summary>'
+                   + table(['metric', 'value'],
+                           [[label(name), value] for name, value in generic.items()])
+                   + '</details>')
     return markup
 
 
