@@ -34,6 +34,7 @@ td.number { text-align: right; font-variant-numeric: tabular-nums; }
 .ok { color: #176117; font-weight: bold; }
 .bad { color: #a11; font-weight: bold; }
 img, video { max-width: 100%; border: 1px solid #ddd; }
+figure { display: inline-block; margin: 0.5em; vertical-align: top; }
 code { background: #f3f3f3; padding: 0 0.2em; }
 summary { cursor: pointer; margin: 0.5em 0; }
 """
