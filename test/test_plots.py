@@ -91,22 +91,6 @@ def test_pareto_labels_do_not_overlap_and_stay_in_their_panel():
     plt.close(fig)
 
 
-def test_a_runs_plot_title_names_the_zeta_schedule(monkeypatch, tmp_path):
-    from rft_sim_ros.scenes.config import load_scene
-    from rft_sim_ros.sim import plots as run_plots
-    monkeypatch.setattr(run_plots.plt, 'close', lambda fig: None)  # keep it for inspection
-    scene = load_scene('plate_drop', {'zeta': 5.0})
-    series = [{'time_s': t, 'base_x_m': 0.0, 'base_y_m': 0.0, 'base_z_m': -0.001 * t,
-               'plates_active': 10, 'plate_force_z_N': 9.81} for t in (0.0, 1.0, 2.0, 3.0)]
-    run_plots.plot_timeseries(tmp_path / 'timeseries.png', series, scene,
-                              [{'time_s': 1.5, 'zeta': 1.0, 'applied': True},
-                               {'time_s': 99.0, 'zeta': 2.0, 'applied': False}])
-    fig = plt.gcf()
-    title = fig._suptitle.get_text()
-    plt.close(fig)
-    assert 'zeta = 5 N/cm$^3$, 1 from 1.5 s' in title and '99' not in title
-
-
 def test_a_study_plot_labels_mapping_values_by_what_sets_them_apart(monkeypatch, tmp_path):
     from rft_sim_ros.study.plots import category_labels, plot_study
     surfaces = [{'type': 'plane'}, {'type': 'slope', 'angle_deg': 10.0},
@@ -139,3 +123,40 @@ def test_a_study_plot_labels_mapping_values_by_what_sets_them_apart(monkeypatch,
     for box in boxes:                                     # inside the saved figure
         assert box.x0 >= figure_box.x0 - 1 and box.y0 >= figure_box.y0 - 1
     plt.close(fig)
+
+
+def test_a_study_plot_names_its_axes_with_units_and_colours_the_second_key(monkeypatch,
+                                                                           tmp_path):
+    from rft_sim_ros.study.plots import plot_study
+    kept = []
+    monkeypatch.setattr(plt, 'close', kept.append)
+    study = SimpleNamespace(keys=['zeta', 'payload'], metrics=['forward_distance_m'])
+    rows = [{'zeta': z, 'payload': p, 'forward_distance_m': 0.1 * z - 0.05 * p,
+             'stable': (z, p) != (5.0, 2.0)}
+            for z in (1.0, 3.75, 5.0) for p in (0.0, 1.0, 2.0)]
+    names = plot_study(tmp_path, study, rows)
+    assert names == ['forward_distance_m_vs_zeta.png', 'forward_distance_m_vs_payload.png']
+    against_zeta, against_payload = kept
+    ax = against_zeta.axes[0]
+    assert ax.get_xlabel() == 'sand stiffness zeta (N/cm³)'
+    assert ax.get_ylabel() == 'forward distance (m)'
+    legend = ax.get_legend()
+    assert legend.get_title().get_text().startswith('payload (kg)')
+    entries = [t.get_text() for t in legend.get_texts()]
+    assert entries == ['0.0', '1.0', '2.0', 'not stable']
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    colours = [lines[entry].get_color() for entry in entries[:3]]
+    assert len(set(colours)) == 3                         # one colour per payload
+    # each payload's line joins its own runs: payload 2 has no stable run at zeta 5
+    assert list(lines['2.0'].get_xdata()) == [1.0, 3.75]
+    assert list(lines['0.0'].get_ydata()) == pytest.approx([0.1, 0.375, 0.5])
+    against_zeta.canvas.draw()
+    renderer = against_zeta.canvas.get_renderer()
+    box = legend.get_window_extent(renderer)
+    assert not box.overlaps(ax.get_window_extent(renderer))     # beside the axes
+    assert against_zeta.bbox.contains(box.x1, box.y0)           # and inside the image
+    assert against_payload.axes[0].get_legend().get_title().get_text().startswith(
+        'sand stiffness zeta')
+    monkeypatch.undo()
+    for fig in kept:
+        plt.close(fig)

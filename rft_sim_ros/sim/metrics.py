@@ -71,6 +71,11 @@ class GenericMetrics:
                             out=self._below)
         return np.maximum(np.maximum.reduce(below, axis=1), 0.0)
 
+    @property
+    def latest_depths(self):
+        """(bodies,) m: `depths` at the latest snapshot observed."""
+        return self._depth[-1]
+
     def observe(self, sim, state):
         """Record one snapshot `state` (SimState) of `sim`."""
         self._legs = [leg.name for leg in state.legs]

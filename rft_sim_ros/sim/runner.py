@@ -22,6 +22,7 @@ from ..sand.timestep import timestep_bound, timestep_problem
 from .metrics import GenericMetrics
 from ..scenes.scenarios import load_scenario
 from .publishing import PublishSchedule
+from .series import SeriesRows, joint_legs, model_name
 from .simulation import ScenarioFailed, Simulation, SimulationDiverged
 from .summary import finite, json_default, significant
 
@@ -112,7 +113,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's), on its
     sand surface or on `surface` (a `sand.surface.Surface` made in Python: `Simulation`).
 
-    out_dir: where summary.json, timeseries.csv and plots go (None: write nothing).
+    out_dir: where summary.json, timeseries.csv, plots and report.html (sim/page.py) go
+    (None: write nothing).
     recorders: objects with record(SimState) and close(), fed the initial state (before the
     first step, as the ROS node publishes it), then at the publish rate (mean rate exact, on
     whole steps: `PublishSchedule`) and at the end; an optional start(sim) is called with
@@ -155,13 +157,15 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
             json.dumps(significant(summary), indent=2, default=json_default))
         _write_series(out / 'timeseries.csv', series, scene)
         if plots and series:
-            from .plots import plot_timeseries
-            plot_timeseries(out / 'timeseries.png', series, scene, summary['schedule'])
+            from .plots import plot_run
+            plot_run(out / 'timeseries.png', series, summary)
         if sim.engine.deformable:  # the final surface: heights (m, world z) and a map
             np.save(out / 'terrain.npy', sim.engine.surface.grid)
             if plots:
                 from .plots import plot_surface
                 plot_surface(out / 'terrain.png', sim.engine.surface)
+        from .page import write_run_page  # last: it lists the files written
+        write_run_page(out, significant(summary))
     return summary
 
 
@@ -189,6 +193,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         for notice in sim.notices if log else ():
             log(notice)
         generic = GenericMetrics(sim)
+        rows = SeriesRows(sim)
         zeta_max = max([scene.zeta, *(change['zeta'] for change in changes if 'zeta' in change)])
         coarse = timestep_problem(sim.engine, sim.timestep, zeta_max)
         if coarse and log is not None:
@@ -225,8 +230,8 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
                     next_publish = publishing.end_step(cycle)
                 active_sum += sim.engine.plates_active
                 state = sim.state(with_plates=with_plates)
-                series.append(_series_row(state))
                 generic.observe(sim, state)
+                series.append(rows.row(state, generic.latest_depths))
                 recording += _record(recorders, state)
                 bar.update(done)
                 for line in sim.run_warnings():
@@ -299,6 +304,9 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         # passive as the model has them (robot/joints.py)
         'commanded_joints': list(sim.servo_joint_names),
         'passive_joints': list(sim.passive_joint_names),
+        'robot_model': {'name': model_name(sim.model), 'file': str(scene.model_path)},
+        'joint_legs': joint_legs(sim.model, [sim.model.joint(n).id for n in sim.joint_names],
+                                 sim.legs, sim.model.body(sim.base_body).id),
         'notices': list(sim.notices),
         'plates_per_body': {name: int(sim.engine.plate_start[i + 1] - sim.engine.plate_start[i])
                             for i, name in enumerate(sim.engine.body_names)},
@@ -356,15 +364,6 @@ def _run_due(actions, done, sim, changes):
         action(sim)
         if isinstance(action, SettingChange):
             next(change for change in changes if not change['applied'])['applied'] = True
-
-
-def _series_row(state):
-    return {'time_s': state.time,
-            'base_x_m': state.base_position[0], 'base_y_m': state.base_position[1],
-            'base_z_m': state.base_position[2],
-            'base_speed_mps': state.base_speed,
-            'plates_active': state.plates_active,
-            **{f'{leg.name}_force_z_N': leg.force[2] for leg in state.legs}}
 
 
 def _write_series(path, series, scene):

@@ -11,6 +11,8 @@ Output folder:
   results.csv            one row per run (see table.py), results.npz the same, columnar
   plots/                 each metric against each varied key
   study.json             counts, wall time, backend, workers, machine
+  report.html            the study's page: table, plots, a link to each run's page
+                         (runs/<id>/report.html); study/page.py
 """
 import functools
 import hashlib
@@ -29,6 +31,7 @@ from . import plots, table
 from .cost import dearest_first
 from .execute import RunTask, execute, failure_record
 from .pool import default_workers, map_unordered
+from .page import write_study_page
 from .progress import StudyProgress
 from .spec import StudyError
 
@@ -246,6 +249,7 @@ def run_study(study, out, workers=None, ray=None, resume=False, retry_failed=Fal
         'scene': study.scene, 'runs': len(study.runs), 'ran': done, 'resumed': resumed,
         'failed': result.failed, 'wall_time_s': result.wall_s, 'backend': backend,
         'missing_metrics': missing, 'machine': machine_info()}, indent=2).encode())
+    write_study_page(out, study, rows, names_written)
     return result
 
 

@@ -1,0 +1,94 @@
+"""A run's time series: one row per published state, the columns of timeseries.csv.
+
+Columns (SI; world frame = odom, z up; REP 103):
+  time_s                              sim time
+  base_x_m, base_y_m, base_z_m        base frame origin
+  base_roll_rad, base_pitch_rad, base_yaw_rad
+                                      base attitude, roll about x, pitch about y, yaw about
+                                      z (fixed axes x-y-z; `roll_pitch_yaw`)
+  base_speed_mps                      |base linear velocity|
+  plates_active                       plates in the sand and leading
+  <leg>_force_z_N                     vertical sand force on the leg (mean over the publish
+                                      period: state.LegWrench)
+  <leg>_sinkage_m                     deepest plate of the leg's sand bodies below the sand
+                                      surface over it (0 when out of the sand)
+  <joint>_angle_rad, <joint>_torque_Nm    a hinge joint's position and actuator torque
+  <joint>_position_m, <joint>_force_N     a slide joint's
+"""
+import math
+
+import mujoco
+import numpy as np
+
+
+def roll_pitch_yaw(quaternion_wxyz):
+    """(roll, pitch, yaw) rad of a unit quaternion (w, x, y, z): the rotation R = Rz(yaw)
+    Ry(pitch) Rx(roll) (fixed axes x, y, z; REP 103), pitch in [-pi/2, pi/2]."""
+    w, x, y, z = (float(v) for v in quaternion_wxyz)
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def joint_columns(joint, hinge):
+    """(position column, effort column) of a joint: hinge (rad, N m) or slide (m, N)."""
+    return ((f'{joint}_angle_rad', f'{joint}_torque_Nm') if hinge else
+            (f'{joint}_position_m', f'{joint}_force_N'))
+
+
+def joint_legs(model, joint_ids, legs, base):
+    """{joint name: the leg it moves, or None}: a joint belongs to a leg when its body lies on
+    the chain from the base to that leg's sand bodies and on no other leg's (a spine or a
+    waist joint that several legs hang from belongs to none). legs: {leg: body names}."""
+    chains = {}
+    for leg, bodies in legs.items():
+        chain = set()
+        for name in bodies:
+            body = model.body(name).id
+            while body > 0 and body != base and body not in chain:
+                chain.add(body)
+                body = int(model.body_parentid[body])
+        chains[leg] = chain
+    owners = {}
+    for joint in joint_ids:
+        body = int(model.jnt_bodyid[joint])
+        holding = [leg for leg, chain in chains.items() if body in chain]
+        owners[model.joint(joint).name] = holding[0] if len(holding) == 1 else None
+    return owners
+
+
+def model_name(model):
+    """The name a compiled MuJoCo model gives itself (MJCF <mujoco model=...>, a URDF's
+    <robot name=...>); '' when it has none."""
+    return model.names.split(b'\0', 1)[0].decode()
+
+
+class SeriesRows:
+    """Makes the time-series rows of a Simulation's states (module docstring)."""
+
+    def __init__(self, sim):
+        index = {name: i for i, name in enumerate(sim.engine.body_names)}
+        self._legs = [(f'{leg}_sinkage_m', [index[b] for b in bodies])
+                      for leg, bodies in sim.legs.items()]
+        hinge = [int(sim.model.jnt_type[sim.model.joint(name).id]) == mujoco.mjtJoint.mjJNT_HINGE
+                 for name in sim.joint_names]
+        self._joints = [joint_columns(name, h) for name, h in zip(sim.joint_names, hinge)]
+
+    def row(self, state, depths):
+        """The row ({column: value}) of `state` (SimState); depths: (sand bodies,) m, each
+        body's deepest plate below the surface (`GenericMetrics.depths`)."""
+        roll, pitch, yaw = roll_pitch_yaw(state.base_quaternion_wxyz)
+        row = {'time_s': state.time,
+               'base_x_m': state.base_position[0], 'base_y_m': state.base_position[1],
+               'base_z_m': state.base_position[2],
+               'base_roll_rad': roll, 'base_pitch_rad': pitch, 'base_yaw_rad': yaw,
+               'base_speed_mps': state.base_speed,
+               'plates_active': state.plates_active}
+        row.update({f'{leg.name}_force_z_N': leg.force[2] for leg in state.legs})
+        row.update({column: float(np.max(depths[bodies])) for column, bodies in self._legs})
+        for (position, effort), q, tau in zip(self._joints, state.joint_positions,
+                                             state.joint_efforts):
+            row[position] = q
+            row[effort] = tau
+        return row
