@@ -177,3 +177,29 @@ def test_mjcf_sensors_are_published_and_recorded_by_kind_named_after_each(tmp_pa
         assert recorded[topic].msgtype == msgtype and recorded[topic].count == len(states)
     last = [m for _, _, m in read_messages(bag, ['/rft/sensors/imu_gyro'])][-1]
     assert last.angular_velocity.z == gyro.angular_velocity.z
+
+
+def test_the_bag_packs_imu_and_contacts_as_rosbags_serialises_them():
+    """The bag's fast path (cdr.StateEncoder) writes the IMU and contacts byte for byte as
+    rosbags serialises the messages `messages` builds (noise on: covariances not zero)."""
+    from types import SimpleNamespace
+    from rft_sim_ros.ros.bag import _CycleRecords
+    from rft_sim_ros.ros.cdr import StateEncoder
+    from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
+    sim = Simulation(load_scene('quadruped', overrides={
+        'params.gait': 'none', 'sensors.imu': True, 'sensors.contacts': True,
+        'sensors.imu_topic': '/base/imu', 'sensors.imu_noise.accel_std': 0.02}))
+    state = publish_cycles(sim, 0.05)[-1]
+    encoder = StateEncoder(state, '/base/imu')
+    expected = messages.state_messages(FACTORY, state, plates=False, imu_topic='/base/imu')
+    assert encoder.topics == [topic for topic, _ in expected]
+    assert encoder.topics[-2:] == ['/base/imu', topics.FOOT_CONTACTS]
+    records = _CycleRecords(encoder, [SimpleNamespace(id=i) for i in range(len(expected))])
+    time_ns = seconds_to_ns(state.time)
+    packed = records.payloads(records.pack(time_ns, encoder.arguments(state,
+                                                                       *split_ns(time_ns))))
+    for (topic, message), data in zip(expected, packed):
+        assert data == bytes(FACTORY.typestore.serialize_cdr(message, message.__msgtype__)), \
+            topic
+    assert encoder.fits(state) and not encoder.fits(publish_cycles(
+        Simulation(load_scene('quadruped', overrides={'params.gait': 'none'})), 0.01)[-1])

@@ -159,7 +159,7 @@ class BagWriter:
     def __init__(self, path, leg_names, *, plates=False, terrain=False, sensors=None):
         self.factory = RosbagsFactory(jazzy_typestore())
         self._plates = plates
-        self._imu_topic = sensors.imu_topic if sensors is not None else None
+        self._imu_topic = sensors.imu_topic if sensors is not None else topics.IMU
         self._types = topics.published_topics(leg_names, plates=plates, terrain=terrain,
                                               sensors=sensors)
         self._writer = _Rosbag2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
@@ -195,7 +195,7 @@ class BagWriter:
             if self._encoder is None or not self._encoder.fits(state):
                 self._write_cycles(batch)
                 batch = []
-                self._encoder = cdr.StateEncoder(state)
+                self._encoder = cdr.StateEncoder(state, self._imu_topic)
                 unknown = sorted(set(self._encoder.topics) - set(self._connections))
                 if unknown:
                     raise KeyError(f'{unknown} are not topics of this bag: '
@@ -210,11 +210,10 @@ class BagWriter:
                 batch = []
                 self.write(topics.PLATES, messages.plates_message(self.factory, state),
                            time_ns)
-            if state.sensors is not None:
+            if state.sensors is not None and state.sensors.model_sensors:
                 self._write_cycles(batch)
                 batch = []
-                for topic, message in messages.sensor_messages(self.factory, state,
-                                                               self._imu_topic):
+                for topic, message in messages.model_sensor_messages(self.factory, state):
                     self.write(topic, message, time_ns)
         self._write_cycles(batch)
 

@@ -90,17 +90,31 @@ def _header(layout, frame_id):
     return layout.strings([frame_id])
 
 
+def _sensor_shape(state):
+    """(IMU frame or None, contact legs or None) of a state's sensor readings."""
+    readings = state.sensors
+    if readings is None:
+        return None, None
+    return (readings.imu.frame if readings.imu is not None else None,
+            readings.contacts.legs if readings.contacts is not None else None)
+
+
 class StateEncoder:
     """The CDR layouts (`structs`) and values (`arguments`) of one publish cycle's
-    fixed-layout topics, for states with the joints and legs of `state` (a SimState):
-    /clock, /joint_states, /odom, /tf and /rft/<leg>/wrench."""
+    fixed-layout topics, for states with the joints, legs and sensors of `state` (a
+    SimState): /clock, /joint_states, /odom, /tf, /rft/<leg>/wrench, and where the state
+    carries them the IMU (on `imu_topic`) and /rft/foot_contacts."""
 
-    def __init__(self, state):
+    def __init__(self, state, imu_topic=topics.IMU):
         self.joint_names = tuple(state.joint_names)
         self.leg_names = tuple(leg.name for leg in state.legs)
         self.base_frame = state.base_frame
+        self.sensor_shape = _sensor_shape(state)
+        imu_frame, contact_legs = self.sensor_shape
         self.topics = [topics.CLOCK, topics.JOINT_STATES, topics.ODOM, topics.TF,
-                       *(topics.leg_wrench_topic(name) for name in self.leg_names)]
+                       *(topics.leg_wrench_topic(name) for name in self.leg_names),
+                       *([imu_topic] if imu_frame is not None else []),
+                       *([topics.FOOT_CONTACTS] if contact_legs is not None else [])]
 
         layout = _Layout()
         layout.numbers('i')
@@ -139,18 +153,34 @@ class StateEncoder:
             layout.numbers('d', 6)
             self._wrenches.append((layout.compile(), frame))
 
+        self._sensors = []  # (its struct, its constant arguments' bytes) of each
+        if imu_frame is not None:
+            layout = _Layout()
+            frame = _header(layout, imu_frame)
+            layout.numbers('d', 4 + 9 + 3 + 9 + 3 + 9)
+            self._sensors.append((layout.compile(), (frame,)))
+        if contact_legs is not None:
+            layout = _Layout()
+            frame = _header(layout, '')
+            names = layout.strings(contact_legs, sequence=True)
+            counts = (layout.float64_sequence(len(contact_legs)), layout.float64_sequence(0),
+                      layout.float64_sequence(len(contact_legs)))
+            self._sensors.append((layout.compile(), (frame, names, *counts)))
+
     def fits(self, state):
         """Whether `state` has the joints, legs and base frame this encoder was built for."""
         return (tuple(state.joint_names) == self.joint_names
                 and tuple(leg.name for leg in state.legs) == self.leg_names
-                and state.base_frame == self.base_frame)
+                and state.base_frame == self.base_frame
+                and _sensor_shape(state) == self.sensor_shape)
 
     @property
     def structs(self):
         """The `struct.Struct` of each message of `self.topics`, in that order (formats
         little-endian with no implicit alignment, so they may be concatenated)."""
         return [self._clock, self._joint_state, self._odom, self._tf,
-                *(wrench for wrench, _ in self._wrenches)]
+                *(wrench for wrench, _ in self._wrenches),
+                *(sensor for sensor, _ in self._sensors)]
 
     def arguments(self, state, sec, nanosec):
         """The values of each message's struct (`structs`), in topic order, for `state`
@@ -173,6 +203,27 @@ class StateEncoder:
         out.append(transforms)
         for leg, (_, frame) in zip(state.legs, self._wrenches):
             out.append([e, sec, nanosec, frame, *leg.force.tolist(), *leg.torque.tolist()])
+        if self._sensors:
+            out += self._sensor_arguments(state, sec, nanosec)
+        return out
+
+    def _sensor_arguments(self, state, sec, nanosec):
+        e, readings, out = _ENCAPSULATION, state.sensors, []
+        parts = iter(self._sensors)
+        imu = readings.imu
+        if imu is not None:
+            w, x, y, z = imu.quaternion_wxyz.tolist()
+            out.append([e, sec, nanosec, *next(parts)[1], x, y, z, w,
+                        *imu.orientation_covariance.tolist(), *imu.angular_velocity.tolist(),
+                        *imu.angular_velocity_covariance.tolist(),
+                        *imu.linear_acceleration.tolist(),
+                        *imu.linear_acceleration_covariance.tolist()])
+        contacts = readings.contacts
+        if contacts is not None:
+            frame, names, positions, velocities, efforts = next(parts)[1]
+            out.append([e, sec, nanosec, frame, names, positions,
+                        *contacts.stance.astype(float).tolist(), velocities, efforts,
+                        *contacts.normal_force.tolist()])
         return out
 
 

@@ -437,10 +437,14 @@ def sensor_messages(factory, state, imu_topic=topics.IMU):
     if readings.contacts is not None:
         out.append((topics.FOOT_CONTACTS,
                     foot_contacts_message(factory, state.time, readings.contacts)))
-    out += [(topics.model_sensor_topic(sensor.name),
+    return out + model_sensor_messages(factory, state)
+
+
+def model_sensor_messages(factory, state):
+    """[(topic, message)] of the model sensors' readings the state carries."""
+    return [(topics.model_sensor_topic(sensor.name),
              model_sensor_message(factory, state.time, sensor))
-            for sensor in readings.model_sensors]
-    return out
+            for sensor in state.sensors.model_sensors]
 
 
 def state_messages(factory, state, *, plates, imu_topic=topics.IMU):
