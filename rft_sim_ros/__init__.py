@@ -9,7 +9,8 @@ sand        the sand engine: plates from MuJoCo geoms, surfaces, compiled coupli
 robot       robot descriptions (MJCF, URDF, xacro) and ros2_control-like joint interfaces
 control     servo commands: trajectories, positions and efforts, validated
 scenes      scene files (schema, config) and the paper's scenarios, robots and gaits
-sim         the simulation loop, runner, state, summary and plots (no ROS)
+sim         the simulation loop, runner, state, time series, summary, plots and the run's
+            page, report.html (no ROS)
 study       parameter sweeps on local processes or a Ray cluster
 ros         message building, the rosbag2 writer and the thin rclpy nodes
 bench, validation   `rft-sim bench` and `rft-sim validate`

@@ -183,6 +183,9 @@ def test_local_study_writes_table_summaries_and_plots(local_study):
     assert saved['summary']['metrics']['max_depth_m'] == float(rows[0]['max_depth_m'])
     assert sorted(p.name for p in (out / 'plots').iterdir()) == sorted(
         f'{m}_vs_{k}.png' for m in study.metrics for k in study.keys)
+    page = (out / 'report.html').read_text()                # the study's page, each run's
+    assert all(f'href="runs/{i}/report.html"' in page for i in range(5))
+    assert all((out / 'runs' / str(i) / 'report.html').is_file() for i in range(5))
 
 
 def test_local_study_matches_serial_runs_bit_for_bit(local_study):
