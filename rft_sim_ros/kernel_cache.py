@@ -70,12 +70,14 @@ def _imports(name, path):
 
 def kernel_sources():
     """The package's source files its cached kernels are compiled from: the kernel modules
-    and, transitively, every module of the package they import (read, not imported)."""
+    and, transitively, every module of the package they import (read, not imported), but
+    this one, which every kernel module imports and which compiles nothing into them (an
+    edit of the bookkeeping keeps the cache)."""
     found, pending = {}, list(KERNEL_MODULES)
     while pending:
         name = pending.pop()
         path = _module_file(name)
-        if path is not None and name not in found:
+        if path is not None and name not in found and name != __name__:
             found[name] = path
             pending.extend(_imports(name, path))
     return sorted(set(found.values()))

@@ -36,6 +36,7 @@ are MuJoCo's equality, limit and contact constraints, as the rows MuJoCo itself 
 them (`constraint_rows`), in the same active-set iteration (`active_set`; joint friction's
 law: `joint_friction`); a step whose rows do not settle leaves them to MuJoCo's solve.
 """
+import types
 from collections import namedtuple
 
 import numpy as np
@@ -210,17 +211,18 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
 
 
-@njit(cache=True, error_model='numpy', fastmath={'contract'})
-def _gather_plates(arrays, kind, deform):
+#: The kind of surface (surface.FLAT, SLOPE or GRID) and whether it is deformable sand, of a
+#: gather kernel: `_gather_plates` reads them as globals, which each kernel binds to its own
+#: constants (`_gather_kernel`). None here: `_gather_plates` itself is never run.
+KIND = DEFORM = None
+
+
+def _gather_plates(arrays):
     """Find the plates in the sand and their RFT force for the current direction of motion:
-    one step (counted in the STEPS counter). `kind` (surface.FLAT, SLOPE or GRID) and
-    `deform` (deformable sand: a GRID) are constants of each compiled kernel
-    (`gather_kernel`), so that each kind of surface runs a plate loop of its own: numba
-    compiles this function once for each pair of constants it is called with (literal
-    arguments), with its callers' options. (A function of its own rather than inline='always':
-    numba's inliner copies a callee's whole variable scope for each of its blocks, which cost
-    some 45 s CPU of every gather kernel's compile on this size of function, for the same
-    machine code; see docs/speed.md.)
+    one step (counted in the STEPS counter); on deformable sand, then rules 2-4 for the
+    footprints the bodies left in this step (`deformable.settle`). KIND (surface.FLAT, SLOPE
+    or GRID) and DEFORM (deformable sand: a GRID) are constants each gather kernel binds
+    (`_gather_kernel`), so that each kind of surface runs a plate loop of its own.
 
     arrays: the table of an `ArrayTable` of `GatherArrays`; settings SURFACE ... TRAILING.
 
@@ -240,7 +242,7 @@ def _gather_plates(arrays, kind, deform):
     tile has none), the plates below that plane's highest point over the cluster read the
     grid, the body itself bounded by that plane's highest point over its square instead of
     the blocks. On deformable sand
-    (`deform`) the plates below the surface mark their footprint cells
+    (DEFORM) the plates below the surface mark their footprint cells
     (`deformable.mark_cell`), and the footprints the bodies left are settled after the
     plates are gathered (`gather_deformable`); beyond the bed its base (plane, slope or
     grid: `_deformable_base`) gives the depth, and bounds the bodies and clusters that reach
@@ -265,7 +267,7 @@ def _gather_plates(arrays, kind, deform):
     settings, counters = float_vector(arrays, a.settings), int_vector(arrays, a.counters)
     surface_height, zeta_si = settings[SURFACE], settings[ZETA]
     include_trailing = settings[TRAILING] != 0.0
-    flat, slope = kind == FLAT, kind == SLOPE
+    flat, slope = KIND == FLAT, KIND == SLOPE
     gx, gy = settings[SLOPE_X], settings[SLOPE_Y]
     g_norm = np.sqrt(gx * gx + gy * gy)
     gx0, gy0 = settings[GRID_X0], settings[GRID_Y0]
@@ -311,24 +313,24 @@ def _gather_plates(arrays, kind, deform):
         b = body_ids[i]
         # a grid reaching a cell beyond the body's sphere all round: its plates are looked
         # up unclamped; on deformable sand, otherwise they may lie beyond the bed (its base)
-        inside = kind == GRID and inside_grid(grid, gx0, gy0, g_idx, g_idy, xpos[b, 0],
+        inside = KIND == GRID and inside_grid(grid, gx0, gy0, g_idx, g_idy, xpos[b, 0],
                                               xpos[b, 1], radii[i])
-        off_bed = deform and not inside
+        off_bed = DEFORM and not inside
         # a rigid grid near a plane (not level) around the body: that plane bounds it over the
         # body's square (its tile's: `tile_plane`), without reading the blocks there
         planar, p_a, p_gx, p_gy = False, 0.0, 0.0, 0.0
-        if kind == GRID and not deform and inside and tile_step > 0:
+        if KIND == GRID and not DEFORM and inside and tile_step > 0:
             planar, p_a, p_gx, p_gy = tile_plane(tiles, tile_step, grid.shape[1], gx0, gy0,
                                                  g_idx, g_idy, xpos[b, 0], xpos[b, 1], radii[i])
         if planar:
             body_low = -np.inf  # (not level: the grid is read)
             body_top = plane_top(p_a, p_gx, p_gy, xpos[b, 0], xpos[b, 1], radii[i])
-        elif deform:
+        elif DEFORM:
             body_low, body_top = bed_range(grid, block_max, block_min, gx0, gy0, g_idx, g_idy,
                                            xpos[b, 0], xpos[b, 1], radii[i],
                                            _deformable_base(arrays))
         else:
-            body_low, body_top = surface_range(kind, surface_height, gx, gy, g_norm, grid,
+            body_low, body_top = surface_range(KIND, surface_height, gx, gy, g_norm, grid,
                                                block_max, block_min, gx0, gy0, g_idx, g_idy,
                                                xpos[b, 0], xpos[b, 1], radii[i])
         if xpos[b, 2] - radii[i] >= body_top:
@@ -381,7 +383,7 @@ def _gather_plates(arrays, kind, deform):
                     if planar:  # the body's tile plane, at its highest over the cluster
                         top = plane_top(p_a, p_gx, p_gy, wx_c, wy_c, cluster_radius[c])
                         low = -np.inf  # (not level: the grid is read)
-                    elif not deform:  # a rigid grid: the window over the cluster
+                    elif not DEFORM:  # a rigid grid: the window over the cluster
                         low, top = window_range(window_max, window_min, gx0, gy0, g_idx,
                                                 g_idy, wx_c, wy_c, cluster_radius[c])
                     elif off_bed:  # (deformable sand, a body reaching beyond the bed)
@@ -397,16 +399,16 @@ def _gather_plates(arrays, kind, deform):
             j0 = cluster_plate_start[c]
             j1 = cluster_plate_start[c + 1]
             cluster, cluster_normals = positions[j0:j1], normals[j0:j1]  # (no wraparound)
-            if kind == GRID and lookup and inside:  # (the grids' common case)
+            if KIND == GRID and lookup and inside:  # (the grids' common case)
                 k, leading_count = _grid_cluster(
-                    deform, j0, cluster, cluster_normals, (ox, oy, oz), rotation, top,
+                    DEFORM, j0, cluster, cluster_normals, (ox, oy, oz), rotation, top,
                     (body_v, body_w, tangential, include_trailing), (grid, gx0, gy0, g_idx,
                     g_idy), (footprints, step), motion, law, table, out_slot, slots, k,
                     leading_count)
                 continue
-            plain = not (slope or lookup or deform)  # a plane, or a rigid grid level here
+            plain = not (slope or lookup or DEFORM)  # a plane, or a rigid grid level here
             # a rigid grid read here: the motion test (cheaper than a look-up) comes first
-            motion_first = kind == GRID and lookup and not deform
+            motion_first = KIND == GRID and lookup and not DEFORM
             for i_c in range(cluster.shape[0]):
                 lx, ly, lz = cluster[i_c, 0], cluster[i_c, 1], cluster[i_c, 2]
                 pz = oz + r20 * lx + r21 * ly + r22 * lz
@@ -429,7 +431,7 @@ def _gather_plates(arrays, kind, deform):
                     u, v = (px - gx0) * g_idx, (py - gy0) * g_idy
                     if inside:  # (level here: a grid read is `_grid_cluster`'s)
                         depth = level - pz
-                        if deform and depth > 0.0:
+                        if DEFORM and depth > 0.0:
                             mark_cell(footprints, step, int(u), int(v), pz)
                     elif off_bed and (u < 0.0 or v < 0.0 or u > bed_u or v > bed_v):
                         # beyond the bed: its base, where a plate leaves no footprint
@@ -438,7 +440,7 @@ def _gather_plates(arrays, kind, deform):
                         deform_state[OUTSIDE] += depth > 0.0
                     else:
                         depth = (node_height(grid, u, v) if lookup else level) - pz
-                        if deform and depth > 0.0:
+                        if DEFORM and depth > 0.0:
                             touch_cell(footprints, step, u, v, pz)
                 if depth <= 0.0:
                     continue
@@ -465,6 +467,17 @@ def _gather_plates(arrays, kind, deform):
                    force[1], force[2])
     counters[STEPS] += 1
     counters[GATHERED], counters[LEADING], counters[SLOTS] = k, leading_count, slots
+    if DEFORM:  # rules 2-4 for the footprints the bodies left in this step
+        settle(float_matrix(arrays, a.surface_grid), float_matrix(arrays, a.surface_block_max),
+               float_matrix(arrays, a.surface_block_min), int_matrix(arrays, a.deform_stamp),
+               float_matrix(arrays, a.deform_lowest), int_vector(arrays, a.deform_pending),
+               int_vector(arrays, a.deform_state), int_vector(arrays, a.deform_committed),
+               float_vector(arrays, a.deform_amount), int_vector(arrays, a.deform_queue),
+               int8_matrix(arrays, a.deform_in_queue), int8_matrix(arrays, a.deform_dirty),
+               int_vector(arrays, a.deform_dirty_list), int_matrix(arrays, a.deform_changed),
+               int32_matrix(arrays, a.deform_distance), int_vector(arrays, a.deform_reached),
+               int_vector(arrays, a.counters)[STEPS] - 1,
+               float_vector(arrays, a.settings)[DEFORM_RISE])
 
 
 @njit(inline='always')
@@ -564,40 +577,19 @@ def _normal_speed(normals, i, body_v, body_w, lx, ly, lz):
             + mz * (body_v[2] + body_w[0] * ly - body_w[1] * lx))
 
 
-@njit(cache=True, error_model='numpy', fastmath={'contract'})
-def gather_plane(arrays):
-    """`_gather_plates` on a horizontal plane."""
-    _gather_plates(arrays, FLAT, False)
-
-
-@njit(cache=True, error_model='numpy', fastmath={'contract'})
-def gather_slope(arrays):
-    """`_gather_plates` on an inclined plane."""
-    _gather_plates(arrays, SLOPE, False)
-
-
-@njit(cache=True, error_model='numpy', fastmath={'contract'})
-def gather_grid(arrays):
-    """`_gather_plates` on a rigid height grid."""
-    _gather_plates(arrays, GRID, False)
-
-
-@njit(cache=True, error_model='numpy', fastmath={'contract'})
-def gather_deformable(arrays):
-    """`_gather_plates` on deformable sand (a height grid the plates mark), then rules 2-4
-    for the footprints the bodies left in this step (`deformable.settle`): one call."""
-    _gather_plates(arrays, GRID, True)
-    a = GATHER
-    settle(float_matrix(arrays, a.surface_grid), float_matrix(arrays, a.surface_block_max),
-           float_matrix(arrays, a.surface_block_min), int_matrix(arrays, a.deform_stamp),
-           float_matrix(arrays, a.deform_lowest), int_vector(arrays, a.deform_pending),
-           int_vector(arrays, a.deform_state), int_vector(arrays, a.deform_committed),
-           float_vector(arrays, a.deform_amount), int_vector(arrays, a.deform_queue),
-           int8_matrix(arrays, a.deform_in_queue), int8_matrix(arrays, a.deform_dirty),
-           int_vector(arrays, a.deform_dirty_list), int_matrix(arrays, a.deform_changed),
-           int32_matrix(arrays, a.deform_distance), int_vector(arrays, a.deform_reached),
-           int_vector(arrays, a.counters)[STEPS] - 1,
-           float_vector(arrays, a.settings)[DEFORM_RISE])
+def _gather_kernel(name, kind, deform, doc):
+    """The compiled `_gather_plates` of a surface of kind `kind` (deformable sand where
+    `deform`), named `name`, documented by `doc`: the same code with its globals KIND and
+    DEFORM bound to these constants. numba prunes the branches of the other surfaces before
+    it types the code (its dead-branch pruning sees module constants, not argument values),
+    so each kernel compiles its own surface's loop only: gather_plane took 9 s CPU to compile
+    this way on an AMD EPYC VM, against 50 s as an inline='always' function called with
+    constant arguments (numba's inliner copies a callee's whole scope once per block of it)
+    and 37 s as a function compiled for literal arguments (no pruning); docs/speed.md."""
+    function = types.FunctionType(_gather_plates.__code__,
+                                  dict(globals(), KIND=kind, DEFORM=deform), name)
+    function.__qualname__, function.__doc__ = name, doc
+    return njit(cache=True, error_model='numpy', fastmath={'contract'})(function)
 
 
 def gather_kernel(kind, deformable=False):
@@ -1522,5 +1514,18 @@ def smoothed_wrenches(k, slots, out_plate, out_slot, table, force, alpha, step,
         wrench[s, 4] += rz * fx - rx * fz
         wrench[s, 5] += rx * fy - ry * fx
 
+
+# The gather kernels, bound once every function their code calls is defined (`_gather_kernel`
+# copies the module's globals).
+gather_plane = _gather_kernel('gather_plane', FLAT, False,
+                              '`_gather_plates` on a horizontal plane.')
+gather_slope = _gather_kernel('gather_slope', SLOPE, False,
+                              '`_gather_plates` on an inclined plane.')
+gather_grid = _gather_kernel('gather_grid', GRID, False,
+                             '`_gather_plates` on a rigid height grid.')
+gather_deformable = _gather_kernel(
+    'gather_deformable', GRID, True,
+    '`_gather_plates` on deformable sand (a height grid the plates mark), then rules 2-4 for '
+    'the footprints the bodies left in this step (`deformable.settle`): one call.')
 
 forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)
