@@ -38,6 +38,7 @@ from collections import Counter
 from pathlib import Path
 
 from . import __version__
+from .render import VIDEO_FILE
 from .interrupts import held_while_compiling, interrupts_never_lost, release_quietly
 from .sim.summary import significant
 from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
@@ -75,6 +76,8 @@ def _scene_overrides(args):
         value = getattr(args, option)
         if value is not None:
             overrides[key] = value
+    if getattr(args, 'video', False):
+        overrides['video.enabled'] = True
     overrides.update(robot_overrides(args.sand_bodies, args.package_path, args.xacro_arg))
     return anchor_paths(overrides, Path.cwd())  # files named on the command line: from here
 
@@ -183,6 +186,10 @@ def cmd_run(args):
         if not args.no_bag and (out / 'bag').exists():
             raise UsageError(f'{out / "bag"} exists: choose another --out, remove it, '
                              'or pass --no-bag')
+        video = scene.values['video.enabled']
+        if video:  # (no run, and nothing written, where no frame can be rendered)
+            from .render.gl import check_offscreen
+            check_offscreen()
         say_if_cold(scene)
         if stop.is_set():  # before anything is written: nothing is
             print('rft-sim: interrupted before the run started: nothing written',
@@ -196,6 +203,9 @@ def cmd_run(args):
             if not args.no_bag:
                 from .ros.recording import BagRecorder
                 recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
+            if video:
+                from .render.recorder import VideoRecorder
+                recorders.append(VideoRecorder(out / VIDEO_FILE, scene))
             summary = run_scene(scene, out, duration=args.duration, progress=not args.quiet,
                                 recorders=recorders, schedule=schedule, stop=stop,
                                 log=lambda line: print(f'rft-sim: {line}', file=sys.stderr))
@@ -207,8 +217,8 @@ def cmd_run(args):
             'plates_total', 'plates_active_mean', 'stable', 'interrupted', 'reason')
     print(json.dumps(significant({**{k: summary[k] for k in keys}, 'metrics': summary['metrics'],
                                   'generic_metrics': summary['generic_metrics']}), indent=2))
-    print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag'),
-          file=sys.stderr)
+    print(f'wrote {out}/summary.json' + ('' if args.no_bag else f' and {out}/bag')
+          + (f' and {out / VIDEO_FILE}' if video else ''), file=sys.stderr)
     if stop.signal is not None:
         return 128 + stop.signal
     return 0 if summary['stable'] else 1
@@ -378,6 +388,9 @@ def build_parser():
     run.add_argument('--plates', action='store_true',
                      help='record the active plates (/rft/plates markers) in the bag')
     run.add_argument('--quiet', action='store_true', help='no progress bar')
+    run.add_argument('--video', action='store_true',
+                     help=f'render the run into DIR/{VIDEO_FILE} (video.enabled; the video.* '
+                          'keys set camera, size, rate: docs/video.md)')
     run.set_defaults(func=cmd_run)
     commands.add_parser(
         'warmup', help='compile the kernels now (a first run does it otherwise, ~15 s)'
