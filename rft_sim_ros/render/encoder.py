@@ -1,7 +1,8 @@
 """MP4 files of RGB frames: H.264 in yuv420p (what browsers play), through PyAV (the `av`
 package: FFmpeg's libraries with libx264, in its wheels).
 
-The file is a fragmented MP4 (a fragment per keyframe, one a second): every fragment written
+The file is a fragmented MP4 (a fragment per keyframe, one a second), each fragment flushed
+to the file as it is finished (not held in FFmpeg's output buffer): every fragment written
 is playable on its own, so a run stopped at any point (Ctrl-C, a crash, a kill) leaves a
 video of what was rendered up to the last whole second, and one closed normally holds every
 frame."""
@@ -27,7 +28,7 @@ class Mp4Writer:
         self._av = av
         rate = Fraction(fps).limit_denominator(1001)
         self._container = av.open(str(path), mode='w', format='mp4', options={
-            'movflags': 'frag_keyframe+empty_moov+default_base_moof'})
+            'movflags': 'frag_keyframe+empty_moov+default_base_moof', 'flush_packets': '1'})
         stream = self._container.add_stream('libx264', rate=rate)
         stream.width, stream.height, stream.pix_fmt = width, height, 'yuv420p'
         keyframes = str(max(1, round(float(rate))))
