@@ -17,7 +17,7 @@ from .gl import offscreen_context
 #: Robot sizes (`Stage.robot_size`) between a following camera and the robot's base.
 FOLLOW_DISTANCE = 3.0
 #: The following camera's heading and pitch (deg): from behind and to the left of +x, above.
-FOLLOW_AZIMUTH, FOLLOW_ELEVATION = 135.0, -20.0
+FOLLOW_AZIMUTH, FOLLOW_ELEVATION = 135.0, -25.0
 #: Extra geoms a frame may add to the model's: plates and arrows.
 EXTRA_GEOMS = 6000
 #: Camera names that are not the model's own.
@@ -94,16 +94,17 @@ class FramePainter:
         self._pixels = np.empty((settings.height, settings.width, 3), dtype=np.uint8)
         self.weight = decorations.robot_weight(model)
 
-    def paint(self, plates=None, legs=(), lines=(), uploads=()):
+    def paint(self, plates=None, legs=(), lines=(), sand_changed=False):
         """An (height, width, 3) uint8 RGB frame of the stage as posed now.
 
         plates: decorations.Plates (drawn when the settings ask). legs: (point, force)
         pairs, m and N, world (arrows when the settings ask). lines: (label, value) texts of
-        the overlay, top left. uploads: hfield ids whose data changed (`Stage.update_sand`)."""
+        the overlay, top left. sand_changed: deformable sand was redrawn (`Stage.update_sand`)."""
         model, scene, context = self.stage.model, self.scene, self._context
         self._gl.make_current()
-        for hfield in uploads:
-            mujoco.mjr_uploadHField(model, context, hfield)
+        if sand_changed:
+            mujoco.mjr_uploadHField(model, context, self.stage.bed_hfield)
+            mujoco.mjr_uploadTexture(model, context, self.stage.bed_texture)
         mujoco.mjv_updateScene(model, self.stage.data, self.option, None, self.camera,
                                mujoco.mjtCatBit.mjCAT_ALL, scene)
         if plates is not None and self.settings.plates:

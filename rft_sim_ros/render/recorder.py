@@ -80,7 +80,7 @@ class VideoRecorder:
             plates = plates_from_forces(positions, forces, areas, state.zeta, stage.robot_size)
         legs = [(leg.point, leg.force) for leg in state.legs]
         return painter.paint(plates, legs, overlay(state.time, state.zeta, self._changes),
-                             uploads=stage.update_sand())
+                             sand_changed=stage.update_sand())
 
     def close(self):
         """Finish the video (a run that never started leaves no file)."""

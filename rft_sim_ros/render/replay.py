@@ -121,12 +121,10 @@ def render_bag(bag, sim, path, settings, log=None):
                 if not due:
                     return
                 poser.pose()
-                uploads = ()
-                if cycle.bed_changed:
-                    uploads = stage.update_sand(cycle.bed)
-                    cycle.bed_changed = False
+                changed = cycle.bed_changed and stage.update_sand(cycle.bed)
+                cycle.bed_changed = False
                 frame = painter.paint(cycle.plates, [tuple(v) for v in cycle.legs.values()],
-                                      overlay(time, cycle.zeta), uploads)
+                                      overlay(time, cycle.zeta), changed)
                 writer.write(frame, repeat=due)
 
             for topic, _, message in read_messages(bag, wanted):

@@ -4,7 +4,9 @@ as geoms, a sky and a light, posed from the simulation's state.
 The sand is drawn as the engine sees it (`sand.surface`): a plane, a slope (a tilted plane),
 a height grid or MJCF hfield (an hfield of the grid's nodes over a plane at its lowest edge
 node, where the grid's edge heights continue), and deformable sand (its bed as an hfield,
-re-uploaded whenever the bed changed, over its base drawn as above). A layer under another
+re-uploaded whenever the bed changed, over its base drawn as above, and coloured by how far
+each node moved from the pristine surface: dug deeper blue, piled higher red, full at
+CHANGE_FULL_SCALE_M, so footprints and craters show however shallow). A layer under another
 is drawn LAYER_GAP lower so the two never fight for the same pixels. The model's own ground
 that the sand replaces (floor planes and the sand's hfield geom, whose collisions the
 simulation switched off) is hidden. The sand is a little transparent, so that feet and the
@@ -34,6 +36,9 @@ LAYER_GAP = 0.002
 #: m of travel an hfield of deformable sand leaves below its lowest and above its highest
 #: node at the start (footprints, craters and piles within it are drawn to float32 precision).
 BED_MARGIN_M = 0.3
+#: m of height change drawn in full colour on deformable sand, and those colours (RGB).
+CHANGE_FULL_SCALE_M = 0.01
+DUG_RGB, PILED_RGB = (0.20, 0.30, 0.80), (0.85, 0.30, 0.20)
 #: m of solid drawn under an hfield's lowest point.
 HFIELD_BASE_M = 0.02
 
@@ -89,7 +94,13 @@ class Stage:
         surface = sim.engine.surface
         if isinstance(surface, DeformableSand):
             self._add_surface(spec, surface.base, lowered=LAYER_GAP)
-            self._add_grid(spec, surface, 'rft_bed', BED_MARGIN_M)
+            rows, columns = surface.grid.shape
+            bed_texture = spec.add_texture(name='rft_bed', type=mujoco.mjtTexture.mjTEXTURE_2D,
+                                           width=columns, height=rows, nchannel=3)
+            bed_texture.data = bytes(rows * columns * 3)  # (`update_sand` draws it)
+            bed = spec.add_material(name='rft_bed', rgba=list(SAND_RGBA))
+            bed.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = bed_texture.name
+            self._add_grid(spec, surface, 'rft_bed', BED_MARGIN_M, material='rft_bed')
             self.bed = surface
         else:
             self._add_surface(spec, surface, lowered=0.0)
@@ -97,10 +108,17 @@ class Stage:
         self.model = spec.compile()
         self.model.geom_rgba[_ground_replaced(sim.model), 3] = 0.0
         for name, grid, low, high in self._grids:
-            self._write_heights(name, grid.grid, low, high)
+            self._write_heights(name, grid.heights_as_seen() if grid is self.bed else grid.grid,
+                                low, high)
+        self.bed_hfield = self.bed_texture = None
+        if self.bed is not None:
+            self.bed_hfield = self.model.hfield('rft_bed').id
+            self.bed_texture = self.model.texture('rft_bed').id
+            self._write_colours(self.bed.heights_as_seen())
         self.data = mujoco.MjData(self.model)
         self.base_body = sim.model.body(sim.base_body).id
         self._bed_epoch = None if self.bed is None else self.bed.change_epoch
+        self._under = 0  # nodes under bodies at the last redraw
         self.pose(sim.data.qpos, sim.data.mocap_pos, sim.data.mocap_quat)
         self.robot_size = self._robot_size()
 
@@ -126,7 +144,7 @@ class Stage:
                                        pos=list(point), quat=list(_up_quaternion(normal)))
         geom.material = 'rft_sand'  # (add_geom takes no material)
 
-    def _add_grid(self, spec, grid, name, margin, lowered=0.0):
+    def _add_grid(self, spec, grid, name, margin, lowered=0.0, material='rft_sand'):
         """An hfield geom drawing the HeightGrid `grid` `lowered` m, its heights' span
         widened by `margin` m both ways (the travel left to deformable sand)."""
         low = float(grid.grid.min()) - margin
@@ -139,7 +157,7 @@ class Stage:
                         userdata=data.tolist())
         geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=name,
                                        pos=[grid.center[0], grid.center[1], low - lowered])
-        geom.material = 'rft_sand'
+        geom.material = material
         self._grids.append((name, grid, low, high))
 
     def _write_heights(self, name, heights, low, high):
@@ -160,20 +178,34 @@ class Stage:
         mujoco.mj_comPos(self.model, self.data)
         mujoco.mj_camlight(self.model, self.data)
 
+    def _write_colours(self, heights):
+        """The bed's texture from its height changes (see module docstring); texture row 0
+        is the bed's highest y (hfield row 0 its lowest)."""
+        change = np.clip((np.asarray(heights) - self.bed.pristine) / CHANGE_FULL_SCALE_M,
+                         -1.0, 1.0)[::-1, :, None]
+        sand = np.array(CHECKER[0])
+        rgb = (sand + np.maximum(-change, 0.0) * (np.array(DUG_RGB) - sand)
+               + np.maximum(change, 0.0) * (np.array(PILED_RGB) - sand))
+        start = int(self.model.tex_adr[self.bed_texture])
+        self.model.tex_data[start:start + rgb.size] = (255 * rgb).astype(np.uint8).ravel()
+
     def update_sand(self, heights=None):
         """Redraw deformable sand: from `heights` (its grid's shape, m) or, without them, from
-        the bed itself when it changed since the last call. Returns the hfield ids to upload
-        to the GPU (none when nothing changed or the sand is rigid)."""
+        the bed itself (`DeformableSand.heights_as_seen`: a body in the sand stands in its
+        hole) when it changed or a body is in it. Returns whether it was redrawn (then the
+        hfield `bed_hfield` and the texture `bed_texture` are to be uploaded again)."""
         if self.bed is None:
-            return ()
+            return False
         if heights is None:
-            if self.bed.change_epoch == self._bed_epoch:
-                return ()
-            self._bed_epoch = self.bed.change_epoch
-            heights = self.bed.grid
+            under = self.bed.nodes_under_bodies
+            if self.bed.change_epoch == self._bed_epoch and not (under or self._under):
+                return False
+            self._bed_epoch, self._under = self.bed.change_epoch, under
+            heights = self.bed.heights_as_seen()
         name, _, low, high = self._grids[-1]
         self._write_heights(name, np.asarray(heights), low, high)
-        return (self.model.hfield(name).id,)
+        self._write_colours(heights)
+        return True
 
     def _robot_size(self):
         """m: the farthest reach of the robot's geoms from its base body now (at least 5 cm)."""

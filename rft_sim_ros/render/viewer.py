@@ -70,7 +70,7 @@ class LiveView:
         with handle.lock():
             self._perturb()
             stage.pose(sim.data.qpos, sim.data.mocap_pos, sim.data.mocap_quat)
-            uploads = stage.update_sand()
+            changed = stage.update_sand()
             scene = handle.user_scn
             scene.ngeom = 0
             if self.plates:
@@ -81,8 +81,9 @@ class LiveView:
                 decorations.add_force_arrows(scene, [leg.point for leg in state.legs],
                                              [leg.force for leg in state.legs], self._weight,
                                              stage.robot_size)
-        for hfield in uploads:
-            handle.update_hfield(hfield)
+        if changed:
+            handle.update_hfield(stage.bed_hfield)
+            handle.update_texture(stage.bed_texture)
         handle.sync()
 
     def _perturb(self):

@@ -36,6 +36,7 @@ PAUSED = 'paused'
 PLATES = 'plates'
 TERRAIN_RATE = 'terrain_rate'
 TRAJECTORY_CONTROLLER = 'trajectory_controller'
+VIEWER = 'viewer'
 
 PARAMETERS = (
     ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
@@ -67,6 +68,8 @@ PARAMETERS = (
     ParameterSpec(TRAJECTORY_CONTROLLER, 'name of the joint_trajectory_controller served: '
                                          'topic /NAME/joint_trajectory, action '
                                          '/NAME/follow_joint_trajectory', False),
+    ParameterSpec(VIEWER, "open MuJoCo's interactive viewer on the simulation (needs a "
+                          'display; the sand and plates drawn as in rft-sim videos)', False),
 )
 
 SPECS = {spec.name: spec for spec in PARAMETERS}
