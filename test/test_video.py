@@ -249,3 +249,37 @@ def test_view_opens_a_window_showing_the_scene_under_xvfb(xvfb):
     finally:
         viewer.send_signal(signal.SIGTERM)
         viewer.wait(timeout=30)
+
+
+def test_deformable_sand_is_drawn_with_the_hole_a_body_stands_in_and_its_colour():
+    """A plate resting in deformable sand has made no footprint yet (it is made when the
+    plate leaves), but it is drawn standing in its hole, the hole coloured as dug."""
+    from rft_sim_ros.render.stage import Stage
+    from rft_sim_ros.sim.simulation import Simulation
+    sim = Simulation(_scene(**{'sand.deformable.enabled': True, 'sand.deformable.size':
+                               [0.4, 0.4]}))
+    sim.step(int(round(0.4 / sim.timestep)))
+    bed = sim.engine.surface
+    assert bed.nodes_under_bodies > 0 and np.array_equal(bed.grid, bed.pristine)
+    seen = bed.heights_as_seen()
+    geom = sim.model.geom('plate_geom')
+    plate_bottom = sim.data.geom_xpos[geom.id, 2] - geom.size[2]
+    dug = seen < bed.pristine - 1e-4
+    assert dug.sum() == pytest.approx(bed.nodes_under_bodies, rel=0.3)
+    assert seen[dug].min() == pytest.approx(plate_bottom, abs=2e-3)
+    stage = Stage(sim, WIDTH, HEIGHT)
+    model = stage.model
+    hfield = model.hfield('rft_bed')
+    start, rows, columns = int(model.hfield_adr[hfield.id]), *seen.shape
+    drawn = model.hfield_data[start:start + rows * columns].reshape(rows, columns)
+    import mujoco
+    geom = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD)
+                          & (model.geom_dataid == hfield.id))[0]
+    low = model.geom_pos[geom, 2]
+    drawn_heights = low + model.hfield_size[hfield.id, 2] * drawn
+    assert np.abs(drawn_heights - seen).max() < 1e-5  # the hole as the bed has it
+    texture = model.texture('rft_bed')
+    start = int(model.tex_adr[texture.id])
+    rgb = model.tex_data[start:start + rows * columns * 3].reshape(rows, columns, 3)[::-1]
+    assert (rgb[dug][:, 2] > rgb[dug][:, 0]).all()  # dug: blue over red
+    assert (rgb[~dug][:, 0] > rgb[~dug][:, 2]).all()  # the rest: sand
