@@ -54,6 +54,12 @@ setup(
         # written in 3 ms instead of 12 (2 % of the hexapod's main job), with long values on
         # one line as rosbag2 writes them; without it rosbags falls back to pure Python
         'ruamel.yaml.clib>=0.2',
+        # videos of runs (rft-sim run --video, rft-sim render): PyAV encodes H.264 in-process
+        # with the libx264 its wheels ship. Chosen over imageio-ffmpeg, which pipes frames
+        # into an ffmpeg child process: a Ctrl-C reaches that child too and kills it before
+        # the file is finished, while in-process the run's own interrupt handling closes it
+        # (and PyAV decodes, which the tests use to check the files)
+        'av>=12.0',
     ],
     extras_require={
         # Ray: studies on a cluster (`rft-sim sweep --ray`); the test extra includes it so

@@ -6,7 +6,10 @@
                     [--package-path NAME=DIR ...] [--xacro-arg K=V ...] [--duration S]
                     [--zeta Z] [--timestep DT] [--plates-per-body N] [--set key=value ...]
                     [--set-at T:zeta=Z ...] [--out DIR] [--overwrite] [--no-bag]
-                    [--plates] [--json] [--quiet]
+                    [--plates] [--video] [--commands FILE] [--json] [--quiet]
+  rft-sim render RUN_DIR|BAG_DIR [--scene SCENE|ROBOT_FILE] [--set key=value ...]
+                 [--out FILE] [--force]
+  rft-sim view SCENE|ROBOT_FILE [--set key=value ...] [--real-time-factor R]
   rft-sim validate [--quick] [--stability] [--out DIR]
   rft-sim bench [--quick] [--out DIR]
   rft-sim warmup
@@ -42,6 +45,7 @@ from collections import Counter
 from pathlib import Path
 
 from . import __version__
+from .render import VIDEO_FILE
 from .interrupts import held_while_compiling, interrupts_never_lost, release_quietly
 from .sim.summary import significant
 from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
@@ -79,6 +83,8 @@ def _scene_overrides(args):
         value = getattr(args, option)
         if value is not None:
             overrides[key] = value
+    if getattr(args, 'video', False):
+        overrides['video.enabled'] = True
     overrides.update(robot_overrides(args.sand_bodies, args.package_path, args.xacro_arg))
     return anchor_paths(overrides, Path.cwd())  # files named on the command line: from here
 
@@ -150,7 +156,7 @@ def fresh_folder(name):
 
 
 #: What marks a folder as an earlier run's (`rft-sim run` writes them first or always).
-RUN_MARKERS = ('summary.json', 'bag', 'timeseries.csv', 'mujoco.log')
+RUN_MARKERS = ('summary.json', 'bag', 'timeseries.csv', 'mujoco.log', VIDEO_FILE, 'report.html')
 
 
 def earlier_run(out, overwrite):
@@ -237,6 +243,10 @@ def cmd_run(args):
             schedule += load_commands(args.commands).schedule()
         out = Path(args.out) if args.out else fresh_folder(scene.name)
         replace = earlier_run(out, args.overwrite)
+        video = scene.values['video.enabled']
+        if video:  # (no run, and nothing written, where no frame can be rendered)
+            from .render.gl import check_offscreen
+            check_offscreen()
         say_if_cold(scene, quiet=args.quiet)
         if stop.is_set():  # before anything is written: nothing is
             print('rft-sim: interrupted before the run started: nothing written',
@@ -251,6 +261,9 @@ def cmd_run(args):
                 if not args.no_bag:
                     from .ros.recording import BagRecorder
                     recorders.append(BagRecorder(out / 'bag', scene, plates=args.plates))
+                if video:
+                    from .render.recorder import VideoRecorder
+                    recorders.append(VideoRecorder(out / VIDEO_FILE, scene))
                 summary = run_scene(scene, out, duration=args.duration,
                                     progress=not args.quiet, recorders=recorders,
                                     schedule=schedule, stop=stop, log=say)
@@ -322,7 +335,8 @@ def human_summary(summary, out):
     if shown:
         lines.append('  ' + ', '.join(f'{key} {_number(value)}' for key, value
                                       in list(shown.items())[:SHOWN_METRICS]))
-    files = [name for name in ('summary.json', 'timeseries.csv', 'bag') if (out / name).exists()]
+    files = [name for name in ('summary.json', 'timeseries.csv', 'bag', VIDEO_FILE, 'report.html')
+             if (out / name).exists()]
     lines.append(f'  wrote {out}/: {", ".join(files)} (all metrics: summary.json)')
     return lines
 
@@ -368,6 +382,68 @@ class stop_on_signals:
     def __exit__(self, *exc):
         for number, handler in self.previous.items():
             signal.signal(number, handler)
+
+
+def _scene_of_run(run_dir, overrides):
+    """The scene a run ran, from its summary.json's scene_config, `overrides` applied."""
+    import tempfile
+    import yaml
+    summary = run_dir / 'summary.json'
+    try:
+        raw = json.loads(summary.read_text())['scene_config']
+    except (OSError, ValueError, KeyError, TypeError):
+        raise UsageError(f'{run_dir}: no readable summary.json with the scene it ran: name the '
+                         'scene with --scene') from None
+    with tempfile.TemporaryDirectory() as folder:  # (a bundled model is found by name)
+        path = Path(folder) / f'{raw.get("name") or "scene"}.yaml'
+        path.write_text(yaml.safe_dump(raw))
+        return load_scene(path, overrides)
+
+
+def cmd_render(args):
+    from .render.frames import VideoSettings
+    from .render.gl import check_offscreen
+    source = Path(args.run)
+    overrides = anchor_paths(dict(parse_assignment(text) for text in args.set or []), Path.cwd())
+    if (source / 'metadata.yaml').is_file():  # a bag folder (ros2 bag record)
+        bag, default_out = source, source.with_suffix('.mp4')
+        if args.scene is None:
+            raise UsageError(f'{source} is a bag: name the scene or robot it ran with --scene')
+    elif (source / 'bag' / 'metadata.yaml').is_file():
+        bag, default_out = source / 'bag', source / VIDEO_FILE
+    else:
+        raise UsageError(f'{source}: neither a run folder with a bag (bag/metadata.yaml) nor a '
+                         'bag folder (metadata.yaml)')
+    scene = (load_scene(args.scene, overrides) if args.scene is not None
+             else _scene_of_run(source, overrides))
+    out = Path(args.out) if args.out else default_out
+    if out.exists() and not args.force:
+        raise UsageError(f'{out} exists: choose another --out, or --force to replace it')
+    check_offscreen()
+    say_if_cold(scene)
+    from .render.replay import render_bag
+    from .sim.simulation import Simulation
+    frames = render_bag(bag, Simulation(scene), out, VideoSettings.from_scene(scene),
+                        log=lambda line: print(f'rft-sim: {line}', file=sys.stderr))
+    print(f'wrote {out} ({frames} frames)', file=sys.stderr)
+    return 0
+
+
+def cmd_view(args):
+    from .render.viewer import check_display, view
+    overrides = dict(parse_assignment(text) for text in args.set or [])
+    scene = load_scene(args.scene, anchor_paths(overrides, Path.cwd()))
+    check_display()
+    if not (args.real_time_factor > 0):
+        raise UsageError(f'--real-time-factor must be > 0, got {args.real_time_factor}')
+    say_if_cold(scene)
+    from .sim.simulation import Simulation
+    sim = Simulation(scene)
+    for notice in sim.notices:
+        print(f'rft-sim: {notice}', file=sys.stderr)
+    reached = view(sim, args.real_time_factor, until=args.duration)
+    print(f'viewer closed at t = {reached:.2f} s', file=sys.stderr)
+    return 0
 
 
 def _check_workers(workers):
@@ -509,7 +585,30 @@ def build_parser():
     run.add_argument('--quiet', action='store_true',
                      help='print only errors (no progress bar, notices or summary; --json '
                           'still prints its JSON)')
+    run.add_argument('--video', action='store_true',
+                     help=f'render the run into DIR/{VIDEO_FILE} (video.enabled; the video.* '
+                          'keys set camera, size, rate: docs/video.md)')
     run.set_defaults(func=cmd_run)
+    render = commands.add_parser('render', help="make a run's video from its bag, without "
+                                 'simulating again')
+    render.add_argument('run', help='run folder (DIR of rft-sim run, with bag/) or a bag folder '
+                                    '(ros2 bag record of the node; needs --scene)')
+    render.add_argument('--scene', help='the scene or robot file the bag ran (default: the '
+                                        "run's summary.json)")
+    render.add_argument('--set', action='append', metavar='KEY=VALUE',
+                        help='override a scene value, e.g. --set video.camera=fixed')
+    render.add_argument('--out', help=f'video file (default: RUN/{VIDEO_FILE}, or BAG.mp4)')
+    render.add_argument('--force', action='store_true', help='replace an existing video')
+    render.set_defaults(func=cmd_render)
+    view = commands.add_parser('view', help="run a scene in MuJoCo's interactive viewer "
+                                            '(needs a display)')
+    view.add_argument('scene', help='bundled scene name, path to a scene YAML, or a robot file')
+    view.add_argument('--set', action='append', metavar='KEY=VALUE',
+                      help='override a scene value (repeatable)')
+    view.add_argument('--real-time-factor', type=float, default=1.0,
+                      help='sim seconds per wall second (default 1: real time)')
+    view.add_argument('--duration', type=float, help='close after this much sim time, s')
+    view.set_defaults(func=cmd_view)
     commands.add_parser(
         'warmup', help='compile the kernels now (a first run does it otherwise, ~15 s)'
     ).set_defaults(func=cmd_warmup)

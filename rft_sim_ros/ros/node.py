@@ -162,6 +162,7 @@ class SimNode(Node):
             real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
             paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
             warn=logger.warning, error=logger.error)
+        self._view = self._open_viewer(sim) if self._declare(parameters.VIEWER, False) else None
         for msgtype, topic, callback in (
                 (topics.JOINT_TRAJECTORY_TYPE, self.runtime.trajectory_topic,
                  self.runtime.on_trajectory),
@@ -317,6 +318,20 @@ class SimNode(Node):
     def _tick(self):
         self.runtime.tick()
         self._sync_paused()
+        if self._view is not None:
+            if self._view.is_running():
+                self._view.show()
+            else:  # (the window was closed: the node runs on without it)
+                self._view = None
+
+    def _open_viewer(self, sim):
+        """A LiveView window on `sim`, or None (no display: said in one error line)."""
+        from rft_sim_ros.render.viewer import LiveView, ViewerUnavailable
+        try:
+            return LiveView(sim)
+        except ViewerUnavailable as error:
+            self.get_logger().error(f'{parameters.VIEWER}: {error}')
+            return None
 
     def _answer(self, result, response):
         response.success, response.message = result.success, result.message

@@ -40,6 +40,7 @@ TRAJECTORY_CONTROLLER = 'trajectory_controller'
 JOINT_COMMANDS_TOPIC = 'joint_commands_topic'
 JOINT_STATES_TOPIC = 'joint_states_topic'
 JOINT_GAINS = 'joint_gains'
+VIEWER = 'viewer'
 
 PARAMETERS = (
     ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
@@ -80,6 +81,8 @@ PARAMETERS = (
     ParameterSpec(JOINT_GAINS, "kp, kd of the JointState (hybrid) commands: 'PATTERN: {kp: X, "
                                "kd: Y}' strings, glob patterns, later ones win (default: the "
                                "scene's joint_gains, else the position servos' gains)", True),
+    ParameterSpec(VIEWER, "open MuJoCo's interactive viewer on the simulation (needs a "
+                          'display; the sand and plates drawn as in rft-sim videos)', False),
 )
 
 SPECS = {spec.name: spec for spec in PARAMETERS}

@@ -279,6 +279,16 @@ class DeformableSand(HeightGrid):
         left none there yet."""
         return int(self.state[COUNT])
 
+    def heights_as_seen(self):
+        """The bed's heights (m, a new array) with each node under a body still in the sand
+        (pending, rule 1) at the lowest plate z seen there: the hole the body stands in, as
+        it is drawn, before its footprint is made."""
+        heights = self.grid.copy()
+        nodes = self.pending[:self.state[COUNT]]
+        flat = heights.reshape(-1)
+        flat[nodes] = np.minimum(flat[nodes], self.lowest.reshape(-1)[nodes])
+        return heights
+
     @property
     def plates_outside(self):
         """Plates found in the sand outside the bed so far (each step each counts once):

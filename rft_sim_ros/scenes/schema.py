@@ -195,6 +195,13 @@ def _seed(value):
     return value
 
 
+def _pixels(value):
+    """A frame's side: an even integer >= 16 (H.264 in yuv420p halves it)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 16 or value % 2:
+        raise ValueError(f'must be an even integer >= 16 (pixels), got {value!r}')
+    return value
+
+
 def _section(value):
     return _mapping(value)
 
@@ -427,6 +434,20 @@ KEYS = (
         'surface under its sand bodies; a base fixed to the world starts where the model puts '
         'it.',
         _spawn),
+    Key('video', 'mapping', '', {}, "The run's video (docs/video.md).", _section),
+    Key('video.enabled', 'true or false', '', False, 'Whether `rft-sim run` renders the run '
+        'into video.mp4 in its output folder (`--video` sets it).', _flag),
+    Key('video.fps', 'number > 0', 'Hz', 30.0, 'Frames per second of sim time: the video '
+        'plays in real time.', _positive),
+    Key('video.width', 'even integer >= 16', 'px', 640, 'Frame width.', lambda v: _pixels(v)),
+    Key('video.height', 'even integer >= 16', 'px', 480, 'Frame height.', lambda v: _pixels(v)),
+    Key('video.camera', "'follow', 'fixed' or a camera's name", '', 'follow', "'follow' "
+        "tracks the robot's base, 'fixed' stays where it starts; or one of the model's "
+        'cameras.', _text),
+    Key('video.forces', 'true or false', '', True, "An arrow for each leg's ground force.",
+        _flag),
+    Key('video.plates', 'true or false', '', True, 'The plates in the sand, coloured by '
+        'their stress.', _flag),
     Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
         'each can be overridden with `--set NAME=VALUE`.', _mapping),
 )

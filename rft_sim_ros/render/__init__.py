@@ -1,0 +1,9 @@
+"""Seeing a run: offscreen frames of a simulation (`frames`), its sand drawn as it is
+(`stage`), an MP4 of a headless run (`recorder`, `encoder`), the same video made from a
+run's bag (`replay`), and MuJoCo's interactive viewer on a desktop (`viewer`).
+
+The renderer reads the simulation; it never steps it nor changes its model: it draws a copy
+of the model (`stage.Stage`) posed from the simulation's state."""
+
+#: The video of a run (`rft-sim run --video`, `rft-sim render`), in its output folder.
+VIDEO_FILE = 'video.mp4'
