@@ -339,7 +339,12 @@ def diagnostics_message(factory, state, status):
     real_time_factor, plates_active, stable, paused, commands_rejected (total) and
     commands_rejected.<reason>.
     """
-    fields = diagnostic_fields(state, status)
+    return diagnostic_array(factory, diagnostic_fields(state, status), state.time)
+
+
+def diagnostic_array(factory, fields, t):
+    """diagnostic_msgs/DiagnosticArray of one status, `fields` (DiagnosticFields), stamped
+    with sim time `t` (s)."""
     diagnostic = factory.make(
         'diagnostic_msgs/msg/DiagnosticStatus',
         level=factory.byte(fields.level), name=fields.name, message=fields.message,
@@ -347,7 +352,7 @@ def diagnostics_message(factory, state, status):
         values=[factory.make('diagnostic_msgs/msg/KeyValue', key=key, value=value)
                 for key, value in fields.values])
     return factory.make('diagnostic_msgs/msg/DiagnosticArray',
-                        header=header(factory, state.time, ''), status=[diagnostic])
+                        header=header(factory, t, ''), status=[diagnostic])
 
 
 def state_messages(factory, state, *, plates):
