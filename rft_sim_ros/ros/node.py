@@ -36,7 +36,7 @@ from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule
 from rft_sim_ros.ros.runtime import ServiceResult, SimRuntime
-from rft_sim_ros.ros.startup import SimStartup, StartFailed
+from rft_sim_ros.ros.startup import SimStartup, StartFailed, compile_in_child
 from rft_sim_ros.ros.terrain import DEFAULT_RATE, TerrainFeed
 from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
                                           load_node_scene, needs_topic)
@@ -151,6 +151,7 @@ class SimNode(Node):
         self._scene_name = scene.name
         notice = compile_notice(scene)
         self._startup = SimStartup(lambda: Simulation(scene), compiling=notice is not None,
+                                   warm=lambda: compile_in_child(scene),
                                    errors=(SceneError, ValueError))
         self.get_logger().info(f'scene {scene.name}: building the simulation'
                                f'{f" ({notice})" if notice else ""}; parameters, services and '
@@ -232,6 +233,9 @@ class SimNode(Node):
                 list(sim.legs), plates=self._plates, terrain=terrain.active).items()
             if topic not in self._topic_publishers})
         logger = self.get_logger()
+        if self._startup.warm_problem:
+            logger.warning(f'kernels compiled in the node itself (the compiling process '
+                           f'failed: {self._startup.warm_problem}); it answered slowly meanwhile')
         for notice in sim.notices:  # e.g. the sand bodies `auto` chose
             logger.info(notice)
         self.runtime = SimRuntime(
@@ -362,11 +366,12 @@ class SimNode(Node):
 
     def _check_parameters(self, changes):
         """Accept or refuse the changes (the reason says why); while starting they are
-        checked as the running simulation would check them, and kept for its start."""
+        checked as the running simulation would check them, and kept for its start. A
+        parameter being declared (rclpy calls this then too) is checked where it is."""
         check = (parameters.parameter_problem if self.runtime is None
                  else self.runtime.parameter_problem)
         for change in changes:
-            if change.name in parameters.SPECS:
+            if change.name in parameters.SPECS and self.has_parameter(change.name):
                 problem = check(change.name, change.value)
                 if problem:
                     return SetParametersResult(successful=False, reason=problem)
@@ -376,7 +381,7 @@ class SimNode(Node):
         if self.runtime is None:  # (the simulation starts with the parameters' values)
             return
         for change in changes:
-            if change.name in parameters.SPECS:
+            if change.name in parameters.SPECS and parameters.SPECS[change.name].dynamic:
                 self.runtime.set_parameter(change.name, change.value)
                 if change.name == parameters.REAL_TIME_FACTOR:
                     self._timer.timer_period_ns = int(self.runtime.tick_period * 1e9)

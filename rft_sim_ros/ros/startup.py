@@ -21,10 +21,18 @@ Parameter changes made meanwhile (zeta, real_time_factor, paused) are checked as
 (`parameters.parameter_problem`) and kept by the node; the simulation starts with them, so
 they apply from its first step.
 
-numba compiles under a process-wide lock, in Python and in LLVM (which releases the GIL):
-the executor thread still gets its turn within Python's thread switch interval (5 ms), so
-callbacks answer while kernels compile. Times: wall seconds (monotonic).
+Where the kernels must compile, they compile in a child Python process first
+(`compile_in_child`), then the worker thread builds the simulation from the filled cache:
+a compile in the node's own process would hold the GIL for whole garbage collections of
+numba's many objects, which on a busy two-core machine took up to 6.5 s each (14 pauses over
+0.5 s in a 13-minute cold build), and the executor thread could not answer meanwhile. A
+child that fails costs time, never correctness: the worker thread then compiles what is
+missing itself. Times: wall seconds (monotonic).
 """
+import os
+import pickle
+import subprocess
+import sys
 import threading
 import time
 
@@ -44,17 +52,21 @@ class SimStartup:
     """Runs `build()` (returns the simulation) in a daemon thread from construction on.
 
     compiling: whether the build compiles kernels (`sim.simulation.compile_notice` had a
-    line), which `progress` says. errors: exception classes that mean a bad scene or
-    parameter (re-raised as StartFailed by `result`). clock: wall time, s (monotonic).
-    The thread is a daemon: a node shut down while it builds does not wait for it.
+    line), which `progress` says. warm: called first when compiling (`compile_in_child`);
+    returns None, or why it did not fill the cache (then `warm_problem`, and `build`
+    compiles the rest). errors: exception classes that mean a bad scene or parameter
+    (re-raised as StartFailed by `result`). clock: wall time, s (monotonic). The thread is
+    a daemon: a node shut down while it builds does not wait for it.
     """
 
-    def __init__(self, build, *, compiling, errors=(), clock=time.monotonic):
+    def __init__(self, build, *, compiling, warm=None, errors=(), clock=time.monotonic):
         self._build = build
+        self._warm = warm if compiling else None
         self._errors = tuple(errors)
         self._clock = clock
         self.compiling = bool(compiling)
         self.started = clock()
+        self.warm_problem = None
         self._built = None
         self._error = None
         self._taken = False
@@ -63,6 +75,8 @@ class SimStartup:
 
     def _run(self):
         try:
+            if self._warm is not None:
+                self.warm_problem = self._warm()
             self._built = self._build()
         except BaseException as error:  # handed to the executor thread by `result`
             self._error = error
@@ -124,3 +138,45 @@ class SimStartup:
         return DiagnosticFields(level=OK, name=STATUS_NAME,
                                 message=f'starting: {self.progress(now)}',
                                 hardware_id=scene, values=values)
+
+
+def compile_in_child(scene, timeout=None):
+    """Compile the kernels of `scene` (SceneConfig) into numba's cache in a child Python
+    process (`python -m rft_sim_ros.ros.startup`, the scene pickled on its stdin; it
+    builds the simulation once and exits; it inherits NUMBA_CACHE_DIR). Returns None, or
+    why it failed (its last line of error output, e.g. the scene's SceneError, which the
+    build in this process then raises itself). timeout: s, None = no limit."""
+    try:
+        done = subprocess.run([sys.executable, '-m', 'rft_sim_ros.ros.startup'],
+                              input=pickle.dumps(scene), stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, timeout=timeout)
+    except (OSError, subprocess.TimeoutExpired) as error:
+        return f'no compiling process: {error}'
+    if done.returncode == 0:
+        return None
+    lines = done.stderr.decode(errors='replace').strip().splitlines()
+    return lines[-1] if lines else f'the compiling process exited {done.returncode}'
+
+
+def _leave_with_parent(period_s=0.5):
+    """End this process (status 1) soon after its parent has: a node stopped by a signal
+    to it alone (ros2 launch) leaves no compile running."""
+    parent = os.getppid()
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(period_s)
+        os._exit(1)
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def _compile_main():
+    """The child of `compile_in_child`."""
+    _leave_with_parent()
+    scene = pickle.load(sys.stdin.buffer)
+    from rft_sim_ros.sim.simulation import Simulation
+    Simulation(scene)
+
+
+if __name__ == '__main__':
+    _compile_main()
