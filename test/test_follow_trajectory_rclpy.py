@@ -3,6 +3,8 @@ as MoveIt or a gait stack drives joint_trajectory_controller's; the names of the
 interface under another controller name and in a namespace.
 
 Runs where ROS 2 Jazzy is sourced with control_msgs; skipped with the reason elsewhere.
+Where ROS is sourced, pytest must be below 9 (requirements.txt): Jazzy's launch_testing
+pytest plugin, which pytest then loads, does not load with pytest 9.
 """
 import pytest
 

@@ -1,7 +1,9 @@
 """The rclpy nodes in-process (one executor, the test's probe node beside them).
 
 Runs where ROS 2 Jazzy is sourced (rclpy and the message packages of package.xml); skipped
-with the reason everywhere else. Uses the servo_rig test scene (two position servos).
+with the reason everywhere else. Uses the servo_rig test scene (two position servos). Where
+ROS is sourced, pytest must be below 9 (requirements.txt): Jazzy's launch_testing pytest
+plugin, which pytest then loads, does not load with pytest 9.
 """
 import math
 import os
