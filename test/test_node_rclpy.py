@@ -202,10 +202,14 @@ def test_the_node_answers_while_its_simulation_is_built(ros, monkeypatch):
         assert paused.success and 'start paused once built' in paused.message
         reset = ros.call(ros.probe.reset, Trigger.Request())
         assert not reset.success and 'not built yet' in reset.message
-        assert ros.spin_until(lambda: any(
-            m.status[0].message.startswith('starting: ') for m in ros.probe.diagnostics))
-        starting = [m.status[0] for m in ros.probe.diagnostics][-1]
-        assert {kv.key: kv.value for kv in starting.values}['zeta_n_per_cm3'] == '5.0'
+
+        def starting(zeta, paused):  # /diagnostics of the start-up saying what it starts with
+            return [m for m in ros.probe.diagnostics
+                    if m.status[0].message.startswith('starting: ')
+                    and {kv.key: kv.value for kv in m.status[0].values}.get(
+                        'zeta_n_per_cm3') == zeta
+                    and {kv.key: kv.value for kv in m.status[0].values}.get('paused') == paused]
+        assert ros.spin_until(lambda: starting('5.0', 'true'))
         assert sim.starting and not ros.probe.clocks and not ros.probe.joint_states
     finally:
         go.set()
