@@ -535,7 +535,8 @@ def test_robot_description_topic_is_waited_for_and_read_latched(ros, monkeypatch
     ros.spin_for(0.5)
     assert node.runtime is None and not ros.probe.clocks
     publisher.publish(String(data=sandbot_xml()))  # as robot_state_publisher: latched
-    assert ros.spin_until(lambda: node.runtime is not None and len(ros.probe.clocks) > 3)
+    assert ros.spin_until(lambda: node.runtime is not None and len(ros.probe.clocks) > 3,
+                          timeout=BUILD_TIMEOUT_S)  # (built in the start-up thread meanwhile)
     assert 'rr_knee' in node.runtime.sim.joint_names
 
 
