@@ -167,13 +167,15 @@ print(json.dumps({"compiling": compiling, "build_s": startup.elapsed(), "turns":
 @pytest.mark.slow
 def test_the_executor_thread_keeps_its_turn_while_the_kernels_compile(tmp_path):
     """A cold cache (an empty NUMBA_CACHE_DIR): while the kernels compile (in the child
-    process, then the simulation is built in the worker thread), the main thread still runs
-    every few tens of ms (here: never a gap of 1 s; a compile in this process held the GIL
-    for garbage collections of up to 6.5 s on a busy two-core machine)."""
+    process, then the simulation is built in the worker thread), the main thread still gets
+    its turns, never 2 s apart (the node's promise: a parameter answered within 2 s). On the
+    busy two-core VM (load ~12): longest gap 0.9 s over a 394 s cold build, the worker only
+    waiting for the child then (the OS's scheduling); a compile in this process held the GIL
+    for garbage collections of up to 6.5 s (14 gaps over 0.5 s in 793 s)."""
     import json
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     done = subprocess.run([sys.executable, '-c', _RESPONSIVE_PROBE], env=env,
                           capture_output=True, text=True, check=True, timeout=900)
     probe = json.loads(done.stdout.strip().splitlines()[-1])
     assert probe['compiling'] and probe['build_s'] > 1.0 and probe['warm_problem'] is None
-    assert probe['longest_gap_s'] < 1.0, probe
+    assert probe['longest_gap_s'] < 2.0, probe
