@@ -25,7 +25,8 @@ Where the kernels must compile, they compile in a child Python process first
 (`compile_in_child`), then the worker thread builds the simulation from the filled cache:
 a compile in the node's own process would hold the GIL for whole garbage collections of
 numba's many objects, which on a busy two-core machine took up to 6.5 s each (14 pauses over
-0.5 s in a 13-minute cold build), and the executor thread could not answer meanwhile. A
+0.5 s in a 13-minute cold build), and the executor thread could not answer meanwhile (with
+the child, on the same machine: the longest pause 0.9 s, the OS's scheduling). A
 child that fails costs time, never correctness: the worker thread then compiles what is
 missing itself. Times: wall seconds (monotonic).
 """
