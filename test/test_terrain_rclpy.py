@@ -2,7 +2,9 @@
 MarkerArray a publication) of a deformable scene, the ~/reset_terrain service, and nothing
 published for a plane.
 
-Runs where ROS 2 Jazzy is sourced; skipped with the reason everywhere else."""
+Runs where ROS 2 Jazzy is sourced; skipped with the reason everywhere else. Where ROS is
+sourced, pytest must be below 9 (requirements.txt): Jazzy's launch_testing pytest plugin,
+which pytest then loads, does not load with pytest 9."""
 import numpy as np
 import pytest
 

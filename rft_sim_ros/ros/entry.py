@@ -28,14 +28,16 @@ from .parameters import arguments_problem
 
 
 @interrupts_never_lost()
-def run_node(make_node, name, startup_errors=(), args=None):
+def run_node(make_node, name, startup_errors=(), args=None, late_errors=()):
     """Spin the node `make_node()` until Ctrl-C, SIGTERM or shutdown; returns the exit status.
 
     ROS arguments rcl cannot read (`args`, default sys.argv), or an exception of
     `startup_errors` (or a ParameterException: a parameter of the wrong type) raised while
-    building the node, are logged as fatal under `name`, without a traceback, and give
-    status 1: they mean a bad argument, scene or parameter, which the message says. A signal
-    at any point (start-up included) gives status 0 (see module docstring).
+    building the node, or of `late_errors` raised while it spins (a start-up that ends in
+    the executor: `ros.startup.StartFailed`), are logged as fatal under `name`, without a
+    traceback, and give status 1: they mean a bad argument, scene or parameter, which the
+    message says. A signal at any point (start-up included) gives status 0 (see module
+    docstring).
     """
     logger = rclpy.logging.get_logger(name)
     try:
@@ -54,6 +56,11 @@ def run_node(make_node, name, startup_errors=(), args=None):
             return 1
         try:
             rclpy.spin(node)
+        except late_errors as error:
+            if not rclpy.ok():
+                return 0
+            logger.fatal(f'cannot start: {error}')
+            return 1
         finally:
             node.destroy_node()
     except (KeyboardInterrupt, ExternalShutdownException) as stop:

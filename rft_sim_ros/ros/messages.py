@@ -345,7 +345,12 @@ def diagnostics_message(factory, state, status):
     paused, commands_rejected (total) and commands_rejected.<reason>, and the outcome's
     (`diagnostics.outcome_values`) where the status has one.
     """
-    fields = diagnostic_fields(state, status)
+    return diagnostic_array(factory, diagnostic_fields(state, status), state.time)
+
+
+def diagnostic_array(factory, fields, t):
+    """diagnostic_msgs/DiagnosticArray of one status, `fields` (DiagnosticFields), stamped
+    with sim time `t` (s)."""
     diagnostic = factory.make(
         'diagnostic_msgs/msg/DiagnosticStatus',
         level=factory.byte(fields.level), name=fields.name, message=fields.message,
@@ -353,7 +358,7 @@ def diagnostics_message(factory, state, status):
         values=[factory.make('diagnostic_msgs/msg/KeyValue', key=key, value=value)
                 for key, value in fields.values])
     return factory.make('diagnostic_msgs/msg/DiagnosticArray',
-                        header=header(factory, state.time, ''), status=[diagnostic])
+                        header=header(factory, t, ''), status=[diagnostic])
 
 
 #: Covariance of a part an Imu message does not carry (REP 145: element 0 is -1).

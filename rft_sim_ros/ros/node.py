@@ -15,6 +15,12 @@ robot comes from the parameters scene / model / robot_description, or, with none
 set, from the first valid message on /robot_description (rft_sim_ros.ros.robot_source). The
 node publishes /clock itself and must not run on sim time; its timer runs on the steady
 wall clock.
+
+Start-up (`rft_sim_ros.ros.startup`): the scene is read at once (a bad one stops the node);
+the simulation is built (its kernels compiled on a cold cache) in a worker thread while the
+dynamic parameters, the services and /diagnostics already answer; the topics, the
+subscriptions and the action come once it is built, and it starts with the parameters as
+they are then.
 """
 import sys
 import tempfile
@@ -33,8 +39,10 @@ from rft_sim_ros.control.trajectory_goals import GoalState
 from rft_sim_ros.ros import follow_messages, messages, parameters, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
-from rft_sim_ros.ros.runtime import SimRuntime
+from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule
+from rft_sim_ros.ros.runtime import ServiceResult, SimRuntime
 from rft_sim_ros.ros.simulation_services import SimulationServices
+from rft_sim_ros.ros.startup import SimStartup, StartFailed, compile_in_child
 from rft_sim_ros.ros.terrain import DEFAULT_RATE, TerrainFeed
 from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
                                           load_node_scene, needs_topic)
@@ -45,6 +53,12 @@ NODE_NAME = 'rft_sim'
 #: Where robot_description strings are stored as files for the scene to name.
 DESCRIPTION_FOLDER = Path(tempfile.gettempdir()) / 'rft_sim_ros' / 'robot_description'
 QUEUE_DEPTH = 10
+#: Wall s between the start-up timer's looks at the simulation being built, and between its
+#: /diagnostics (and at once when zeta or paused change meanwhile).
+STARTUP_POLL_S = 0.1
+STARTUP_DIAGNOSTICS_PERIOD_S = 1.0
+#: Sim time of the start-up's /diagnostics stamps: the simulation's start, s.
+START_TIME = 0.0
 TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
 
 #: Parameters of type double. They accept integers too (`ros2 param set /rft_sim zeta 2`,
@@ -65,7 +79,9 @@ class SimNode(Node):
     """Loads the scene named by its parameters and serves it over ROS (see module docstring).
 
     Raises SceneError, ValueError or rclpy's ParameterException (the message says what to
-    fix) if the scene or a parameter is unusable.
+    fix) if the scene or a parameter is unusable; a simulation that cannot be built (a model
+    that does not compile) raises StartFailed from the executor, once its build ended.
+    `starting` says whether it is being built.
     """
 
     def __init__(self, **kwargs):
@@ -75,6 +91,9 @@ class SimNode(Node):
         self._parameter_overrides.update(
             (change.name, change) for change in _as_doubles(self._parameter_overrides.values()))
         self.runtime = None
+        self._startup = None
+        self._description_subscription = None
+        self._topic_publishers = {}
         self._factory = RclpyFactory()
         self._robot = {name: self._declare(name, '') for name in (
             parameters.SCENE, parameters.MODEL, parameters.ROBOT_DESCRIPTION,
@@ -99,69 +118,146 @@ class SimNode(Node):
         self._start(self._robot[parameters.ROBOT_DESCRIPTION])
 
     def _on_robot_description(self, message):
-        """First /robot_description message: load the robot and start serving it."""
-        if self.runtime is not None:
+        """A /robot_description message: load the robot and start serving it, unless one
+        is served or being built already."""
+        if self.runtime is not None or self.starting:
             return
         try:
             self._start(message.data)
         except (SceneError, ValueError) as error:
-            self.get_logger().error(f'cannot start from {ROBOT_DESCRIPTION_TOPIC}: {error}; '
-                                    'waiting for another description')
-            return
-        self.destroy_subscription(self._description_subscription)
+            self._wait_for_another(error)
+
+    def _wait_for_another(self, error):
+        self.get_logger().error(f'cannot start from {ROBOT_DESCRIPTION_TOPIC}: {error}; '
+                                'waiting for another description')
 
     def _start(self, robot_description):
-        """Build the simulation the parameters (and `robot_description`, XML or '') ask
-        for, then its publishers, subscriptions, services and timer."""
+        """Load the scene the parameters (and `robot_description`, XML or '') ask for, then
+        serve at once what needs no simulation (the dynamic parameters, the services,
+        /diagnostics) while the simulation is built in a worker thread (`startup`: kernels
+        compile on a cold cache); `_poll_startup` serves the rest once it is built."""
         scene = load_node_scene(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
                                 robot_description, self._robot[parameters.SAND_BODIES],
                                 self._overrides, DESCRIPTION_FOLDER)
-        notice = compile_notice(scene)
-        if notice:
-            self.get_logger().info(notice)
-        sim = Simulation(scene)
         initial = {name: self._declare(name, default) for name, default in (
-            (parameters.ZETA, sim.zeta), (parameters.REAL_TIME_FACTOR, 1.0),
+            (parameters.ZETA, scene.zeta), (parameters.REAL_TIME_FACTOR, 1.0),
             (parameters.PAUSED, False))}
         for name, value in initial.items():
             problem = parameters.parameter_problem(name, value)
             if problem:
                 raise ValueError(problem)
-        sim.zeta = float(initial[parameters.ZETA])
+        # the static parameters that need no simulation, checked now (a bad one stops the
+        # node before anything is built)
+        self._plates = self._declare(parameters.PLATES, False)
+        self._publish_rate = self._declare(parameters.PUBLISH_RATE, scene.publish_rate)
+        parameters.publish_rate(self._publish_rate)
+        self._terrain_rate = self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE)
+        parameters.publish_rate(self._terrain_rate, parameters.TERRAIN_RATE)
+        self._trajectory_controller = self._declare(parameters.TRAJECTORY_CONTROLLER,
+                                                    topics.TRAJECTORY_CONTROLLER)
+        parameters.trajectory_controller(self._trajectory_controller)
+        self._scene_name = scene.name
+        notice = compile_notice(scene)
+        self._startup = SimStartup(lambda: Simulation(scene), compiling=notice is not None,
+                                   warm=lambda: compile_in_child(scene),
+                                   errors=(SceneError, ValueError))
+        self.get_logger().info(f'scene {scene.name}: building the simulation'
+                               f'{f" ({notice})" if notice else ""}; parameters, services and '
+                               '/diagnostics answer meanwhile')
+        if not self._topic_publishers:  # (a description from the topic may come again)
+            self._serve_while_starting()
+        self._startup_schedule = DiagnosticsSchedule(STARTUP_DIAGNOSTICS_PERIOD_S)
+        self._timer = self.create_timer(STARTUP_POLL_S, self._poll_startup,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._poll_startup()
+
+    def _serve_while_starting(self):
+        """/diagnostics, the services and the parameter checks: served from the start."""
+        self._topic_publishers[topics.DIAGNOSTICS] = self.create_publisher(
+            self._factory.message_class(topics.DIAGNOSTICS_TYPE),
+            topics.relative(topics.DIAGNOSTICS), QUEUE_DEPTH)
+        set_bool = self._factory.message_class('std_srvs/srv/SetBool')
+        trigger = self._factory.message_class('std_srvs/srv/Trigger')
+        self.create_service(set_bool, '~/pause', self._on_pause)
+        for name in ('reset', 'step', 'reset_terrain'):
+            self.create_service(trigger, f'~/{name}',
+                                lambda req, res, name=name: self._on_trigger(name, res))
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+    def _poll_startup(self):
+        """Start-up timer: /diagnostics while the simulation is being built; once built, serve
+        it with the parameters as they are now. Raises StartFailed if it could not be built
+        (a description from the topic: logged, and the node waits for another)."""
+        try:
+            sim = self._startup.result()
+        except StartFailed as error:
+            self.destroy_timer(self._timer)
+            self._startup = None
+            if self._description_subscription is None:
+                raise
+            self._wait_for_another(error)
+            return
+        if sim is None:
+            zeta, paused = (self.get_parameter(name).value
+                            for name in (parameters.ZETA, parameters.PAUSED))
+            if self._startup_schedule.due(self._startup.elapsed(), (zeta, paused)):
+                fields = self._startup.diagnostic_fields(self._scene_name, zeta, paused)
+                self._topic_publishers[topics.DIAGNOSTICS].publish(
+                    messages.diagnostic_array(self._factory, fields, START_TIME))
+            return
+        self.destroy_timer(self._timer)
+        try:
+            self._serve(sim)
+        except (SceneError, ValueError) as error:  # (joint_names that do not fit the scene)
+            raise StartFailed(str(error)) from error
+        if self._description_subscription is not None:
+            self.destroy_subscription(self._description_subscription)
+            self._description_subscription = None
+
+    @property
+    def starting(self):
+        """Whether the simulation is being built (parameters, services and /diagnostics
+        answer; nothing else is served yet)."""
+        return self._startup is not None and self.runtime is None
+
+    def _serve(self, sim):
+        """Serve the built simulation `sim`: its publishers, subscriptions, action and
+        timer; it starts with the zeta, real_time_factor and paused set by now."""
+        sim.zeta = float(self.get_parameter(parameters.ZETA).value)
         joint_names = self._declare(parameters.JOINT_NAMES,
                                     list(sim.servo_joint_names) or Parameter.Type.STRING_ARRAY)
-        self._plates = self._declare(parameters.PLATES, False)
-        terrain = TerrainFeed(sim.engine.surface,
-                              self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE))
+        terrain = TerrainFeed(sim.engine.surface, self._terrain_rate)
         # a subscriber joining the cloud gets the whole grid at once, one joining the
         # markers every marker tile (paused too)
         joined = {topics.TERRAIN: self._on_subscriber(cloud=True),
                   topics.TERRAIN_MARKER: self._on_subscriber(markers=True)}
-        self._topic_publishers = {
+        self._topic_publishers.update({
             topic: self.create_publisher(
                 self._factory.message_class(msgtype), topics.relative(topic),
                 TF_QUEUE_DEPTH if topic == topics.TF else QUEUE_DEPTH,
                 event_callbacks=joined.get(topic))
             for topic, msgtype in topics.published_topics(
                 list(sim.legs), plates=self._plates, terrain=terrain.active,
-                sensors=sim.sensors.layout).items()}
+                sensors=sim.sensors.layout).items()
+            if topic not in self._topic_publishers})
         self._imu_topic = sim.sensors.imu_topic
         logger = self.get_logger()
+        if self._startup.warm_problem:
+            logger.warning(f'kernels compiled in the node itself (the compiling process '
+                           f'failed: {self._startup.warm_problem}); it answered slowly meanwhile')
         for notice in sim.notices:  # e.g. the sand bodies `auto` chose
             logger.info(notice)
         self.runtime = SimRuntime(
-            sim, self, publish_rate=self._declare(parameters.PUBLISH_RATE,
-                                                  sim.scene.publish_rate),
-            joint_names=joint_names,
-            trajectory_controller=self._declare(parameters.TRAJECTORY_CONTROLLER,
-                                                topics.TRAJECTORY_CONTROLLER),
+            sim, self, publish_rate=self._publish_rate, joint_names=joint_names,
+            trajectory_controller=self._trajectory_controller,
             namespace=self.get_namespace(),
             joint_commands_topic=parameters.topic_name(self._declare(
                 parameters.JOINT_COMMANDS_TOPIC, topics.ROBOT_JOINT_COMMANDS),
                 parameters.JOINT_COMMANDS_TOPIC),
-            real_time_factor=float(initial[parameters.REAL_TIME_FACTOR]),
-            paused=initial[parameters.PAUSED], plates=self._plates, terrain=terrain,
-            warn=logger.warning, error=logger.error)
+            real_time_factor=float(self.get_parameter(parameters.REAL_TIME_FACTOR).value),
+            paused=self.get_parameter(parameters.PAUSED).value, plates=self._plates,
+            terrain=terrain, warn=logger.warning, error=logger.error)
         self._view = self._open_viewer(sim) if self._declare(parameters.VIEWER, False) else None
         for msgtype, topic, callback in (
                 (topics.JOINT_TRAJECTORY_TYPE, self.runtime.trajectory_topic,
@@ -175,22 +271,11 @@ class SimNode(Node):
                                      callback, QUEUE_DEPTH)
         self._serve_topic_hardware()
         self._serve_follow_joint_trajectory()
-        set_bool = self._factory.message_class('std_srvs/srv/SetBool')
-        trigger = self._factory.message_class('std_srvs/srv/Trigger')
-        self.create_service(set_bool, '~/pause',
-                            lambda req, res: self._answer(self.runtime.pause(req.data), res))
-        self.create_service(trigger, '~/reset',
-                            lambda req, res: self._answer(self.runtime.reset(), res))
-        self.create_service(trigger, '~/step',
-                            lambda req, res: self._answer(self.runtime.step(), res))
-        self.create_service(trigger, '~/reset_terrain',
-                            lambda req, res: self._answer(self.runtime.reset_terrain(), res))
         self._serve_simulation_interfaces()
-        self.add_on_set_parameters_callback(self._check_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(self.runtime.tick_period, self._tick,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
-        logger.info(f'scene {sim.scene.name}: publishing every {self.runtime.publish_period:g} s '
+        logger.info(f'scene {sim.scene.name}: built in {self._startup.elapsed():.1f} s; '
+                    f'publishing every {self.runtime.publish_period:g} s '
                     f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
                     f'{" (paused)" if self.runtime.paused else ""}')
 
@@ -286,7 +371,10 @@ class SimNode(Node):
         return await listener.result
 
     def _declare(self, name, default):
-        """Declare parameter `name` from its spec; returns its value (None if unset)."""
+        """Declare parameter `name` from its spec; returns its value (None if unset). One
+        declared already (a second description from the topic) keeps its value."""
+        if self.has_parameter(name):
+            return self.get_parameter(name).value
         spec = parameters.SPECS[name]
         descriptor = ParameterDescriptor(description=spec.description,
                                          read_only=not spec.dynamic)
@@ -333,9 +421,34 @@ class SimNode(Node):
             self.get_logger().error(f'{parameters.VIEWER}: {error}')
             return None
 
+    def _on_pause(self, request, response):
+        """~/pause: the runtime's answer, or while starting the `paused` parameter set to
+        `request.data` (the simulation then starts so)."""
+        if self.runtime is not None:
+            return self._answer(self.runtime.pause(request.data), response)
+        if self._startup is None:
+            return self._answer(self._no_simulation('pause'), response)
+        self.set_parameters([Parameter(parameters.PAUSED, value=bool(request.data))])
+        return self._answer(self._startup.pause_answer(request.data), response)
+
+    def _on_trigger(self, name, response):
+        """~/reset, ~/step, ~/reset_terrain: the runtime's answer, refused while starting."""
+        if self.runtime is not None:
+            return self._answer(getattr(self.runtime, name)(), response)
+        if self._startup is None:
+            return self._answer(self._no_simulation(name), response)
+        return self._answer(self._startup.refusal(name), response)
+
+    @staticmethod
+    def _no_simulation(service):
+        """A service's answer after a description from the topic failed to build."""
+        return ServiceResult(False, f'{service}: no simulation; waiting for a robot on '
+                                    f'{ROBOT_DESCRIPTION_TOPIC} that builds')
+
     def _answer(self, result, response):
         response.success, response.message = result.success, result.message
-        self._sync_paused()
+        if self.runtime is not None:
+            self._sync_paused()
         return response
 
     def _sync_paused(self):
@@ -344,16 +457,23 @@ class SimNode(Node):
             self.set_parameters([Parameter(parameters.PAUSED, value=self.runtime.paused)])
 
     def _check_parameters(self, changes):
+        """Accept or refuse the changes (the reason says why); while starting they are
+        checked as the running simulation would check them, and kept for its start. A
+        parameter being declared (rclpy calls this then too) is checked where it is."""
+        check = (parameters.parameter_problem if self.runtime is None
+                 else self.runtime.parameter_problem)
         for change in changes:
-            if change.name in parameters.SPECS:
-                problem = self.runtime.parameter_problem(change.name, change.value)
+            if change.name in parameters.SPECS and self.has_parameter(change.name):
+                problem = check(change.name, change.value)
                 if problem:
                     return SetParametersResult(successful=False, reason=problem)
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, changes):
+        if self.runtime is None:  # (the simulation starts with the parameters' values)
+            return
         for change in changes:
-            if change.name in parameters.SPECS:
+            if change.name in parameters.SPECS and parameters.SPECS[change.name].dynamic:
                 self.runtime.set_parameter(change.name, change.value)
                 if change.name == parameters.REAL_TIME_FACTOR:
                     self._timer.timer_period_ns = int(self.runtime.tick_period * 1e9)
@@ -382,7 +502,8 @@ class _GoalListener:
 
 def main(args=None):
     """Entry point of `ros2 run rft_sim_ros sim`; returns the exit status."""
-    return run_node(SimNode, NODE_NAME, (SceneError, ValueError), args)
+    return run_node(SimNode, NODE_NAME, (SceneError, ValueError), args,
+                    late_errors=(StartFailed,))
 
 
 if __name__ == '__main__':
