@@ -144,7 +144,8 @@ class SimStartup:
 def compile_in_child(scene, timeout=None):
     """Compile the kernels of `scene` (SceneConfig) into numba's cache in a child Python
     process (`python -m rft_sim_ros.ros.startup`, the scene pickled on its stdin; it
-    builds the simulation once and exits; it inherits NUMBA_CACHE_DIR). Returns None, or
+    builds the simulation once, steps it twice (the scenario's kernels: a built-in gait's)
+    and exits; it inherits NUMBA_CACHE_DIR). Returns None, or
     why it failed (its last line of error output, e.g. the scene's SceneError, which the
     build in this process then raises itself). timeout: s, None = no limit."""
     try:
@@ -176,7 +177,7 @@ def _compile_main():
     _leave_with_parent()
     scene = pickle.load(sys.stdin.buffer)
     from rft_sim_ros.sim.simulation import Simulation
-    Simulation(scene)
+    Simulation(scene).step(2)  # (steps: the scenario's kernels too, e.g. a built-in gait's)
 
 
 if __name__ == '__main__':
