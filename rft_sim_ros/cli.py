@@ -284,6 +284,8 @@ def cmd_run(args):
     if summary.get('scenario_traceback'):
         print(f'rft-sim: error: {summary["reason"]} (traceback: '
               f'{out / summary["scenario_traceback"]})', file=sys.stderr)
+    elif args.quiet and not summary['stable']:  # (else the summary printed says why)
+        print(f'rft-sim: error: {summary["reason"]}', file=sys.stderr)
     if stop.signal is not None:
         return 128 + stop.signal
     return 0 if summary['stable'] else 1

@@ -68,8 +68,10 @@ class SeriesRows:
     """Makes the time-series rows of a Simulation's states (module docstring)."""
 
     def __init__(self, sim):
-        index = {name: i for i, name in enumerate(sim.engine.body_names)}
-        self._legs = [(f'{leg}_sinkage_m', [index[b] for b in bodies])
+        # a leg's sinkage: its sand bodies' (the depths' rows); the other bodies of its
+        # branch (a shin, sim/outcome.py watches them) are not its feet
+        index = {name: i for i, name in enumerate(sim.sand_bodies)}
+        self._legs = [(f'{leg}_sinkage_m', [index[b] for b in bodies if b in index])
                       for leg, bodies in sim.legs.items()]
         hinge = [int(sim.model.jnt_type[sim.model.joint(name).id]) == mujoco.mjtJoint.mjJNT_HINGE
                  for name in sim.joint_names]
