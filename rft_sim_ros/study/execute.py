@@ -37,8 +37,10 @@ class RunTask:
 REPEAT_S = 0.25
 
 
-class RunTimeout(Exception):
-    """The run exceeded its time limit."""
+class RunTimeout(BaseException):
+    """The run exceeded its time limit. An interruption from outside the run, as
+    KeyboardInterrupt is (hence BaseException): the `except Exception` that ends a run whose
+    scenario raised (sim/simulation.py) lets it through."""
 
 
 def warm(scene, overrides):
