@@ -133,6 +133,25 @@ class _Rejected(Exception):
         self.reason = reason
 
 
+def check_joint_names(names, known, empty):
+    """Raise _Rejected unless the joint `names` of a command are strings, at least one
+    (`empty`: the reason given when there is none), each named once and all in `known` (the
+    joints commands may address, a mapping or sequence in their order)."""
+    if not all(isinstance(n, str) for n in names):
+        raise _Rejected(Reason.MALFORMED, f'joint names must be strings, got '
+                                          f'{reprlib.repr(names)}')
+    if not names:
+        raise _Rejected(Reason.EMPTY, empty)
+    duplicates = sorted(n for n, c in Counter(names).items() if c > 1)
+    if duplicates:
+        raise _Rejected(Reason.DUPLICATE_JOINT,
+                        f'joint(s) named more than once: {", ".join(duplicates)}')
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise _Rejected(Reason.UNKNOWN_JOINT, f'unknown joint(s) {", ".join(unknown)}; known: '
+                                              f'{", ".join(known)}')
+
+
 #: `_Spline.cubic` of a single held knot (shared, read-only).
 _CUBIC_KNOT = np.array([True])
 _CUBIC_KNOT.flags.writeable = False
@@ -411,22 +430,9 @@ class CommandHandler:
             start_value = command.start_time
         except (AttributeError, TypeError) as error:
             raise _Rejected(Reason.MALFORMED, f'not a joint trajectory ({error})') from None
-        if not all(isinstance(n, str) for n in names):
-            raise _Rejected(Reason.MALFORMED,
-                            f'joint names must be strings, got {reprlib.repr(names)}')
-        if not names:
-            raise _Rejected(Reason.EMPTY, 'trajectory has no joint names')
+        check_joint_names(names, self._index, 'trajectory has no joint names')
         if not points:
             raise _Rejected(Reason.EMPTY, 'trajectory has no points')
-        duplicates = sorted(n for n, c in Counter(names).items() if c > 1)
-        if duplicates:
-            raise _Rejected(Reason.DUPLICATE_JOINT,
-                            f'joint(s) named more than once: {", ".join(duplicates)}')
-        unknown = [n for n in names if n not in self._index]
-        if unknown:
-            raise _Rejected(Reason.UNKNOWN_JOINT,
-                            f'unknown joint(s) {", ".join(unknown)}; known: '
-                            f'{", ".join(self.joint_names)}')
         start = _float_scalar(start_value, 'start time')
         if start < 0.0:
             raise _Rejected(Reason.TIME_NEGATIVE, f'start time {start} s is negative')

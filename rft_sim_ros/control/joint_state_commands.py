@@ -25,15 +25,13 @@ The message is rejected whole (`CommandRejected`, its result naming the `Reason`
 name is unknown, empty or repeated, a field is not a list of numbers, a value is infinite,
 or an array's length fits no reading above. Units: rad or m, rad/s or m/s, N m or N (the joint's own).
 """
-import reprlib
-from collections import Counter
 from dataclasses import dataclass
 from typing import Mapping, Optional
 
 import numpy as np
 
 from rft_sim_ros.control.commands import (CommandRejected, CommandResult, Reason, _float_vector,
-                                          _Rejected)
+                                          _Rejected, check_joint_names)
 
 #: The JointState fields, as ros2_control names the command interfaces they carry.
 INTERFACES = ('position', 'velocity', 'effort')
@@ -98,19 +96,7 @@ def _read(msg, joint_index, declared):
         names = list(msg.name)
     except (AttributeError, TypeError) as error:
         raise _Rejected(Reason.MALFORMED, f'not a joint state ({error})') from None
-    if not all(isinstance(n, str) for n in names):
-        raise _Rejected(Reason.MALFORMED, f'joint names must be strings, got '
-                                          f'{reprlib.repr(names)}')
-    if not names:
-        raise _Rejected(Reason.EMPTY, 'joint state command names no joint')
-    duplicates = sorted(n for n, c in Counter(names).items() if c > 1)
-    if duplicates:
-        raise _Rejected(Reason.DUPLICATE_JOINT,
-                        f'joint(s) named more than once: {", ".join(duplicates)}')
-    unknown = [n for n in names if n not in joint_index]
-    if unknown:
-        raise _Rejected(Reason.UNKNOWN_JOINT, f'unknown joint(s) {", ".join(unknown)}; known: '
-                                              f'{", ".join(joint_index)}')
+    check_joint_names(names, joint_index, 'joint state command names no joint')
     values = [_spread(_field(msg, interface), interface, names, declared)
               for interface in INTERFACES]
     for interface, spread in zip(INTERFACES, values):
