@@ -389,8 +389,9 @@ class Simulation:
             count = sum(len(plates[b].areas) for b in self.other_bodies)
             self.notices.append(
                 f'other bodies: {first_few(list(self.other_bodies))} carry {count} plates '
-                f'({density:g} per mm^2), so that the sand holds them too (they are no legs; '
-                'rft.other_bodies_density_per_mm2: null leaves them without)')
+                f'({density:g} per mm^2), so that the sand holds them too (those on a '
+                "leg's branch add to that leg's wrench; rft.other_bodies_density_per_mm2: null "
+                'leaves them without)')
         return plates
 
     def _named_joints(self):
