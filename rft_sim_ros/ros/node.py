@@ -473,6 +473,8 @@ class SimNode(Node):
         if self.runtime is None:  # (the simulation starts with the parameters' values)
             return
         for change in changes:
+            if change.value is None:  # (declared without a value: joint_gains unset)
+                continue
             if change.name in parameters.SPECS and parameters.SPECS[change.name].dynamic:
                 self.runtime.set_parameter(change.name, change.value)
                 if change.name == parameters.REAL_TIME_FACTOR:
