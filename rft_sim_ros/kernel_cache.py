@@ -2,8 +2,8 @@
 there, whether they are still those of the package's sources, and compiling some of them in a
 second process. It imports nothing of the package: every kernel module imports it.
 
-The sand engine's kernels (`rft.kernel`, `sand.coupling`, `sand.deformable`,
-`sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`, `scenes.leg_kinematics`) are numba
+The sand engine's kernels (`rft.kernel`, `sand.gather`, `sand.implicit_solve`,
+`sand.deformable`, `sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`, `scenes.leg_kinematics`) are numba
 functions compiled with cache=True: the first run after an install (or after their source
 changed) compiles them (`BackgroundCompile` puts a share in a second process); every later run
 loads them from the cache in a fraction of a second. `sand.engine.kernels_cached` (and
@@ -13,7 +13,7 @@ kernels one engine needs (one gather kernel per kind of surface); `rft-sim warmu
 
 numba checks a cached kernel against its own source file only, but a kernel compiles in
 helpers and constants from other files too (`sand/surface_kernels.py`, `sand/deformable.py`
-and `sand/array_table.py` into the gather kernels of `sand/coupling.py`): an upgrade or an
+and `sand/array_table.py` into the gather kernels of `sand/gather.py`): an upgrade or an
 edit that changed only those would load kernels compiled from the old code. So each kernel
 module ends by calling `forget_stale(globals())`, before any of its kernels can load: the
 fingerprint of every source the kernels are compiled from (`kernel_sources`, read as text,
@@ -33,9 +33,11 @@ from pathlib import Path
 
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.constraint_rows',
-                  'rft_sim_ros.sand.coupling', 'rft_sim_ros.sand.deformable',
-                  'rft_sim_ros.sand.elliptic_cones',
-                  'rft_sim_ros.sand.joint_friction', 'rft_sim_ros.sand.surface_kernels',
+                  'rft_sim_ros.sand.deformable', 'rft_sim_ros.sand.elliptic_cones',
+                  'rft_sim_ros.sand.explicit', 'rft_sim_ros.sand.gather',
+                  'rft_sim_ros.sand.implicit_law', 'rft_sim_ros.sand.implicit_solve',
+                  'rft_sim_ros.sand.joint_friction', 'rft_sim_ros.sand.mujoco_terms',
+                  'rft_sim_ros.sand.surface_kernels', 'rft_sim_ros.sand.tree_solve',
                   'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics')
 #: The package's folder.
 PACKAGE = Path(__file__).resolve().parent

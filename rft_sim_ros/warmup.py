@@ -12,7 +12,7 @@ import numpy as np
 
 from .kernel_cache import KERNEL_MODULES, BackgroundCompile, is_cached, module_kernels
 from .rft.kernel import plate_forces_compiled
-from .sand import coupling
+from .sand import gather
 from .sand.array_table import TABLE_SIGNATURE
 from .scenes.config import load_scene
 from .sim.simulation import Simulation
@@ -38,7 +38,7 @@ def warm_up(log=print):
     with the gather kernels of the other surfaces compiled meanwhile in a second process.
     Returns the qualified names still not cached (none, unless a kernel went unused)."""
     others = [(kernel, TABLE_SIGNATURE) for kernel in (
-        coupling.gather_slope, coupling.gather_grid, coupling.gather_deformable)]
+        gather.gather_slope, gather.gather_grid, gather.gather_deformable)]
 
     def run(scene, overrides):
         log(f'warmup: {scene} {overrides or ""}'.rstrip())

@@ -28,13 +28,13 @@ def test_an_empty_cache_gets_the_notice_without_a_figure(tmp_path):
 
 _RECORDED_PROBE = '''
 from rft_sim_ros.kernel_cache import record_cold_start
-from rft_sim_ros.sand import coupling
+from rft_sim_ros.sand import implicit_solve
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import compile_notice
 every = ("gather_plane implicit_plate_forces implicit_step report_constraint_forces "
          "return_constraint_rows take_constraint_rows")
-record_cold_start(coupling.implicit_step, every, 41.7, 80.2)
-record_cold_start(coupling.implicit_step, "gather_plane", 3.2, 3.1)
+record_cold_start(implicit_solve.implicit_step, every, 41.7, 80.2)
+record_cold_start(implicit_solve.implicit_step, "gather_plane", 3.2, 3.1)
 print(compile_notice(load_scene("plate_drop")))
 '''
 
@@ -59,7 +59,7 @@ def test_a_filled_cache_gets_none():
 _OWN_SURFACE_PROBE = '''
 import json
 from rft_sim_ros.kernel_cache import is_cached, last_cold_start
-from rft_sim_ros.sand import coupling
+from rft_sim_ros.sand import gather, implicit_solve
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
 slope = load_scene("plate_drop", {"sand.surface.type": "slope"})
@@ -67,10 +67,10 @@ Simulation(slope)
 kernels = ("gather_plane", "gather_slope", "gather_grid", "gather_deformable")
 every = ("gather_slope implicit_plate_forces implicit_step report_constraint_forces "
          "return_constraint_rows take_constraint_rows")
-print(json.dumps({"cached": {name: is_cached(getattr(coupling, name)) for name in kernels},
+print(json.dumps({"cached": {name: is_cached(getattr(gather, name)) for name in kernels},
                   "slope": compile_notice(slope),
                   "plane": compile_notice(load_scene("plate_drop")),
-                  "recorded": last_cold_start(coupling.implicit_step, every)}))
+                  "recorded": last_cold_start(implicit_solve.implicit_step, every)}))
 '''
 
 
@@ -90,8 +90,8 @@ def test_a_scene_compiles_the_gather_kernel_of_its_own_surface_only(tmp_path):
 _BACKGROUND_PROBE = '''
 import json, numpy as np
 from rft_sim_ros.kernel_cache import BackgroundCompile, is_cached, load
-from rft_sim_ros.sand import coupling
-kernel, signature = coupling.implicit_mass, "(float64[:, ::1], float64[::1], float64)"
+from rft_sim_ros.sand import mujoco_terms
+kernel, signature = mujoco_terms.implicit_mass, "(float64[:, ::1], float64[::1], float64)"
 before = is_cached(kernel)
 job = BackgroundCompile([(kernel, signature)])
 done, why = job.wait()
@@ -119,14 +119,14 @@ def test_a_background_compile_fills_the_cache_for_this_process(tmp_path):
 
 _CALL_PROBE = '''
 import numpy as np
-from rft_sim_ros.sand import coupling
-coupling.implicit_mass(np.eye(2), np.ones(2), 0.5)  # compiled by a call, and cached
+from rft_sim_ros.sand import mujoco_terms
+mujoco_terms.implicit_mass(np.eye(2), np.ones(2), 0.5)  # compiled by a call, and cached
 '''
 _LOAD_PROBE = '''
 import json
 from rft_sim_ros.kernel_cache import load
-from rft_sim_ros.sand import coupling
-kernel = coupling.implicit_mass
+from rft_sim_ros.sand import mujoco_terms
+kernel = mujoco_terms.implicit_mass
 load(kernel, "(float64[:, ::1], float64[::1], float64)")
 print(json.dumps([sum(kernel.stats.cache_hits.values()), sum(kernel.stats.cache_misses.values())]))
 '''
@@ -144,8 +144,8 @@ def test_loading_by_signature_finds_what_a_call_cached(tmp_path):
 _FAILING_PROBE = '''
 import json
 from rft_sim_ros.kernel_cache import BackgroundCompile
-from rft_sim_ros.sand import coupling
-print(json.dumps(BackgroundCompile([(coupling.implicit_mass, "(int64,)")]).wait()))
+from rft_sim_ros.sand import mujoco_terms
+print(json.dumps(BackgroundCompile([(mujoco_terms.implicit_mass, "(int64,)")]).wait()))
 '''
 
 
@@ -160,9 +160,9 @@ def test_a_failed_background_compile_says_why(tmp_path):
 
 def test_a_compiling_process_that_cannot_start_says_why(monkeypatch):
     from rft_sim_ros.kernel_cache import BackgroundCompile
-    from rft_sim_ros.sand import coupling
+    from rft_sim_ros.sand import mujoco_terms
     monkeypatch.setattr(sys, 'executable', '/nonexistent/python')  # e.g. an embedded Python
-    with BackgroundCompile([(coupling.implicit_mass, '(float64[:, ::1], float64[::1], '
+    with BackgroundCompile([(mujoco_terms.implicit_mass, '(float64[:, ::1], float64[::1], '
                                                      'float64)')]) as compiling:
         ok, why = compiling.wait()
     assert ok is False and why.startswith('no compiling process:'), why
@@ -170,8 +170,8 @@ def test_a_compiling_process_that_cannot_start_says_why(monkeypatch):
 
 def test_the_kernels_sources_include_the_helpers_and_constants_they_compile_in():
     names = {path.relative_to(PACKAGE).as_posix() for path in kernel_sources()}
-    assert {'sand/coupling.py', 'sand/deformable.py', 'sand/surface_kernels.py',
-            'sand/array_table.py', 'sand/surface.py', 'rft/kernel.py', 'rft/force_law.py',
+    assert {'sand/gather.py', 'sand/implicit_solve.py', 'sand/layout.py', 'sand/deformable.py',
+            'sand/surface_kernels.py', 'sand/array_table.py', 'sand/surface.py', 'rft/kernel.py', 'rft/force_law.py',
             'scenes/gaits.py', 'scenes/leg_kinematics.py'} <= names
     assert 'cli.py' not in names and 'sim/simulation.py' not in names
 

@@ -5,8 +5,9 @@ import pytest
 from numba import njit
 
 from rft_sim_ros.rft import body_wrench
-from rft_sim_ros.sand import coupling
+from rft_sim_ros.rft import kernel
 from rft_sim_ros.sand import engine as engine_module
+from rft_sim_ros.sand import layout, mujoco_terms, tree_solve
 from rft_sim_ros.sand.engine import LowVelocity, SandEngine
 from rft_sim_ros.sand.geoms import body_plates
 
@@ -56,7 +57,7 @@ def test_slot_jacobians_and_free_force_match_mujoco(seed):
     jac = np.zeros((6 * len(bodies) + 1, model.nv))
     chain = np.zeros((len(bodies), model.nv), dtype=np.int64)
     chain_count = np.zeros(len(bodies), dtype=np.int64)
-    coupling.prepare_solve(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
+    mujoco_terms.prepare_solve(len(bodies), bodies, engine.body_ids, data.xipos, data.subtree_com,
                            data.cdof, model.body_rootid, model.body_dofnum, model.body_dofadr,
                            model.body_parentid, model.dof_parentid, data.qfrc_passive,
                            data.qfrc_actuator, data.qfrc_applied, data.qfrc_constraint,
@@ -109,7 +110,7 @@ def test_translational_inverse_masses_match_a_dense_inverse(seed):
         mujoco.mj_jac(model, data, jac[6 * slot:6 * slot + 3], jac[6 * slot + 3:6 * slot + 6],
                       data.xipos[body], body)
     out = np.zeros(len(bodies))
-    coupling._translational_inverse_masses(mass, model.dof_parentid, jac, len(bodies),
+    tree_solve.translational_inverse_masses(mass, model.dof_parentid, jac, len(bodies),
                                            np.empty_like(mass), np.empty((model.nv, 15)), out)
     inverse = np.linalg.inv(mass)
     expected = [np.trace(jac[6 * s:6 * s + 3] @ inverse @ jac[6 * s:6 * s + 3].T)
@@ -140,11 +141,11 @@ def test_tree_solve_matches_numpy_on_a_branched_robot(seed):
     rhs = rng.normal(size=model.nv)
     expected = np.linalg.solve(system, rhs)
     tree = rhs.copy()
-    assert coupling._tree_solve(system.copy(), tree, model.dof_parentid)
+    assert tree_solve.tree_solve(system.copy(), tree, model.dof_parentid)
     assert np.allclose(tree, expected, rtol=1e-10, atol=1e-12)
     solution = np.empty(model.nv)
     kept = system.copy()
-    coupling._checked_solve(kept, rhs, model.dof_parentid, np.empty_like(system), solution)
+    tree_solve.checked_solve(kept, rhs, model.dof_parentid, np.empty_like(system), solution)
     assert np.array_equal(solution, tree) and np.array_equal(kept, system)
 
 
@@ -162,7 +163,7 @@ def _ancestry(model):
 @njit(fastmath=True)
 def _checked_solve_in_fastmath(matrix, rhs, dof_parentid, factored, solution):
     """The checked solve as the step calls it: from a kernel compiled with fastmath."""
-    return coupling._checked_solve(matrix, rhs, dof_parentid, factored, solution)
+    return tree_solve.checked_solve(matrix, rhs, dof_parentid, factored, solution)
 
 
 @pytest.mark.parametrize('leaf_pivot', [0.0, 1e-8, 0.5])
@@ -176,11 +177,11 @@ def test_checked_solve_pivots_where_the_leaves_first_elimination_fails(leaf_pivo
     rhs = np.array([1.0, -2.0, 0.5])
     expected = np.linalg.solve(system, rhs)
     tree = rhs.copy()
-    done = coupling._tree_solve(system.copy(), tree, parents)
+    done = tree_solve.tree_solve(system.copy(), tree, parents)
     tree_error = np.max(np.abs(tree - expected)) / np.max(np.abs(expected))
     assert done == (leaf_pivot > 0)
     assert (tree_error > 1e-10) == (leaf_pivot < 0.1)
-    for solve in (_checked_solve_in_fastmath, coupling._checked_solve):
+    for solve in (_checked_solve_in_fastmath, tree_solve.checked_solve):
         solution = np.empty(3)
         solve(system, rhs, parents, np.empty((3, 3)), solution)
         assert np.max(np.abs(solution - expected)) < 1e-15 * np.max(np.abs(expected))
@@ -228,12 +229,12 @@ def test_plates_sliding_in_their_own_plane_never_lead(seed):
     data.qvel[3:6] = [2.0, 0.0, 0.0]  # rad/s about the blade's long axis (free joint: local)
     mujoco.mj_step1(model, data)
     engine.apply()
-    gathered = engine._counters[coupling.GATHERED]
+    gathered = engine._counters[layout.GATHERED]
     end_faces = np.abs(engine.local_normal[engine._plate[:gathered], 0]) > 0.999
     assert engine.plates_active > 0 and not end_faces.any()
     table = engine._table[:, :gathered]
-    n_v = (table[coupling.NORMAL:coupling.NORMAL + 3]
-           * table[coupling.DIRECTION:coupling.DIRECTION + 3]).sum(axis=0)
+    n_v = (table[kernel.NORMAL:kernel.NORMAL + 3]
+           * table[kernel.DIRECTION:kernel.DIRECTION + 3]).sum(axis=0)
     assert (n_v > 1e-6).all()
 
 
@@ -243,7 +244,7 @@ def test_bodies_above_the_sand_are_skipped_and_cost_nothing():
     data.qvel[:3] = [0.0, 0.0, -1.0]
     mujoco.mj_step1(model, data)
     engine.apply()
-    assert engine.plates_active == 0 and engine._counters[coupling.SLOTS] == 0
+    assert engine.plates_active == 0 and engine._counters[layout.SLOTS] == 0
     assert not data.xfrc_applied.any()
 
 
@@ -363,8 +364,8 @@ def test_predicted_end_velocity_matches_mujocos_step(integrator):
     rows[0] = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied - data.qfrc_bias
     m, d = model, data
     settings = engine._settings  # as the engine found them for this model
-    damper, actuators = settings[coupling.DAMPER] != 0, settings[coupling.ACTUATORS] != 0
-    coupling.implicit_damping(damper, actuators, m.dof_damping, m.actuator_trntype,
+    damper, actuators = settings[layout.DAMPER] != 0, settings[layout.ACTUATORS] != 0
+    mujoco_terms.implicit_damping(damper, actuators, m.dof_damping, m.actuator_trntype,
                               m.actuator_trnid, m.actuator_gear, m.jnt_type, m.jnt_dofadr,
                               m.actuator_dyntype, m.actuator_gaintype, m.actuator_gainprm,
                               m.actuator_biastype, m.actuator_biasprm, m.actuator_forcelimited,
@@ -374,7 +375,7 @@ def test_predicted_end_velocity_matches_mujocos_step(integrator):
     mass = np.zeros((model.nv, model.nv))
     function, args = engine_module.full_inertia_call(model, data, mass)
     function(*args)
-    coupling.implicit_mass(mass, engine._damping, model.opt.timestep)
+    mujoco_terms.implicit_mass(mass, engine._damping, model.opt.timestep)
     predicted = data.qvel + model.opt.timestep * np.linalg.solve(mass, rows[0])
     mujoco.mj_step2(model, data)
     tolerance = 1e-3 if integrator == 'implicit' else 1e-10  # 'implicit' adds Coriolis terms

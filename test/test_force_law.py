@@ -208,8 +208,8 @@ def test_a_plate_sliding_in_its_own_plane_trails_whatever_the_rounding(rounding)
     from rft_sim_ros.rft.coefficients import NORMALISATIONS
     from rft_sim_ros.rft.force_law import TANGENTIAL
     from rft_sim_ros.rft.kernel import plate_forces_compiled
-    from rft_sim_ros.sand import coupling
-    assert coupling.TANGENTIAL is TANGENTIAL
+    from rft_sim_ros.sand import gather
+    assert gather.TANGENTIAL is TANGENTIAL
     normal = np.array([[1.0, 0.0, 0.0]])
     velocity = np.array([[rounding, 0.05, 0.0]])          # along the plate's own plane
     args = (np.array([[0.0, 0.0, -0.02]]), normal, np.array([1e-4]), velocity)

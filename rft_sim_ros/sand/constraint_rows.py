@@ -1,4 +1,4 @@
-"""MuJoCo's own constraint rows in the sand's implicit solve (`coupling.implicit_wrenches`):
+"""MuJoCo's own constraint rows in the sand's implicit solve (`implicit_solve.implicit_wrenches`):
 equalities (two-sided), joint and tendon limits and contacts with pyramidal cones
 (one-sided), and contacts with elliptic cones (a contact's rows together: `elliptic_cones`),
 as mj_step1 makes them in mjData (Jacobian rows, efc_D, efc_aref). A row is MuJoCo's soft
@@ -113,7 +113,7 @@ def return_constraint_rows(jac, rows, efc_rows, n, efc_j, efc_aref, rownnz, rowa
                            sparse, nv):
     """The n rows taken (`take_constraint_rows`) given back to mjData as MuJoCo made them
     (Jacobian rows and aref), for mj_step2's own solve: a step whose rows did not settle in
-    the implicit solve (`coupling.implicit_wrenches`)."""
+    the implicit solve (`implicit_solve.implicit_wrenches`)."""
     for r in range(n):
         e = efc_rows[r]
         start, stop = (rowadr[e], rowadr[e] + rownnz[e]) if sparse else (e * nv, e * nv + nv)

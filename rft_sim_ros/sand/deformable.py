@@ -10,7 +10,7 @@ unchanged (`height`; the gather kernel reads it there too) and they leave no foo
 The rule (volume conserving):
 
 1. **Footprint marks.** While a body is in the sand, every plate below the surface marks the
-   four nodes of the cell its centroid lies in (in `coupling.gather_deformable`): they are
+   four nodes of the cell its centroid lies in (in `gather.gather_deformable`): they are
    "pending" and keep the lowest plate z seen. (Four nodes, not the nearest one, so that a
    body whose plates are no farther apart than a cell leaves no unmarked node inside its
    footprint; footprints are resolved to one cell. A cell is marked once a step, again only
@@ -184,7 +184,7 @@ class DeformableSand(HeightGrid):
 
     def kernel_arrays(self):
         """The bed's arrays that the deformable gather kernel marks (rule 1) and settles
-        (`settle`, rules 2-4) in, by `coupling.GatherArrays` name (`KERNEL_ARRAYS`)."""
+        (`settle`, rules 2-4) in, by `layout.GatherArrays` name (`KERNEL_ARRAYS`)."""
         return dict(deform_stamp=self.stamp, deform_lowest=self.lowest,
                     deform_pending=self.pending, deform_state=self.state,
                     deform_cell_stamp=self.cell_stamp, deform_cell_low=self.cell_low,

@@ -2,7 +2,7 @@
 
 Each step: `mj_step1` computes positions and velocities; the engine finds the plates in the
 sand, computes their RFT forces from that same state (no one-step lag), treats them at low
-velocity (implicit by default, see `coupling`), sums them per body into a wrench about the
+velocity (implicit by default, see `implicit_law`), sums them per body into a wrench about the
 body's centre of mass and writes all of them at once into `mjData.xfrc_applied`; `mj_step2`
 integrates. The engine owns the xfrc_applied rows of its sand bodies.
 
@@ -22,7 +22,7 @@ from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
-from . import constraint_rows, coupling
+from . import constraint_rows, explicit, gather, implicit_law, implicit_solve, layout, mujoco_terms
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand, no_bed_arrays
 from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
@@ -38,12 +38,12 @@ CONSTRAINT_ROOM = 16
 def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False):
     """The compiled kernels an engine with low-velocity `method` ('implicit'; any other: the
     explicit methods' kernels) on a surface of `surface_kind` (deformable or not) runs."""
-    gather = coupling.gather_kernel(surface_kind, deformable)
+    gathering = gather.gather_kernel(surface_kind, deformable)
     if method == 'implicit':
-        return (gather, coupling.implicit_step, coupling.implicit_plate_forces,
+        return (gathering, implicit_solve.implicit_step, implicit_law.implicit_plate_forces,
                 constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
                 constraint_rows.return_constraint_rows)
-    return (gather, coupling.smoothed_wrenches, coupling.scatter_wrenches)
+    return (gathering, explicit.smoothed_wrenches, mujoco_terms.scatter_wrenches)
 
 
 def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
@@ -66,7 +66,7 @@ def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False):
     `SandEngine._load_kernels`, kept by `kernel_cache.record_cold_start`); None when no start
     compiled just those here (e.g. a first run after install) or none are missing."""
     key = _uncached_key(engine_kernels(method, surface_kind, deformable))
-    record = last_cold_start(coupling.implicit_step, key) if key else None
+    record = last_cold_start(implicit_solve.implicit_step, key) if key else None
     return None if record is None else record['wall_s']
 
 
@@ -125,7 +125,7 @@ class SandEngine:
     normalisation: 'treers' or 'rft_sim'. dynamic: DynamicTerm or None.
     With the implicit law the engine takes over the model's joint friction (MJCF
     frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
-    (`coupling.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
+    (`implicit_solve.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
     MuJoCo's friction constraint does not act a second time after the solve; and MuJoCo's
     equality, limit and contact constraints (pyramidal and elliptic cones): each step the
     rows MuJoCo made for them in mj_step1 are taken into the solve (`constraint_rows`),
@@ -151,40 +151,40 @@ class SandEngine:
         self.dynamic = dynamic
         self.low_velocity = low_velocity
         self._implicit_method = low_velocity.method == 'implicit'
-        # the kernels' settings and counters (coupling.SURFACE ..., coupling.STEPS ...)
-        self._settings = np.zeros(coupling.SETTING_COUNT)
-        self._counters = np.zeros(coupling.COUNTER_COUNT, dtype=np.int64)
+        # the kernels' settings and counters (layout.SURFACE ..., layout.STEPS ...)
+        self._settings = np.zeros(layout.SETTING_COUNT)
+        self._counters = np.zeros(layout.COUNTER_COUNT, dtype=np.int64)
         self.surface = Plane(surface_height) if surface is None else surface
         self.deformable = isinstance(self.surface, DeformableSand)
         self._set_surface(self.surface)
-        self._gather = coupling.gather_kernel(self.surface.data.kind, self.deformable)
+        self._gather = gather.gather_kernel(self.surface.data.kind, self.deformable)
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
                               else np.ascontiguousarray(zeta_map.factors, dtype=float))
         if zeta_map is not None:
-            self._settings[coupling.ZETA_MAP] = 1.0
-            self._settings[coupling.MAP_X0], self._settings[coupling.MAP_Y0] = zeta_map.origin
-            self._settings[coupling.MAP_INV_DX] = 1.0 / zeta_map.cell
-            self._settings[coupling.MAP_INV_DY] = 1.0 / zeta_map.cell
-        self._settings[coupling.INV_A4] = 1.0 / norm.a4
-        self._settings[coupling.INV_B4] = 1.0 / norm.b4
-        self._settings[coupling.DYNAMIC] = 0.0 if dynamic is None else (dynamic.lam
+            self._settings[layout.ZETA_MAP] = 1.0
+            self._settings[layout.MAP_X0], self._settings[layout.MAP_Y0] = zeta_map.origin
+            self._settings[layout.MAP_INV_DX] = 1.0 / zeta_map.cell
+            self._settings[layout.MAP_INV_DY] = 1.0 / zeta_map.cell
+        self._settings[layout.INV_A4] = 1.0 / norm.a4
+        self._settings[layout.INV_B4] = 1.0 / norm.b4
+        self._settings[layout.DYNAMIC] = 0.0 if dynamic is None else (dynamic.lam
                                                                          * dynamic.density)
         # the paper's EMA keeps a history for plates in the sand that trail, too
-        self._settings[coupling.TRAILING] = low_velocity.method == 'ema'
-        self._settings[coupling.REST_SPEED] = low_velocity.rest_speed
+        self._settings[layout.TRAILING] = low_velocity.method == 'ema'
+        self._settings[layout.REST_SPEED] = low_velocity.rest_speed
         self.zeta = zeta
 
         n, nb = len(self.areas), len(self.body_names)
         # the plates in the sand this step, one per column (the gather kernel)
         self._plate = np.zeros(n, dtype=np.int64)
         self._slot = np.zeros(n, dtype=np.int64)
-        self._table = np.zeros((coupling.PLATE_ROWS, n))
-        self._force = np.zeros((6, n))  # G, then r x G (coupling.implicit_wrenches)
+        self._table = np.zeros((layout.PLATE_ROWS, n))
+        self._force = np.zeros((6, n))  # G, then r x G (implicit_solve.implicit_wrenches)
         self._applied = np.zeros((3, n))
-        self._work = np.zeros((coupling.WORK_ROWS, n))
-        self._flags = np.zeros((coupling.FLAG_ROWS, n), dtype=np.int8)
-        # each plate's last step in the sand and its set then (coupling.implicit_wrenches)
+        self._work = np.zeros((layout.WORK_ROWS, n))
+        self._flags = np.zeros((layout.FLAG_ROWS, n), dtype=np.int8)
+        # each plate's last step in the sand and its set then (implicit_solve.implicit_wrenches)
         self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._take_friction(model)
         self._take_constraints(model)
@@ -197,7 +197,7 @@ class SandEngine:
         self._ema_step = np.full(n, -2, dtype=np.int64)
         self.body_wrenches = np.zeros((nb, 6))
         # per sand body, summed over the steps since `mean_wrenches` last restarted the mean:
-        # [force; torque about the world origin] (coupling.scatter_wrenches)
+        # [force; torque about the world origin] (mujoco_terms.scatter_wrenches)
         self._wrench_sum = np.zeros((nb, 6))
         self._sum_since = 0  # the STEPS counter when the sum restarted
         self._views()
@@ -213,24 +213,24 @@ class SandEngine:
         settings = self._settings
         data = surface.data
         base = surface.base.data if self.deformable else data
-        settings[coupling.SURFACE] = base.height
-        settings[coupling.SLOPE_X], settings[coupling.SLOPE_Y] = base.gradient
-        settings[coupling.GRID_X0], settings[coupling.GRID_Y0] = data.origin
-        settings[coupling.GRID_INV_DX] = 1.0 / data.spacing[0]
-        settings[coupling.GRID_INV_DY] = 1.0 / data.spacing[1]
-        settings[coupling.BASE_KIND] = base.kind
-        settings[coupling.BASE_X0], settings[coupling.BASE_Y0] = base.origin
-        settings[coupling.BASE_INV_DX] = 1.0 / base.spacing[0]
-        settings[coupling.BASE_INV_DY] = 1.0 / base.spacing[1]
+        settings[layout.SURFACE] = base.height
+        settings[layout.SLOPE_X], settings[layout.SLOPE_Y] = base.gradient
+        settings[layout.GRID_X0], settings[layout.GRID_Y0] = data.origin
+        settings[layout.GRID_INV_DX] = 1.0 / data.spacing[0]
+        settings[layout.GRID_INV_DY] = 1.0 / data.spacing[1]
+        settings[layout.BASE_KIND] = base.kind
+        settings[layout.BASE_X0], settings[layout.BASE_Y0] = base.origin
+        settings[layout.BASE_INV_DX] = 1.0 / base.spacing[0]
+        settings[layout.BASE_INV_DY] = 1.0 / base.spacing[1]
         if self.deformable:
-            settings[coupling.DEFORM_RISE] = surface.rise
+            settings[layout.DEFORM_RISE] = surface.rise
         self._surface_grid = data.grid
         self._surface_block_max, self._surface_block_min = data.block_max, data.block_min
         # a rigid grid's bounding planes over tiles that hold any body's square (none where
         # every body's plates lie at its origin: step 0)
         step = int(np.ceil(2 * self.radii.max(initial=0.0) / min(data.spacing)))
         rigid_grid = data.kind == GRID and not self.deformable
-        settings[coupling.TILE_STEP] = step if rigid_grid else 0
+        settings[layout.TILE_STEP] = step if rigid_grid else 0
         self._surface_tiles = (tile_planes(data.grid, data.origin, data.spacing, step)
                                if rigid_grid and step > 0 else np.zeros((1, 4)))
         # and its extremes over windows that reach every node a cluster's square touches
@@ -250,7 +250,7 @@ class SandEngine:
         parts, body_clusters, plate_starts, centers, radii = [], [0], [], [], []
         offset = 0
         for body in plates:
-            order, starts = coupling.cluster_plates(body.centroids)
+            order, starts = gather.cluster_plates(body.centroids)
             ordered = body.subset(order)
             parts.append(ordered)
             for c in range(len(starts) - 1):
@@ -276,8 +276,9 @@ class SandEngine:
         self._cluster_radius = np.array(radii, dtype=float)
 
     def _take_friction(self, model):
-        """The joint friction the implicit law solves (`coupling.implicit_wrenches`): its dofs,
-        forces, memory and work space; MuJoCo's own friction switched off for them."""
+        """The joint friction the implicit law solves (`implicit_solve.implicit_wrenches`):
+        its dofs, forces, memory and work space; MuJoCo's own friction switched off for
+        them."""
         frictional = (np.flatnonzero(model.dof_frictionloss > 0) if self._implicit_method
                       else np.zeros(0, dtype=np.int64))
         self.joint_friction = {int(i): float(model.dof_frictionloss[i]) for i in frictional}
@@ -308,8 +309,8 @@ class SandEngine:
                              np.zeros(0, dtype=np.int32))
         self._rows_taken = False  # (the last step's: its counter must return to 0)
         self._constraint_room(model.nv, CONSTRAINT_ROOM)
-        self._held_constraint = np.zeros(model.nv)  # (`coupling.implicit_step`)
-        self._cone_point = np.zeros(model.nv)  # (`coupling.implicit_wrenches`)
+        self._held_constraint = np.zeros(model.nv)  # (`implicit_solve.implicit_step`)
+        self._cone_point = np.zeros(model.nv)  # (`implicit_solve.implicit_wrenches`)
 
     def _constraint_room(self, nv, rows):
         """Room for `rows` constraint rows of nv dofs (`constraint_rows`)."""
@@ -376,7 +377,7 @@ class SandEngine:
                     break
                 self._constraint_room(self.model.nv, max(-taken, 2 * len(self._constraint_rows)))
                 self._implicit_arrays = self._implicit_table()
-        self._counters[coupling.CONSTRAINT_ROWS] = taken
+        self._counters[layout.CONSTRAINT_ROWS] = taken
         self._rows_taken = taken > 0
         return taken
 
@@ -396,9 +397,9 @@ class SandEngine:
         self._full_inertia, self._full_inertia_args = full_inertia_call(m, d, self._mass)
         self._xipos = d.xipos
         self._xfrc = d.xfrc_applied
-        self._settings[coupling.DAMPER] = bool(damper)
-        self._settings[coupling.ACTUATORS] = bool(actuators)
-        self._gather_arrays = ArrayTable(*coupling.GatherArrays(
+        self._settings[layout.DAMPER] = bool(damper)
+        self._settings[layout.ACTUATORS] = bool(actuators)
+        self._gather_arrays = ArrayTable(*layout.GatherArrays(
             settings=self._settings, counters=self._counters, body_ids=self.body_ids,
             radii=self.radii, body_cluster_start=self._body_cluster_start,
             cluster_plate_start=self._cluster_plate_start, cluster_center=self._cluster_center,
@@ -415,13 +416,13 @@ class SandEngine:
             body_rootid=m.body_rootid, out_plate=self._plate, out_slot=self._slot,
             slot_body=self._slot_body, slot_start=self._slot_start, table=self._table,
             force=self._force))
-        self._solve_space = coupling.solve_space(m.nv, len(self.body_ids))
+        self._solve_space = layout.solve_space(m.nv, len(self.body_ids))
         self._implicit_arrays = self._implicit_table()
 
     def _implicit_table(self):
-        """The ArrayTable of `coupling.implicit_step`'s arrays (`coupling.ImplicitArrays`)."""
+        """The ArrayTable of `implicit_solve.implicit_step`'s arrays (`layout.ImplicitArrays`)."""
         m, d = self.model, self.data
-        return ArrayTable(*coupling.ImplicitArrays(
+        return ArrayTable(*layout.ImplicitArrays(
             settings=self._settings, counters=self._counters, slot_body=self._slot_body,
             slot_start=self._slot_start, out_plate=self._plate, table=self._table,
             force=self._force, body_ids=self.body_ids,
@@ -457,7 +458,7 @@ class SandEngine:
     @zeta.setter
     def zeta(self, value):
         self._zeta = validated_zeta(value)
-        self._settings[coupling.ZETA] = zeta_to_si(self._zeta)
+        self._settings[layout.ZETA] = zeta_to_si(self._zeta)
 
     def zeta_at(self, x, y):
         """The zeta (N/cm^3) that plates meet at world (x, y) (m; arrays broadcast): `zeta`
@@ -468,24 +469,24 @@ class SandEngine:
     @property
     def plates_active(self):
         """Plates in the sand and leading at the last step."""
-        return int(self._counters[coupling.LEADING])
+        return int(self._counters[layout.LEADING])
 
     @property
     def solves(self):
         """Implicit solves so far (about one per step with sand contact)."""
-        return int(self._counters[coupling.SOLVES])
+        return int(self._counters[layout.SOLVES])
 
     @property
     def unsettled_steps(self):
         """Steps so far in which a plate was frozen (anti-cycling) or the sets had not
         settled."""
-        return int(self._counters[coupling.UNSETTLED])
+        return int(self._counters[layout.UNSETTLED])
 
     @property
     def handed_back_steps(self):
         """Steps so far whose constraint rows the implicit solve could not settle and handed
-        back to MuJoCo's own solve (`coupling.implicit_wrenches`)."""
-        return int(self._counters[coupling.HANDED_BACK])
+        back to MuJoCo's own solve (`implicit_solve.implicit_wrenches`)."""
+        return int(self._counters[layout.HANDED_BACK])
 
     @property
     def plates_total(self):
@@ -500,9 +501,9 @@ class SandEngine:
         self._plate_memory[:] = -1
         self._friction_memory[:] = -1
         self._ema_step[:] = -2
-        self._counters[coupling.HANDED_BACK_AT] = 0
+        self._counters[layout.HANDED_BACK_AT] = 0
         self._wrench_sum[:] = 0.0
-        self._sum_since = self._counters[coupling.STEPS]
+        self._sum_since = self._counters[layout.STEPS]
 
     def step(self):
         """Advance the model one timestep with sand forces."""
@@ -517,42 +518,42 @@ class SandEngine:
         if self._implicit_method:
             self._implicit()
         else:
-            had_slots = self._counters[coupling.SLOTS]
+            had_slots = self._counters[layout.SLOTS]
             self._gather(self._gather_arrays.table)
-            if self._counters[coupling.SLOTS] or had_slots:  # (zeros once the last leave)
+            if self._counters[layout.SLOTS] or had_slots:  # (zeros once the last leave)
                 self._explicit()
 
     def _explicit(self):
-        """Explicit sand wrenches ('ema' or 'none': coupling.smoothed_wrenches) of the plates
+        """Explicit sand wrenches ('ema' or 'none': explicit.smoothed_wrenches) of the plates
         gathered this step, written to xfrc_applied."""
         alpha = self.low_velocity.ema_alpha if self.low_velocity.method == 'ema' else 1.0
         counters = self._counters
-        slots = counters[coupling.SLOTS]
-        coupling.smoothed_wrenches(counters[coupling.GATHERED], slots, self._plate, self._slot,
-                                   self._table, self._force, alpha, counters[coupling.STEPS],
+        slots = counters[layout.SLOTS]
+        explicit.smoothed_wrenches(counters[layout.GATHERED], slots, self._plate, self._slot,
+                                   self._table, self._force, alpha, counters[layout.STEPS],
                                    self._ema_force, self._ema_step, self._applied,
                                    self._slot_wrench)
         self._scatter(slots)
 
     def _scatter(self, slots):
         """Write the wrenches of the first `slots` slots (zero for the other sand bodies)."""
-        coupling.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
+        mujoco_terms.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
                                   self.body_wrenches, self._xfrc, self._xipos,
                                   self._wrench_sum)
 
     def _implicit(self):
         """The plates in the sand and their implicit wrenches, written to xfrc_applied
-        (the surface's gather kernel and coupling.implicit_step, after MuJoCo's actuator
+        (the surface's gather kernel and implicit_solve.implicit_step, after MuJoCo's actuator
         forces and dense inertia of this state)."""
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)
         self._gather(self._gather_arrays.table)
         # (most steps of most robots have no rows: one attribute read, ~0.1 us, for them)
         taken = self._take_constraint_rows() if self.data.nefc or self._rows_taken else 0
-        coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
+        implicit_solve.implicit_step(self._options.timestep, self._implicit_arrays.table)
         if taken:
             d, counters = self.data, self._counters
-            if counters[coupling.HANDED_BACK_AT] == counters[coupling.STEPS]:  # MuJoCo's
+            if counters[layout.HANDED_BACK_AT] == counters[layout.STEPS]:  # MuJoCo's
                 constraint_rows.return_constraint_rows(
                     self._constraint_jac, self._constraint_rows, self._constraint_efc, taken,
                     d.efc_J, d.efc_aref, *self._jacobian_index(), self._sparse, self.model.nv)
@@ -573,7 +574,7 @@ class SandEngine:
         wall, cpu = time.perf_counter(), _cpu_seconds()
         self._compile_kernels()
         if cold:
-            record_cold_start(coupling.implicit_step, cold, time.perf_counter() - wall,
+            record_cold_start(implicit_solve.implicit_step, cold, time.perf_counter() - wall,
                               _cpu_seconds() - cpu)
         self._counters[:] = 0
         self._wrench_sum[:] = 0.0
@@ -587,7 +588,7 @@ class SandEngine:
             background = [(self._gather, TABLE_SIGNATURE)]
             with (BackgroundCompile(background) if not is_cached(self._gather)
                   else contextlib.nullcontext()) as compiling:
-                coupling.implicit_step(self._options.timestep, self._implicit_arrays.table)
+                implicit_solve.implicit_step(self._options.timestep, self._implicit_arrays.table)
                 self._implicit_plate_forces(0)
                 self._compile_constraint_rows()
                 if compiling is not None:
@@ -601,7 +602,7 @@ class SandEngine:
         a filtered force sensor reports over that window), as [force (N); torque about the
         world origin (N m)], world axes; then restarts the mean. With no step since, the
         wrench of the last step."""
-        steps = self._counters[coupling.STEPS] - self._sum_since
+        steps = self._counters[layout.STEPS] - self._sum_since
         if steps > 0:
             mean = self._wrench_sum / steps
         else:
@@ -609,21 +610,21 @@ class SandEngine:
             mean = np.hstack([force, self.body_wrenches[:, 3:]
                               + np.cross(self._xipos[self.body_ids], force)])
         self._wrench_sum[:] = 0.0
-        self._sum_since = self._counters[coupling.STEPS]
+        self._sum_since = self._counters[layout.STEPS]
         return mean
 
     def active_plates(self):
         """Plates in the sand at the last step: (positions (K, 3) m, forces (K, 3) N, areas
         (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
-        k = self._counters[coupling.GATHERED]
+        k = self._counters[layout.GATHERED]
         if self._implicit_method:
             self._implicit_plate_forces(k)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
-        lever = self._table[coupling.LEVER:coupling.LEVER + 3, :k].T
+        lever = self._table[layout.LEVER:layout.LEVER + 3, :k].T
         return lever + com, self._applied[:, :k].T.copy(), self.areas[self._plate[:k]]
 
     def _implicit_plate_forces(self, k):
         """Per-plate forces of the last implicit step into _applied[:, :k] (N, world)."""
-        coupling.implicit_plate_forces(k, self._slot, self._table, self._force, self._work,
+        implicit_law.implicit_plate_forces(k, self._slot, self._table, self._force, self._work,
                                        self._flags, self._xi, self.low_velocity.rest_speed,
                                        self._applied)

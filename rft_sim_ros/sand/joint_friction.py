@@ -1,5 +1,5 @@
 """Joint friction (MJCF frictionloss F, N m or N) in the sand's implicit solve
-(`coupling.implicit_wrenches`): the regularised Coulomb law with the sand's rest speed
+(`implicit_solve.implicit_wrenches`): the regularised Coulomb law with the sand's rest speed
 v_reg. A joint whose end-of-step speed is below v_reg sticks (a damper F / v_reg, so at most
 F), otherwise it slips (F against its motion); a joint that would return to a set it had in
 the step is frozen (`active_set`), a damper F / max(|qvel|, v_reg) through its speed at the

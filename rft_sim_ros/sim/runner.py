@@ -315,7 +315,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         # implicit treatment over the run's steps (spawn rest's settling left out): solves
         # per step, steps in which a plate had to be frozen (anti-cycling) or the sets did
         # not settle, and steps whose constraint rows were handed back to MuJoCo's solve
-        # (see sand/coupling.py)
+        # (see sand/implicit_solve.py)
         'implicit_solves_per_step': solves / max(1, sim.steps),
         'implicit_unsettled_steps': unsettled,
         'implicit_rows_handed_back_steps': handed_back,

@@ -1,7 +1,9 @@
 """Simulation: a scene's MuJoCo model, its sand engine and its scenario, stepped together.
 
 This is the ROS-free core that the CLI, the benchmarks and the rclpy node all drive:
-build from a SceneConfig, `step()`, read `state()`, change `zeta`, `reset()`.
+build from a SceneConfig (the stages of sim/build.py, in order: description, model, sand
+surface, pose, sand bodies, plates, engine, legs), `step()`, read `state()`, change `zeta`,
+`reset()`.
 Sim time is continuous across resets (`time` keeps counting), as ROS tools expect.
 
 Servo commands take one path: every position servo of the model (a MuJoCo `position`
@@ -20,29 +22,22 @@ import mujoco
 import numpy as np
 
 from ..control.commands import CommandHandler
-from ..robot.description import DescriptionError, load_description
-from ..robot.joints import (JointInterfaces, add_joint_interfaces, movable_joints,
-                            position_servos)
-from ..robot.pose import (DEFAULT_KEYFRAMES, REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to,
-                          initial_keyframe, keyframe_label, lift_to, parse_spawn,
-                          set_initial_pose)
-from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
-                                 other_bodies, resolve_sand_bodies)
-from ..sand.engine import LowVelocity, SandEngine, cold_start_estimate, kernels_cached
-from ..sand.geoms import body_plates
-from ..sand.deformable import DeformableSand
-from ..sand.surface import (CHECKED_SLOPE_DEG, GRID, SURFACE_KINDS, Surface, hfield_geom,
-                            hfield_label, surface_from_settings)
-from ..sand.zeta_map import zeta_map_from_settings
-from ..scenes.scenarios import failure_line, load_scenario, scenario_files
+from ..robot.joints import JointInterfaces
+from ..robot.pose import REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, lift_to
+from ..sand.engine import cold_start_estimate, kernels_cached
+from ..sand.surface import GRID, SURFACE_KINDS
 from ..scenes.config import SceneError
-from .caveats import caveats, first_few
+from ..scenes.scenarios import failure_line, load_scenario, scenario_files
+from .build import (base_id, choose_sand_bodies, compile_model, deformable_bed, ground_to_sand,
+                    in_scenario, initial_pose, legs_of, named_joints, plates_of,
+                    read_description, sand_engine, sand_surface, say_moved_into_ranges,
+                    servo_stiffness, spawn_of)
+from .caveats import caveats
 from .hybrid_drive import HybridDrive
 from .outcome import TILT_LIMIT_DEG, OutcomeWatch
 from .sand_entry import SandEntryWatch
 from .sensors import Sensors, scene_settings
 from .state import ActivePlates, LegWrench, SimState
-from ..rft.force_law import DynamicTerm
 
 #: Generalised speeds above this (m/s or rad/s) mean the simulation has blown up.
 RUNAWAY_SPEED = 1.0e3
@@ -62,41 +57,6 @@ FALL_TILT_DEG = TILT_LIMIT_DEG
 _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
                                   mujoco.mjtWarning.mjWARN_BADQVEL,
                                   mujoco.mjtWarning.mjWARN_BADQPOS], dtype=int)
-
-
-def can_collide(model):
-    """Whether MuJoCo could ever make a rigid contact in `model`: an explicit <pair>, a flex,
-    or two geoms whose contype/conaffinity bits let them collide."""
-    if model.npair or model.nflex:
-        return True
-    return bool(np.bitwise_or.reduce(model.geom_contype, initial=0)
-                & np.bitwise_or.reduce(model.geom_conaffinity, initial=0))
-
-
-#: A plane whose upward normal is within this angle of +z is a floor (steeper: a wall).
-FLOOR_TILT_DEG = 45.0
-
-
-def world_ground(model, geom_type):
-    """Ids of the geoms of `geom_type` (mjtGeom) fixed to the world (their body welded to
-    it) that can collide with a geom of a moving body (contype/conaffinity bits)."""
-    moving = model.body_weldid[model.geom_bodyid] != 0
-    contype = np.bitwise_or.reduce(model.geom_contype[moving], initial=0)
-    conaffinity = np.bitwise_or.reduce(model.geom_conaffinity[moving], initial=0)
-    return [int(g) for g in np.flatnonzero((model.geom_type == geom_type) & ~moving)
-            if model.geom_contype[g] & conaffinity or model.geom_conaffinity[g] & contype]
-
-
-def floor_planes(model):
-    """Ids of the floor planes of a model: planes of its `world_ground`, facing up (within
-    FLOOR_TILT_DEG of +z; a wall is not a floor)."""
-    planes = world_ground(model, mujoco.mjtGeom.mjGEOM_PLANE)
-    if not planes:
-        return []
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)  # the poses of geoms fixed to the world
-    up = data.geom_xmat[planes, 8]  # z of each plane's normal (its local z axis)
-    return [g for g, z in zip(planes, up) if z >= np.cos(np.radians(FLOOR_TILT_DEG))]
 
 
 def kernel_key(scene):
@@ -148,13 +108,6 @@ class ScenarioFailed(SimulationDiverged):
         self.details = details
 
 
-def _dynamic_term(config):
-    if not config:
-        return None
-    return DynamicTerm(lam=float(config.get('lambda', 1.0)),
-                       density=float(config.get('density', 1600.0)))
-
-
 class Simulation:
     """One scene, ready to step. Attributes: model, data, engine, scenario, scene.
 
@@ -166,168 +119,69 @@ class Simulation:
 
     def __init__(self, scene, surface=None):
         self.scene = scene
-        self.notices = []  # what start-up decided for the user (e.g. the auto sand bodies)
+        self.notices = notices = []  # what start-up decided for the user (e.g. sand bodies)
         self.scenario = load_scenario(scene)
-        robot = scene.robot or {}
+        # the robot: its description, then its model
+        self.description, self._initial_positions = read_description(scene, notices)
+        compiled = compile_model(scene, self.scenario, self.description.spec,
+                                 self._initial_positions, notices)
+        self.model = model = compiled.model
+        self._keyframe = compiled.keyframe
+        self.passive_joint_names = compiled.joint_plan.passive
+        # the sand's surface, and the rigid ground it replaces
+        surface, zeta_map = sand_surface(scene, model, surface, notices)
+        ground_to_sand(scene, model, notices)
+        # the initial pose, the body /odom follows, the bed laid out under it
+        self.data = data = mujoco.MjData(model)
+        say_moved_into_ranges(self._pose(), notices)
+        self._base_id = base = base_id(scene, model)
+        self.base_body = model.body(base).name  # (robot.description names the others)
+        surface = deformable_bed(scene, surface, data, base, notices)
+        # the sand bodies, their plates, the sand engine
+        self.sand_bodies, others = choose_sand_bodies(scene, model, data, compiled.patterns,
+                                                      base, notices)
+        plates, self.other_bodies = plates_of(scene, model, self.sand_bodies, others, notices)
+        self.engine = engine = sand_engine(scene, model, data, plates, surface, zeta_map)
+        # what the robot reports and is commanded by: joints, legs, sensors, servos
+        self._joints = named_joints(model, notices)  # (those /joint_states reports)
+        self.joint_names = tuple(model.joint(j).name for j in self._joints)
+        self._qpos_adr = model.jnt_qposadr[self._joints]
+        self._dof_adr = model.jnt_dofadr[self._joints]
+        legs = legs_of(scene, model, engine, self.sand_bodies, self.other_bodies, base)
+        self.legs, self._leg_names, self._leg_feet = legs.legs, legs.names, legs.feet
+        self._leg_rows, self._leg_membership = legs.rows, legs.membership
         try:
-            self.description = load_description(
-                scene.model_path, package_paths=robot.get('package_paths'),
-                xacro_args=robot.get('xacro_args'), base=robot.get('base'),
-                log=self.notices.append)  # (what reading the description changed)
-        except DescriptionError as error:
-            raise SceneError(f'scene {scene.name}: {error}') from None
-        # initial pose: ros2_control initial values of the description, then the scene's
-        self._initial_positions = {**(self.description.initial_positions or {}),
-                                   **scene.initial_positions}
-        spec = self.description.spec
-        self._in_scenario(self.scenario.edit_model, spec)
-        visual = scene.plate_geoms == 'visual'
-        patterns = scene.sand_bodies
-        if visual and AUTO in patterns:  # auto's bodies' visuals are marked before compiling
-            patterns = self._auto_sand_bodies(spec) + [p for p in patterns if p != AUTO]
-        keep_sand_visuals(spec, patterns, visual)
-        spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
-        joint_plan = add_joint_interfaces(spec, scene.servos)
-        self.passive_joint_names = joint_plan.passive
-        if joint_plan.passive:
-            names = joint_plan.passive
-            self.notices.append(
-                f'joint{"s" * (len(names) > 1)} {", ".join(names)}: no actuator in the model, '
-                f'so {"they stay" if len(names) > 1 else "it stays"} passive as written '
-                '(spring, damping, limits) and commands leave them out; servos: {NAME: {kp: '
-                '..., kd: ...}} gives one a servo')
-        try:
-            self.model = spec.compile()
-        except Exception as error:
-            raise SceneError(f'scene {scene.name}: model does not compile: {error}') from None
-        self.model.opt.timestep = scene.timestep
-        self._keyframe = initial_keyframe(self.model, scene.keyframe)
-        if self._keyframe is not None and scene.keyframe is None:
-            names = [self.model.key(k).name or f'#{k}' for k in range(self.model.nkey)]
-            self.notices.append(
-                f"initial pose: the model's keyframe {keyframe_label(self._keyframe)} (by "
-                f'default the first of {", ".join(DEFAULT_KEYFRAMES)} it has, else its first '
-                f'keyframe; it has {", ".join(names)}): robot.keyframe or --keyframe NAME '
-                "picks another, '' the model's qpos0")
-        try:
-            surface = self._surface(surface)
-            zeta_map = zeta_map_from_settings(scene.zeta_map)
-        except ValueError as error:
-            raise SceneError(f'scene {scene.name}: {error}') from None
-        self._ground_to_sand()
-        if not can_collide(self.model):  # sand alone: skip MuJoCo's (empty) collision pass
-            self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-        self.data = mujoco.MjData(self.model)
-        self._say_moved_into_ranges(self._initial_pose())
-        # the body /odom follows: the scene's, else the first body under the world
-        self._base_id = self._base(self.model)
-        self.base_body = self.model.body(self._base_id).name  # (every body has one:
-        # robot.description names the others)
-        given = sorted(set((scene.raw.get('sand') or {}).get('deformable') or {}) - {'enabled'})
-        if given and not scene.deformable.get('enabled'):
-            self.notices.append(f'sand.deformable.{", sand.deformable.".join(given)} set, but '
-                                'sand.deformable.enabled is false: the sand is rigid and they '
-                                'have no effect (sand.deformable.enabled=true makes it '
-                                'deformable)')
-        if scene.deformable.get('enabled'):
-            surface = self._bed(surface, scene.deformable)
-            self.notices.extend(surface.notices)
-        steepest = surface.steepest_deg()
-        if steepest > CHECKED_SLOPE_DEG:
-            self.notices.append(
-                f'the sand surface is {steepest:.3g} deg steep at its steepest: '
-                f'beyond the slopes checked (up to {CHECKED_SLOPE_DEG:g} deg) and near dry '
-                "sand's angle of repose (about 30 deg), where real sand fails and flows; the "
-                'model knows nothing of that failure (docs/terrain.md, "Stated limit")')
-        try:
-            self.sand_bodies = tuple(resolve_sand_bodies(self.model, self.data, patterns,
-                                                         self._base_id))
-        except ValueError as error:
-            raise scene.locator.error('rft.bodies', str(error)) from None
-        if list(scene.sand_bodies) != list(self.sand_bodies):
-            self.notices.append(f'sand bodies ({", ".join(scene.sand_bodies)}): '
-                                f'{", ".join(self.sand_bodies)}')
-        self.other_bodies = ()
-        if scene.other_bodies_density_per_mm2 is not None:
-            self.other_bodies = tuple(other_bodies(self.model, self.sand_bodies))
-        for body in scene.plates_by_body:
-            if body not in self.sand_bodies:
-                raise scene.locator.error('rft.plates', f'{body!r} is not a sand body '
-                                          f'({", ".join(self.sand_bodies)})')
-        plates = self._plates(scene)
-        try:
-            self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
-                                     surface_height=scene.surface_height, surface=surface,
-                                     zeta_map=zeta_map,
-                                     normalisation=scene.normalisation,
-                                     dynamic=_dynamic_term(scene.dynamic),
-                                     low_velocity=LowVelocity(**scene.low_velocity))
-        except (TypeError, ValueError) as error:
-            raise SceneError(f'scene {scene.name}: rft: {error}') from None
-        self._joints = self._named_joints()  # (those /joint_states reports)
-        self.joint_names = tuple(self.model.joint(j).name for j in self._joints)
-        self._qpos_adr = self.model.jnt_qposadr[self._joints]
-        self._dof_adr = self.model.jnt_dofadr[self._joints]
-        self._set_legs(scene)
-        try:
-            self.sensors = Sensors(self.model, self._base_id, self._leg_names,
-                                   scene_settings(scene.values), self.engine.surface,
-                                   self.engine.deformable)
+            self.sensors = Sensors(model, base, self._leg_names, scene_settings(scene.values),
+                                   engine.surface, engine.deformable)
         except ValueError as error:
             raise scene.locator.error('sensors', str(error)) from None
-        self.notices += caveats(self.model, self.data, self.engine, scene, self._base_id,
-                                len(self.sand_bodies))
-        self._entry_watch = SandEntryWatch(self.model, self.engine.body_ids)
-        self._outcome = OutcomeWatch(self.model, self._base_id, self.engine.body_ids)
-        if scene.servo_kp is not None:  # stiffness of every position servo, N m/rad or N/m
-            for actuator, _ in position_servos(self.model):
-                self.model.actuator_gainprm[actuator, 0] = scene.servo_kp
-                self.model.actuator_biasprm[actuator, 1] = -scene.servo_kp
-        mujoco.mj_forward(self.model, self.data)
+        notices += caveats(model, data, engine, scene, base, len(self.sand_bodies))
+        self._entry_watch = SandEntryWatch(model, engine.body_ids)
+        self._outcome = OutcomeWatch(model, base, engine.body_ids)
+        servo_stiffness(scene, model)
+        mujoco.mj_forward(model, data)
         self.interfaces = JointInterfaces(
-            self.model, self.data, joint_plan.commanded, scene.servos, scene.timestep,
+            model, data, compiled.joint_plan.commanded, scene.servos, scene.timestep,
             effort_limits=self.description.effort_limits)
         self.servo_joint_names = self.interfaces.joint_names
-        self.hybrid_drive = HybridDrive(self.model, self.interfaces,
-                                        scene.values.get('joint_gains'))
-        self._command_qpos = self.model.jnt_qposadr[
-            [self.model.joint(name).id for name in self.servo_joint_names]].astype(int)
-        try:
-            self._spawn = parse_spawn(scene.spawn, scene.scenario)
-        except ValueError as error:
-            raise scene.locator.error('robot.spawn', str(error)) from None
-        if self._spawn[0] != 'model' and free_root_joint(self.model, self._base_id) is None:
-            if scene.spawn != 'auto':  # (the default: a welded robot starts where it is)
-                self.notices.append(f'robot.spawn {scene.spawn}: body {self.base_body} is fixed '
-                                    'to the world (no free joint at its root), so it starts '
-                                    'where the model puts it')
-            self._spawn = ('model', None)
+        self.hybrid_drive = HybridDrive(model, self.interfaces, scene.values.get('joint_gains'))
+        self._command_qpos = model.jnt_qposadr[
+            [model.joint(name).id for name in self.servo_joint_names]].astype(int)
+        self._spawn = spawn_of(scene, model, base, notices)
+        # the step loop's rates and counts, then the start (spawn, settling)
         self._control_every = max(1, int(round(1.0 / (scene.control_rate * scene.timestep))))
         # runaway checks at ~CHECK_RATE Hz of sim time (MuJoCo's own resets: every step)
         self._check_every = max(1, int(round(
             1.0 / (CHECK_RATE * self._control_every * scene.timestep))))
         self._outcome_every = max(1, int(round(
             1.0 / (OUTCOME_RATE * self._control_every * scene.timestep))))
-        self._ctrl = self.data.ctrl
-        self._warning_numbers = self.data.warning.number  # a view of mjData's warning counts
+        self._ctrl = data.ctrl
+        self._warning_numbers = data.warning.number  # a view of mjData's warning counts
         self._time_offset = 0.0
         self.steps = 0  # engine steps since the start, resets included (the run's count)
         self.settle_steps = 0  # engine steps spawn rest took to settle, resets included
         self._settle_counts = np.zeros(3, dtype=np.int64)  # their `_engine_counts`
-        self._in_scenario(self._start)
-
-    def _in_scenario(self, call, *args):
-        """call(*args) at start-up; an exception that the scenario's code raised is a
-        SceneError naming its file and line (the run does not start)."""
-        try:
-            return call(*args)
-        except SceneError:
-            raise
-        except Exception as error:
-            line = failure_line(error, scenario_files(type(self.scenario)))
-            if line is None:
-                raise
-            raise SceneError(f'scene {self.scene.name}: the scenario raised at {line}') from None
+        in_scenario(scene, self.scenario, self._start)
 
     def scenario_failure(self, error):
         """ScenarioFailed for exception `error` where the scenario's code raised it (a frame
@@ -338,162 +192,11 @@ class Simulation:
         self.diverged = f'at t = {self.time:.4f} s: the scenario raised at {line}'
         return ScenarioFailed(self.diverged, ''.join(traceback.format_exception(error)))
 
-    def _auto_sand_bodies(self, spec):
-        """The body names auto picks, found on a compiled copy of `spec` (visual geoms
-        discarded) in the initial pose; [AUTO] where that copy fails, so that the model's
-        own compile and pose report the error."""
-        scene = self.scene
-        try:
-            probe = spec.copy()
-            probe.compiler.discardvisual = True
-            model = probe.compile()
-            data = mujoco.MjData(model)
-            set_initial_pose(model, data, initial_keyframe(model, scene.keyframe),
-                             self._initial_positions)
-            mujoco.mj_kinematics(model, data)
-            return resolve_sand_bodies(model, data, [AUTO], self._base(model))
-        except (ValueError, KeyError):
-            return [AUTO]
-
-    def _plates(self, scene):
-        """{body: Plates}: the sand bodies' as the scene asks (a count or a density per body;
-        a body whose geoms make more plates than its count even at their coarsest is named
-        in a notice), then the other bodies' at rft.other_bodies_density_per_mm2 (one whose
-        geoms cannot carry plates, a plane, is left out of them and named in a notice)."""
-        plates, over = {}, []
-        for body in self.sand_bodies:
-            count = scene.plates_by_body.get(body, scene.plates_per_body)
-            try:
-                plates[body] = body_plates(
-                    self.model, self.model.body(body).id, count=count,
-                    density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
-            except ValueError as error:
-                raise scene.locator.error('rft.bodies', str(error)) from None
-            if count is not None and len(plates[body].areas) > count:
-                over.append(f'{body} {len(plates[body].areas)}')
-        if over:
-            self.notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
-                                'tessellate (a mesh decimates) no coarser')
-        density, without = scene.other_bodies_density_per_mm2, []
-        for body in self.other_bodies:
-            try:
-                plates[body] = body_plates(self.model, self.model.body(body).id,
-                                           density_per_mm2=density)
-            except ValueError as error:
-                without.append(f'{body} ({error})')
-        if without:
-            self.notices.append(f'other bodies without plates, which pass through the sand: '
-                                f'{first_few(without)}')
-        self.other_bodies = tuple(b for b in self.other_bodies if b in plates)
-        if self.other_bodies:
-            count = sum(len(plates[b].areas) for b in self.other_bodies)
-            self.notices.append(
-                f'other bodies: {first_few(list(self.other_bodies))} carry {count} plates '
-                f'({density:g} per mm^2), so that the sand holds them too (those on a '
-                "leg's branch add to that leg's wrench; rft.other_bodies_density_per_mm2: null "
-                'leaves them without)')
-        return plates
-
-    def _named_joints(self):
-        """Ids of the hinge and slide joints that have a name; how many have none is said in
-        a notice (they get no interfaces either: `add_joint_interfaces`)."""
-        movable = movable_joints(self.model)
-        named = [j for j in movable if self.model.joint(j).name]
-        if len(named) < len(movable):
-            self.notices.append(f'{len(movable) - len(named)} hinge or slide joint(s) without '
-                                'a name: no command interfaces, not in /joint_states (name '
-                                'them in the model to command them)')
-        return named
-
-    def _surface(self, given):
-        """The sand's surface: `given` (a Surface made in Python; the scene's sand.surface
-        must then be the plane), else the scene's sand.surface; its notices said."""
-        if given is None:
-            surface = surface_from_settings(self.scene.surface, self.scene.surface_height,
-                                            self.model)
-        elif not isinstance(given, Surface) or isinstance(given, DeformableSand):
-            raise ValueError(f'surface must be a rft_sim_ros.sand.surface.Surface (a Plane, '
-                             f'Slope or HeightGrid), got {type(given).__name__}'
-                             + ('; deformable sand is the scene\'s sand.deformable, laid over '
-                                'the surface given' if isinstance(given, DeformableSand) else ''))
-        elif self.scene.surface.get('type', 'plane') != 'plane':
-            raise ValueError('a surface given in Python replaces the scene\'s sand.surface, '
-                             f'which is a {self.scene.surface["type"]} here: leave it out')
-        else:
-            surface = given
-        self.notices.extend(surface.notices)
-        return surface
-
-    def _bed(self, surface, bed):
-        """The deformable bed (scene key sand.deformable) over `surface`, centred where the
-        scene says, else under the base body in the initial pose, its x, y rounded to whole
-        cells (a robot at the origin: the bed centred there)."""
-        center = bed.get('center')
-        if center is None:
-            center = bed['cell'] * np.round(self.data.xpos[self._base_id, :2] / bed['cell'])
-        try:
-            return DeformableSand(surface, bed['size'], bed['cell'], bed['repose_deg'],
-                                  tuple(float(c) for c in center))
-        except ValueError as error:
-            raise SceneError(f'scene {self.scene.name}: {error}') from None
-
-    def _base(self, model):
-        """Id of the body /odom follows in `model`: the scene's base_body, else the first body
-        under the world (named or not)."""
-        if not self.scene.base_body:
-            return min(1, model.nbody - 1)
-        try:
-            return model.body(self.scene.base_body).id
-        except KeyError:
-            raise self.scene.locator.error('base_body', f'{self.scene.base_body!r} is not a '
-                                           f'body of {self.scene.model_path.name}') from None
-
-    def _initial_pose(self):
-        """The keyframe and initial joint positions of the scene (robot/pose.py); joints
-        outside their range start at its nearest end. Returns those (`into_ranges`)."""
-        try:
-            moved = set_initial_pose(self.model, self.data, self._keyframe,
-                                     self._initial_positions)
-        except ValueError as error:
-            key = 'robot.keyframe' if 'keyframe' in str(error) else 'robot.initial_positions'
-            raise self.scene.locator.error(key, str(error)) from None
-        mujoco.mj_kinematics(self.model, self.data)
-        return moved
-
-    def _say_moved_into_ranges(self, moved):
-        """The start-up notice of the joints `_initial_pose` moved into their ranges."""
-        if moved:
-            name, value, low, high = moved[0]
-            self.notices.append(
-                f'joint{"s" if len(moved) > 1 else ""} {", ".join(m[0] for m in moved)} '
-                f'started outside {"their ranges" if len(moved) > 1 else "its range"} '
-                f'({name} at {value:.4g}, range {low:.4g} .. {high:.4g}): each starts at its '
-                "range's nearest end, which its servo holds (robot.initial_positions or "
-                'robot.keyframe give another start)')
-
-    def _set_legs(self, scene):
-        """Legs: the scene's, or one per branch of the kinematic tree that holds sand bodies,
-        with the other bodies of that branch (robot/sand_bodies.py)."""
-        legs = scene.legs
-        if legs == 'auto':
-            legs = legs_from_tree(self.model, self.sand_bodies, self._base_id,
-                                  self.other_bodies)
-        for leg, bodies in scene.legs.items() if scene.legs != 'auto' else ():
-            for body in bodies:
-                if body not in self.sand_bodies:
-                    raise scene.locator.error(f'legs.{leg}', f'{body!r} is not a sand body '
-                                              f'({", ".join(self.sand_bodies)})')
-        self.legs = {leg: tuple(bodies) for leg, bodies in legs.items()}
-        self._leg_names = tuple(self.legs)
-        self._leg_feet = np.array([self.model.body(bodies[-1]).id
-                                   for bodies in self.legs.values()], dtype=int)
-        # rows: the engine's body index of every (leg, sand body) pair; membership: (legs, rows)
-        # 0/1 matrix that sums the rows of each leg
-        self._leg_rows = np.array([self.engine.body_names.index(b)
-                                   for bodies in self.legs.values() for b in bodies], dtype=int)
-        leg_of_row = np.repeat(np.arange(len(self.legs)),
-                               [len(bodies) for bodies in self.legs.values()])
-        self._leg_membership = (leg_of_row == np.arange(len(self.legs))[:, None]).astype(float)
+    def _pose(self):
+        """The scene's initial pose in `data` (`build.initial_pose`); returns the joints it
+        moved into their ranges."""
+        return initial_pose(self.scene, self.model, self.data, self._keyframe,
+                            self._initial_positions)
 
     def _start(self):
         """Initial state (keyframe, initial positions, scenario, spawn), fresh command
@@ -506,7 +209,7 @@ class Simulation:
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
         self._next_entry_check = 0.0  # sim time, s
-        self._initial_pose()
+        self._pose()
         self.scenario.initialize(self)
         kind, height = self._spawn
         if kind != 'model':
@@ -749,30 +452,6 @@ class Simulation:
     def terrain_metrics(self):
         """Deformable sand's summary metrics (`DeformableSand.metrics`); {} on rigid sand."""
         return self.engine.surface.metrics() if self.engine.deformable else {}
-
-    def _ground_to_sand(self):
-        """Switch off the rigid collisions of the model's ground that the sand replaces: the
-        hfield geom that is the sand's surface, and the floor planes (`floor_planes`, said in
-        a notice) unless sand.keep_floor. The model's other hfields stay rigid ground, said
-        in a notice with the keys that make one of them the sand's surface."""
-        scene, model = self.scene, self.model
-        ground = [] if scene.keep_floor else floor_planes(model)
-        if ground:
-            names = ', '.join(model.geom(g).name or f'#{g}' for g in ground)
-            self.notices.append(f'floor plane {names}: rigid collisions switched off, the sand '
-                                'carries the robot (sand.keep_floor: true keeps it)')
-        kind = scene.surface.get('type', 'plane')
-        if kind == 'hfield':
-            ground.append(hfield_geom(model, scene.surface.get('geom')))
-        rigid = [g for g in world_ground(model, mujoco.mjtGeom.mjGEOM_HFIELD) if g not in ground]
-        if rigid:
-            labels = [hfield_label(model, g) for g in rigid]
-            self.notices.append(
-                f'hfield geom{"s" * (len(labels) > 1)} {", ".join(labels)}: rigid ground where '
-                f"the robot meets it, not sand (the sand's surface is the {kind}); --set "
-                f'sand.surface.type=hfield --set sand.surface.geom={labels[0]} makes it the '
-                "sand's surface")
-        model.geom_contype[ground] = model.geom_conaffinity[ground] = 0
 
     def run_warnings(self):
         """What a run says once (and again after each reset), the first time it happens:
