@@ -612,7 +612,7 @@ def build_parser():
     view.add_argument('--duration', type=float, help='close after this much sim time, s')
     view.set_defaults(func=cmd_view)
     commands.add_parser(
-        'warmup', help='compile the kernels now (a first run does it otherwise, ~15 s)'
+        'warmup', help='compile the kernels now (otherwise the first run after an install does)'
     ).set_defaults(func=cmd_warmup)
     bench = commands.add_parser('bench', help='speed against plain MuJoCo and against error')
     bench.add_argument('--quick', action='store_true', help='few, short measurements')
