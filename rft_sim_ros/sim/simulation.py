@@ -30,6 +30,7 @@ from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_
                                  other_bodies, resolve_sand_bodies)
 from ..sand.engine import LowVelocity, SandEngine, cold_start_estimate, kernels_cached
 from ..sand.geoms import body_plates
+from ..sand.paper_loop import PaperLoopEngine
 from ..sand.deformable import DeformableSand
 from ..sand.surface import (CHECKED_SLOPE_DEG, GRID, SURFACE_KINDS, Surface, hfield_geom,
                             hfield_label, surface_from_settings)
@@ -256,12 +257,13 @@ class Simulation:
                                           f'({", ".join(self.sand_bodies)})')
         plates = self._plates(scene)
         try:
-            self.engine = SandEngine(self.model, self.data, plates, scene.zeta,
-                                     surface_height=scene.surface_height, surface=surface,
-                                     zeta_map=zeta_map,
-                                     normalisation=scene.normalisation,
-                                     dynamic=_dynamic_term(scene.dynamic),
-                                     low_velocity=LowVelocity(**scene.low_velocity))
+            engine = PaperLoopEngine if scene.coupling == 'paper' else SandEngine
+            self.engine = engine(self.model, self.data, plates, scene.zeta,
+                                 surface_height=scene.surface_height, surface=surface,
+                                 zeta_map=zeta_map,
+                                 normalisation=scene.normalisation,
+                                 dynamic=_dynamic_term(scene.dynamic),
+                                 low_velocity=LowVelocity(**scene.low_velocity))
         except (TypeError, ValueError) as error:
             raise SceneError(f'scene {scene.name}: rft: {error}') from None
         self._joints = self._named_joints()  # (those /joint_states reports)
