@@ -113,12 +113,12 @@ def test_the_hexapod_walks_on_gait_trajectories_sent_through_the_node_core():
                 msg = messages.joint_trajectory_message(FACTORY, command)
                 assert runtime.on_trajectory(msg).accepted
             next_send += 0.05
-    x = {round(s.time, 2): s.base_position[0] for s in sink.states}
-    standing = [value for t, value in x.items() if t <= 1.0]
+    y = {round(s.time, 2): s.base_position[1] for s in sink.states}  # it walks along +y
+    standing = [value for t, value in y.items() if t <= 1.0]
     assert max(abs(v) for v in standing) < 0.005          # no gait yet: it stands
     # the same walk as the scene's built-in gait (which starts at 1.0 s, not 1.01 s)
     built_in = run_scene(load_scene('hexapod', {'rft.plates_per_body': 150, 'cycles': 2}),
                          progress=False, plots=False)['metrics']['forward_distance_m']
     assert built_in > 0.1
-    assert sink.states[-1].base_position[0] == pytest.approx(built_in, rel=0.05)
+    assert sink.states[-1].base_position[1] == pytest.approx(built_in, rel=0.05)
     assert runtime.rejections == {} and not runtime.diverged

@@ -21,47 +21,56 @@ def sample(fn, times):
     return np.array([fn(t) for t in times])
 
 
-angles = st.tuples(st.floats(-1.0, 1.0), st.floats(-0.3, 1.6))
+angles = st.tuples(st.floats(-1.75, 0.35), st.floats(-1.92, 0.0))
 
 
 @settings(max_examples=200, deadline=None)
 @given(angles)
 def test_inverse_kinematics_undoes_forward_kinematics(q):
-    knee, ankle = np.full(6, q[0]), np.full(6, q[1])
+    knee, ankle = np.full(6, q[0]), np.full(6, q[1])  # the arched branch: ankle <= droop
     foot = LEGS.forward(knee, ankle)
-    assert LEGS.reachable(foot[:, 0], foot[:, 2]).all()
-    knee_back, ankle_back = LEGS.inverse(foot[:, 0], foot[:, 2])
-    assert knee_back == pytest.approx(knee, abs=1e-7)
-    assert ankle_back == pytest.approx(ankle, abs=1e-7)
+    assert foot[:, 0] == pytest.approx(LEGS.knee_xyz[:, 0])  # legs move in the y-z plane
+    assert LEGS.reachable(foot[:, 1], foot[:, 2]).all()
+    knee_back, ankle_back = LEGS.inverse(foot[:, 1], foot[:, 2])
+    assert knee_back == pytest.approx(knee, abs=1e-6)
+    assert ankle_back == pytest.approx(ankle, abs=1e-6)
 
 
 def test_kinematics_geometry_and_signs():
-    assert LEGS.dactyl_length == pytest.approx(0.0901, abs=1e-4)
-    assert LEGS.mid_length == pytest.approx(0.065)
+    assert LEGS.dactyl_length == pytest.approx(0.1090, abs=1e-4)
+    assert LEGS.mid_length == pytest.approx(0.075)
+    zero = LEGS.forward(np.zeros(6), np.zeros(6))  # the published zero pose
+    assert np.abs(zero[:, 1]) == pytest.approx(np.full(6, 0.458))
+    assert zero[:, 2] == pytest.approx(np.full(6, -0.015))
+    raised = LEGS.forward(np.full(6, 0.2), np.zeros(6)) - zero
+    assert (raised[:, 2] > 0.01).all()  # knee > 0: foot up on both sides ...
+    assert (np.sign(raised[:, 1]) == -LEGS.side).all()  # ... and inward
+    lifted = LEGS.forward(np.zeros(6), np.full(6, 0.2)) - zero
+    assert (lifted[:, 2] > 0.01).all()  # ankle > 0: foot up
     neutral = LEGS.neutral_feet()
-    knee, ankle = LEGS.inverse(neutral[:, 0], neutral[:, 2])
-    assert knee == pytest.approx(np.zeros(6), abs=1e-12)
-    assert ankle == pytest.approx(np.zeros(6), abs=1e-12)
-    forward = LEGS.forward(np.full(6, 0.2), np.zeros(6)) - neutral
-    assert (forward[:, 0] > 0.01).all()  # knee > 0: foot forward on both sides
-    lifted = LEGS.forward(np.zeros(6), np.full(6, 0.3)) - neutral
-    assert (lifted[:, 2] > 0.01).all()  # ankle > 0: foot up ...
-    assert (np.sign(lifted[:, 1]) == LEGS.side).all()  # ... and outward
+    assert np.abs(neutral[:, 1]) == pytest.approx(np.full(6, 0.275))  # under the knee axis
+    assert neutral[:, 2] == pytest.approx(np.full(6, -0.176))
+    knee, ankle = LEGS.neutral_angles()
+    assert LEGS.forward(knee, ankle) == pytest.approx(neutral, abs=1e-12)
+    # the arched stance: the ankle above the knee-to-foot line, the dactyl pointing down
+    ankle_axis_up = LEGS.mid_length * np.sin(knee)
+    assert (ankle_axis_up > -0.176 / 2).all()
 
 
 def test_reachable_rejects_targets_outside_the_workspace():
     neutral = LEGS.neutral_feet()
-    assert LEGS.reachable(neutral[:, 0], neutral[:, 2]).all()
-    assert not LEGS.reachable(neutral[:, 0], neutral[:, 2] - 0.05).any()  # below the dactyl
-    assert not LEGS.reachable(neutral[:, 0] + 0.3, neutral[:, 2]).any()  # beyond the reach
-    assert not LEGS.reachable(neutral[:, 0] + 0.09, neutral[:, 2]).any()  # knee past 1 rad
+    assert LEGS.reachable(neutral[:, 1], neutral[:, 2]).all()
+    assert not LEGS.reachable(neutral[:, 1], neutral[:, 2] - 0.02).any()  # beyond the reach
+    assert not LEGS.reachable(neutral[:, 1] + 0.3, neutral[:, 2]).any()
+    assert not LEGS.reachable(neutral[:, 1], neutral[:, 2] + 0.2).any()  # knee past 0.35 rad
 
 
-def test_stand_gait_holds_the_neutral_pose():
+def test_stand_gait_holds_the_neutral_stance():
     gait = make_gait('none')
     assert isinstance(gait, StandGait)
+    knee, ankle = LEGS.neutral_angles()
     for t in (0.0, 0.37, 12.5):
-        assert gait.targets(t) == pytest.approx(np.zeros(12))
+        assert gait.targets(t) == pytest.approx(np.stack([knee, ankle], axis=-1).ravel())
     assert tuple(gait.target_dict(1.0)) == hexapod.JOINT_NAMES
 
 
@@ -82,26 +91,28 @@ def test_tripods_alternate_half_a_cycle_apart():
     gait = make_gait('tripod', ramp_time_s=0.0)
     a, b = leg_index(TRIPOD_A), leg_index(TRIPOD_B)
     for t in np.linspace(0.0, 3.0, 61):
-        dx, dz = gait.foot_offsets(t)
-        assert np.ptp(dx[a]) < 1e-12 and np.ptp(dx[b]) < 1e-12  # tripods move as one
+        dy, dz = gait.foot_offsets(t)
+        assert np.ptp(dy[a]) < 1e-12 and np.ptp(dy[b]) < 1e-12  # tripods move as one
         assert np.ptp(dz[a]) < 1e-12 and np.ptp(dz[b]) < 1e-12
-        dx_later, dz_later = gait.foot_offsets(t + 0.5)
-        assert dx_later[b] == pytest.approx(dx[a], abs=1e-12)
+        dy_later, dz_later = gait.foot_offsets(t + 0.5)
+        assert dy_later[b] == pytest.approx(dy[a], abs=1e-12)
         assert dz_later[b] == pytest.approx(dz[a], abs=1e-12)
     for t in np.linspace(0.01, 0.49, 25) + 2.0:  # first half of a cycle: A stands, B swings
-        dx, dz = gait.foot_offsets(t)
+        dy, dz = gait.foot_offsets(t)
         assert (dz[a] == 0.0).all() and (dz[b] > 0.0).all()
 
 
-def test_stance_pushes_the_body_forward_and_swing_lifts_by_the_step_height():
+def test_stance_pushes_the_body_sideways_and_swing_lifts_by_the_step_height():
     gait = make_gait('tripod', ramp_time_s=0.0, step_length_m=0.04, step_height_m=0.05)
     r1 = leg_index(['R1'])[0]
     stance = np.linspace(0.0, 0.4999, 200)
     swing = np.linspace(0.5, 0.9999, 2000)
-    dx = sample(lambda t: gait.foot_offsets(t)[0][r1], stance)
-    assert dx[0] == pytest.approx(0.02) and dx[-1] == pytest.approx(-0.02, abs=1e-5)
-    assert (np.diff(dx) < 0).all()  # feet move back relative to the body: it walks to +x
-    assert np.diff(dx) == pytest.approx(np.full(199, dx[1] - dx[0]))  # at constant speed
+    dy = sample(lambda t: gait.foot_offsets(t)[0][r1], stance)
+    assert dy[0] == pytest.approx(0.02) and dy[-1] == pytest.approx(-0.02, abs=1e-5)
+    assert (np.diff(dy) < 0).all()  # feet move to -y relative to the body: it walks to +y
+    assert np.diff(dy) == pytest.approx(np.full(199, dy[1] - dy[0]))  # at constant speed
+    feet = sample(lambda t: gait.foot_targets(t)[r1, 0], stance)
+    assert feet == pytest.approx(LEGS.neutral_feet()[r1, 1] + dy)  # the right leg too
     lift = sample(lambda t: gait.foot_offsets(t)[1][r1], swing)
     assert lift.max() == pytest.approx(0.05, abs=1e-6)
     assert sample(lambda t: gait.foot_offsets(t)[0][r1], swing).max() == pytest.approx(
@@ -126,8 +137,10 @@ def test_targets_have_continuous_position_and_velocity(params):
     assert np.isfinite(q).all()
     velocity = np.abs(np.diff(q, axis=0)).max() / dt
     acceleration = np.abs(np.diff(q, 2, axis=0)).max() / dt ** 2
-    assert velocity < 15.0  # rad/s: no jump in position
+    assert velocity < 20.0  # rad/s (the fastest swing: 17): a 5 mrad jump would read 25
     assert acceleration < 1000.0  # rad/s^2: a velocity kink of 0.2 rad/s would read 1e3
+    finer = sample(gait.targets, np.arange(0.0, 2.0, dt / 2))
+    assert np.abs(np.diff(finer, axis=0)).max() / (dt / 2) < 1.01 * velocity  # no jump
 
 
 def test_velocity_matches_across_stance_swing_switches():
@@ -141,14 +154,15 @@ def test_velocity_matches_across_stance_swing_switches():
             assert after == pytest.approx(before, abs=1e-3)
 
 
-def test_ramp_starts_smoothly_from_the_neutral_pose():
+def test_ramp_starts_smoothly_from_the_neutral_stance():
     smooth = make_gait('tripod', start_time_s=0.5, ramp_time_s=0.5)
-    assert smooth.targets(0.2) == pytest.approx(np.zeros(12))
-    assert smooth.targets(0.5 + 1e-6) == pytest.approx(np.zeros(12), abs=1e-6)
+    neutral = make_gait('none').targets(0.0)
+    assert smooth.targets(0.2) == pytest.approx(neutral)
+    assert smooth.targets(0.5 + 1e-6) == pytest.approx(neutral, abs=1e-6)
     assert smooth.targets(1.7) == pytest.approx(make_gait('tripod', ramp_time_s=0.0,
                                                           start_time_s=0.5).targets(1.7))
     abrupt = make_gait('tripod', start_time_s=0.5, ramp_time_s=0.0)
-    assert np.abs(abrupt.targets(0.5)).max() > 0.1  # without a ramp the targets jump
+    assert np.abs(abrupt.targets(0.5) - neutral).max() > 0.1  # without a ramp they jump
 
 
 @pytest.mark.parametrize('params, message', [

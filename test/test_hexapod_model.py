@@ -1,5 +1,6 @@
-"""The bundled hexapod MJCF (models/hexapod.xml) against the paper's robot and against
-rft_sim_ros.scenes.hexapod, plus short plain-MuJoCo runs on the rigid floor."""
+"""The bundled hexapod MJCF (models/hexapod.xml) against the paper's robot (the published
+model of RFT-SiM) and against rft_sim_ros.scenes.hexapod, plus short plain-MuJoCo runs on the
+rigid floor."""
 from pathlib import Path
 
 import mujoco
@@ -30,8 +31,10 @@ def feet_in_base(model, data):
 
 
 def run(model, gait, duration_s, base_z=None):
-    """Step plain MuJoCo with the gait's targets; return base positions (n, 3) and data."""
+    """Step plain MuJoCo with the gait's targets from the keyframe 'home' (the neutral
+    stance); return base positions (n, 3) and data."""
     data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key('home').id)
     if base_z is not None:
         data.qpos[2] = base_z
     positions = []
@@ -50,15 +53,20 @@ def test_total_mass_is_the_papers(robot):
         parts.update({f'{leg}_coxa': 0.10, f'{leg}_mid': 0.14, f'{leg}_dactyl': 0.10})
     for body, mass in parts.items():
         assert robot.body(body).mass[0] == pytest.approx(mass), body
+    # the published inertias: the plate's principal ones, the box's kept at 1e-5 kg m^2
+    assert sorted(robot.body('base_link').inertia) == pytest.approx([0.00146, 0.00614, 0.00759])
+    assert robot.body('payload').inertia == pytest.approx(np.full(3, 1e-5))
+    assert robot.body('payload').pos == pytest.approx([0.0, 0.0, 0.06])  # 6 cm above the plate
 
 
 @pytest.mark.parametrize('payload_kg', [0.0, 1.0, 2.277])
-def test_payload_is_added_to_the_electronics_box_through_mjspec(payload_kg):
+def test_payload_is_added_to_the_box_through_mjspec(payload_kg):
     spec = mujoco.MjSpec.from_file(str(FLOOR))
-    spec.geom(hexapod.PAYLOAD_GEOM).mass += payload_kg
+    spec.body(hexapod.PAYLOAD_BODY).mass += payload_kg
     model = spec.compile()
     assert sum(model.body_mass) == pytest.approx(hexapod.MASS_KG + payload_kg)
     assert model.body('payload').mass[0] == pytest.approx(1.0 + payload_kg)
+    assert model.body('payload').inertia == pytest.approx(np.full(3, 1e-5))
 
 
 def test_joint_actuator_and_body_names(robot):
@@ -83,32 +91,47 @@ def test_joint_actuator_and_body_names(robot):
         assert robot.body(body).geomnum[0] >= 1
 
 
-def test_servos_and_joint_ranges(robot):
+def test_published_servos_joints_and_axes(robot):
     for a, name in enumerate(hexapod.JOINT_NAMES):
         joint = robot.joint(name)
         assert robot.actuator_gainprm[a, 0] == pytest.approx(200.0)
-        assert robot.actuator_biasprm[a, :2] == pytest.approx([0.0, -200.0])
-        assert robot.actuator_forcerange[a] == pytest.approx([-8.0, 8.0])
+        assert robot.actuator_biasprm[a, :3] == pytest.approx([0.0, -200.0, 0.0])
+        assert not robot.actuator_forcelimited[a]  # no force limit
         assert robot.actuator_ctrlrange[a] == pytest.approx(joint.range)
         expected = hexapod.LEGS.knee_range if name.endswith('knee') else hexapod.LEGS.ankle_range
         assert joint.range == pytest.approx(expected)
-        assert joint.damping[0] > 0 and joint.armature[0] > 0
-    assert robot.opt.timestep == pytest.approx(0.0008)
-
-
-def test_neutral_feet_match_the_papers_stance_and_the_kinematics(robot):
+        assert robot.jnt_stiffness[joint.id] == pytest.approx(1.0)  # N m/rad
+        assert joint.damping[0] == pytest.approx(1.0)  # N m s/rad
+        assert joint.armature[0] == 0.0
     data = mujoco.MjData(robot)
     mujoco.mj_kinematics(robot, data)
+    for j in range(1, robot.njnt):  # every hinge turns about the body's long axis (x)
+        assert np.abs(data.xaxis[j]) == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
+    assert robot.opt.timestep == pytest.approx(0.0008)
+    assert robot.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+
+
+def test_zero_pose_and_home_keyframe_match_the_published_layout(robot):
+    data = mujoco.MjData(robot)
+    mujoco.mj_kinematics(robot, data)
+    for leg in hexapod.LEG_NAMES:  # knee and ankle axes 0.275 and 0.35 m out, hip plane
+        side = 1.0 if leg[0] == 'L' else -1.0
+        assert data.body(f'{leg}_mid').xpos[1:] == pytest.approx([side * 0.275, 0.176])
+        assert data.body(f'{leg}_dactyl').xpos[1:] == pytest.approx([side * 0.35, 0.176])
     feet = feet_in_base(robot, data)
-    assert feet == pytest.approx(hexapod.LEGS.neutral_feet(), abs=1e-9)
-    assert np.abs(feet[:, 1]) == pytest.approx(np.full(6, 0.210), abs=1e-9)
-    assert feet[:, 2] == pytest.approx(np.full(6, -0.176), abs=1e-9)
+    assert np.abs(feet[:, 1]) == pytest.approx(np.full(6, 0.458), abs=1e-9)
+    assert feet[:, 2] == pytest.approx(np.full(6, -0.015), abs=1e-9)
     assert feet[:, 0] == pytest.approx([0.14, 0.0, -0.14] * 2, abs=1e-9)
+    mujoco.mj_resetDataKeyframe(robot, data, robot.key('home').id)
+    mujoco.mj_kinematics(robot, data)
+    assert feet_in_base(robot, data) == pytest.approx(hexapod.LEGS.neutral_feet(), abs=1e-7)
+    assert data.ctrl == pytest.approx(data.qpos[7:])
+    assert data.qpos[7:] == pytest.approx(make_gait('none').targets(0.0), abs=1e-7)
 
 
 def test_pointed_dactyl_mesh_ends_at_the_foot_site(robot):
     data = mujoco.MjData(robot)
-    data.qpos[7:] = np.linspace(-0.4, 0.9, 12)
+    data.qpos[7:] = np.linspace(-1.4, 0.3, 12)
     mujoco.mj_kinematics(robot, data)
     for leg in hexapod.LEG_NAMES:
         geom = robot.geom(f'{leg}_dactyl')
@@ -143,7 +166,8 @@ def test_gait_inverse_kinematics_puts_mujoco_feet_where_intended(robot):
         data.qpos[7:] = gait.targets(t)
         mujoco.mj_kinematics(robot, data)
         feet = feet_in_base(robot, data)
-        assert feet[:, [0, 2]] == pytest.approx(gait.foot_targets(t), abs=1e-9), t
+        assert feet[:, [1, 2]] == pytest.approx(gait.foot_targets(t), abs=1e-9), t
+        assert feet[:, 0] == pytest.approx([0.14, 0.0, -0.14] * 2, abs=1e-9)
 
 
 def test_robot_collides_with_nothing_but_a_rigid_floor_does():
@@ -158,6 +182,7 @@ def test_robot_collides_with_nothing_but_a_rigid_floor_does():
     assert data.ncon == 0
     floor = mujoco.MjModel.from_xml_path(str(FLOOR))
     data = mujoco.MjData(floor)
+    mujoco.mj_resetDataKeyframe(floor, data, floor.key('home').id)
     data.qpos[2] = 0.170  # feet 6 mm into the floor
     mujoco.mj_forward(floor, data)
     touching = sorted(floor.geom(c.geom2).name for c in data.contact[:data.ncon])
@@ -185,15 +210,15 @@ def test_stands_on_six_dactyls_after_a_drop_on_the_rigid_floor():
         f'{leg}_dactyl' for leg in hexapod.LEG_NAMES)
 
 
-def test_tripod_walks_forward_on_the_rigid_floor():
+def test_tripod_walks_sideways_on_the_rigid_floor():
     model = mujoco.MjModel.from_xml_path(str(FLOOR))
     gait = make_gait('tripod')
     positions, data = run(model, gait, 5.0)  # 5 cycles at 1 Hz, 0.8 ms steps
     assert np.isfinite(data.qpos).all()
-    forward, lateral = positions[-1, :2] - positions[0, :2]
-    # ideal: 2 strokes of 0.05 m per cycle, less the 0.5 s ramp-in
-    assert 0.40 < forward < 0.50
-    assert abs(lateral) < 0.02
+    along_x, sideways = positions[-1, :2] - positions[0, :2]
+    # ideal: 2 strokes of 0.05 m per cycle, less the 0.5 s ramp-in; towards +y, like a crab
+    assert 0.40 < sideways < 0.50
+    assert abs(along_x) < 0.02
     assert positions[:, 2].min() > 0.17  # body never drops
     up = data.body('base_link').xmat.reshape(3, 3)[:, 2]
     assert up[2] > np.cos(np.radians(5))

@@ -93,12 +93,18 @@ def test_hexapod_tripod_gait_alternates_stance_sets():
     np.testing.assert_array_equal(stance, normal > sim.sensors.contact_threshold)
     gait = sim.scenario.gait
     a_half = np.array([gait.phases(s.time)[legs.index('R1')] < 0.5 for s in states])
-    # the front and middle legs: R1, L2 (tripod A) against L1, R2 (tripod B); the rear ones
-    # stay loaded through their swing (they drag through the sand)
-    a_legs, b_legs = [legs.index('R1'), legs.index('L2')], [legs.index('L1'), legs.index('R2')]
+    # tripod A (R1 L2 R3) against tripod B (L1 R2 L3): each leg is loaded mostly in its own
+    # stance half and less in its swing (the crab's feet sink deeper than their 6 cm lift,
+    # so a swinging foot often still drags through the sand)
+    a_legs = [legs.index(leg) for leg in ('R1', 'L2', 'R3')]
+    b_legs = [legs.index(leg) for leg in ('L1', 'R2', 'L3')]
+    a_loaded, b_loaded = stance[a_half].mean(0), stance[~a_half].mean(0)
+    assert (a_loaded[a_legs] > 0.6).all() and (b_loaded[b_legs] > 0.6).all()
+    assert (a_loaded[a_legs] > b_loaded[a_legs]).all()
+    assert (b_loaded[b_legs] > a_loaded[b_legs]).all()
     only_a = stance[:, a_legs].all(1) & ~stance[:, b_legs].any(1)
     only_b = stance[:, b_legs].all(1) & ~stance[:, a_legs].any(1)
-    assert only_a[a_half].mean() > 0.3 and only_b[~a_half].mean() > 0.3
+    assert only_a[a_half].any() and only_b[~a_half].any()
     assert not only_a[~a_half].any() and not only_b[a_half].any()
     pattern = [a for a, b in zip(only_a, only_b) if a or b]
     switches = sum(x != y for x, y in zip(pattern, pattern[1:]))

@@ -5,7 +5,7 @@ DACTYL_BASE_RADIUS_M at z = 0 (the ankle end), apex at z = -DACTYL_LENGTH_M (the
 Units: metres, in the mesh's own frame; models/hexapod.xml orients it along the dactyl.
 
 The length is the ankle-axis-to-tip distance of models/hexapod.xml: the tip site sits at
-(0.030, 0, -0.085) m from the ankle axis, so the length is hypot(0.030, 0.085) = 0.0901 m.
+(0.108, 0, -0.015) m from the ankle axis, so the length is hypot(0.108, 0.015) = 0.1090 m.
 
 Run from anywhere:  python models/assets/make_dactyl.py
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import trimesh
 
-DACTYL_LENGTH_M = math.hypot(0.030, 0.085)
+DACTYL_LENGTH_M = math.hypot(0.108, 0.015)
 DACTYL_BASE_RADIUS_M = 0.010
 SECTIONS = 24
 

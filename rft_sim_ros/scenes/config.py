@@ -51,6 +51,7 @@ class SceneConfig:
     other_bodies_density_per_mm2: float  # or None: only sand_bodies carry plates
     plates_by_body: dict
     normalisation: str
+    coupling: str     # rft.coupling: 'exact' or 'paper' (sand/paper_loop.py)
     low_velocity: dict
     dynamic: dict
     legs: dict
@@ -313,6 +314,7 @@ def _validate(raw, path, locator):
         other_bodies_density_per_mm2=values['rft.other_bodies_density_per_mm2'],
         plates_by_body=dict(values['rft.plates']),
         normalisation=values['rft.normalisation'],
+        coupling=values['rft.coupling'],
         low_velocity={'method': values['rft.low_velocity.method'],
                       'rest_speed': values['rft.low_velocity.rest_speed'],
                       'ema_alpha': values['rft.low_velocity.ema_alpha']},

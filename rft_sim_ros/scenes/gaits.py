@@ -1,13 +1,14 @@
 """Built-in gaits: functions of sim time that return joint position targets.
 
 A gait maps sim time t (s) to position targets (rad) for the joints of a set of
-knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee, ankle, leg by leg;
+lateral-plane knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee, ankle, leg by leg;
 for the hexapod that is `rft_sim_ros.scenes.hexapod.JOINT_NAMES`) or as a name -> value dict.
 Pure numpy: the leg geometry is passed in (defaults: the bundled hexapod).
 
 Gaits (`make_gait(name, ...)`):
-- 'none'   `StandGait`: hold the neutral pose (all joints 0).
-- 'tripod' `TripodGait`: the alternating tripod of RFT-SiM; walks towards +x of base_link.
+- 'none'   `StandGait`: hold the neutral stance.
+- 'tripod' `TripodGait`: the alternating tripod of RFT-SiM; walks sideways, towards +y of
+  base_link (the published gait's heading of 90 deg).
 """
 import math
 from dataclasses import dataclass, field
@@ -27,45 +28,46 @@ def _joint_names(legs):
 
 @njit(cache=True)
 def foot_path(phi, beta, length, height):
-    """Foot offsets (dx, dz), m, at phases phi (1-D, in [0, 1)) of a gait cycle with stance
-    fraction beta, stroke `length` and lift `height`: in stance the foot moves back at
-    constant speed from +length/2 to -length/2; in swing it returns on a cubic Hermite
-    curve whose end slopes match the stance speed, lifted by height sin^2(pi s)."""
-    dx = np.empty(phi.shape[0])
+    """Foot offsets (ds, dz), m, along the walking direction and up, at phases phi (1-D, in
+    [0, 1)) of a gait cycle with stance fraction beta, stroke `length` and lift `height`: in
+    stance the foot moves back at constant speed from +length/2 to -length/2; in swing it
+    returns on a cubic Hermite curve whose end slopes match the stance speed, lifted by
+    height sin^2(pi s)."""
+    ds = np.empty(phi.shape[0])
     dz = np.empty(phi.shape[0])
     slope = -length * (1.0 - beta) / beta  # stance velocity, per unit swing fraction
     for i in range(phi.shape[0]):
         if phi[i] < beta:
-            dx[i] = length * (0.5 - phi[i] / beta)
+            ds[i] = length * (0.5 - phi[i] / beta)
             dz[i] = 0.0
         else:
             s = (phi[i] - beta) / (1.0 - beta)
             # cubic Hermite from -length/2 to +length/2 with end slopes `slope`
-            dx[i] = (length * (s * s * (3.0 - 2.0 * s) - 0.5)
+            ds[i] = (length * (s * s * (3.0 - 2.0 * s) - 0.5)
                      + slope * s * (1.0 - s) * (1.0 - 2.0 * s))
             dz[i] = height * np.sin(np.pi * s) ** 2
-    return dx, dz
+    return ds, dz
 
 
 @njit(cache=True)
-def _tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_xyz,
-                    mid_length, dactyl_length, dactyl_neutral_angle):
+def _tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_xyz, side,
+                    mid_length, dactyl_length, dactyl_droop):
     """Knee and ankle targets (rad), interleaved per leg, `cycles` gait cycles after the
     start for legs at phase `offsets` (cycles) with stroke and lift times `scale`: the foot
     path, then the legs' inverse kinematics."""
     phases = np.empty(offsets.shape[0])
     for i in range(offsets.shape[0]):
         phases[i] = (cycles + offsets[i]) % 1.0  # in [0, 1), as np.mod
-    dx, dz = foot_path(phases, beta, scale * length, scale * height)
-    feet_x = np.empty((1, dx.shape[0]))
-    feet_z = np.empty((1, dx.shape[0]))
-    for i in range(dx.shape[0]):
-        feet_x[0, i] = neutral[i, 0] + dx[i]
+    ds, dz = foot_path(phases, beta, scale * length, scale * height)
+    feet_y = np.empty((1, ds.shape[0]))
+    feet_z = np.empty((1, ds.shape[0]))
+    for i in range(ds.shape[0]):
+        feet_y[0, i] = neutral[i, 1] + ds[i]
         feet_z[0, i] = neutral[i, 2] + dz[i]
-    knee, ankle = leg_inverse(feet_x, feet_z, knee_xyz, mid_length, dactyl_length,
-                              dactyl_neutral_angle)
-    out = np.empty(2 * dx.shape[0])
-    for i in range(dx.shape[0]):
+    knee, ankle = leg_inverse(feet_y, feet_z, knee_xyz, side, mid_length, dactyl_length,
+                              dactyl_droop)
+    out = np.empty(2 * ds.shape[0])
+    for i in range(ds.shape[0]):
         out[2 * i], out[2 * i + 1] = knee[0, i], ankle[0, i]
     return out
 
@@ -109,7 +111,7 @@ class GaitClock:
 
 @dataclass(frozen=True, eq=False)
 class StandGait:
-    """Hold the neutral pose: every joint target is 0 rad at all times."""
+    """Hold the neutral stance (`LateralLegs.neutral_angles`) at all times."""
     legs: LateralLegs = hexapod.LEGS
 
     @property
@@ -119,7 +121,7 @@ class StandGait:
 
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
-        return np.zeros(2 * len(self.legs.names))
+        return np.stack(self.legs.neutral_angles(), axis=-1).ravel()
 
     def target_dict(self, t):
         """Joint position targets (rad) at time t (s) as {joint name: value}."""
@@ -128,20 +130,21 @@ class StandGait:
 
 @dataclass(frozen=True, eq=False)
 class TripodGait(GaitClock, StandGait):
-    """Alternating tripod gait (RFT-SiM defaults), walking towards +x of base_link.
+    """Alternating tripod gait (RFT-SiM defaults), walking sideways towards +y of base_link
+    (the published gait's heading of 90 deg: the legs move only in the lateral plane).
 
     Each leg has a phase phi = frac(frequency_hz * (t - start_time_s) + phase_offsets[leg]).
     Stance, phi in [0, stance_fraction): the foot moves at constant speed on the neutral
-    height from +step_length_m/2 to -step_length_m/2 fore-aft of its neutral position (so
-    the body moves forward; a negative step length walks backward).
+    height from +step_length_m/2 to -step_length_m/2 along y about its neutral position (so
+    the body moves towards +y; a negative step length walks towards -y).
     Swing, the rest of the cycle: the foot returns along a cubic Hermite curve in x that
     matches the stance velocity at both ends (overshooting the stroke by ~4 % of the step
     at stance_fraction 0.5)
     while it rises by step_height_m * sin^2(pi s), s the swing fraction; position and velocity
     are continuous everywhere, so position servos are not kicked.
-    Before start_time_s the neutral pose is held; over the next ramp_time_s the stroke and
+    Before start_time_s the neutral stance is held; over the next ramp_time_s the stroke and
     the lift grow from 0 to full size with a smoothstep, so the targets stay continuous and
-    smooth from the neutral pose. Foot targets become joint targets via `LateralLegs.inverse`.
+    smooth from the neutral stance. Foot targets become joint targets via `LateralLegs.inverse`.
 
     frequency_hz: cycles per second. stance_fraction: in (0, 1). step_length_m, step_height_m:
     stroke and lift of the foot tip (m). phase_offsets: leg name -> phase in cycles.
@@ -167,18 +170,20 @@ class TripodGait(GaitClock, StandGait):
         legs = self.legs  # the arguments of _tripod_targets after the amplitude, once
         object.__setattr__(self, '_path_and_legs', (
             self.stance_fraction, self.step_length_m, self.step_height_m, self._neutral,
-            legs.knee_xyz, legs.mid_length, legs.dactyl_length, legs.dactyl_neutral_angle))
+            legs.knee_xyz, legs.side.astype(float), legs.mid_length, legs.dactyl_length,
+            legs.dactyl_droop))
         self._check_workspace()
 
     def foot_offsets(self, t):
-        """Foot targets relative to the neutral feet at time t (s): (dx, dz), each (N,) m,
-        dx fore-aft (+x forward), dz up, base_link axes."""
+        """Foot targets relative to the neutral feet at time t (s): (dy, dz), each (N,) m,
+        dy sideways (+y, the walking direction), dz up, base_link axes."""
         return self._path(self.phases(t), self.amplitude(t))
 
     def foot_targets(self, t):
-        """(N, 2) m: intended fore-aft position x and height z of each foot tip in base_link."""
-        dx, dz = self.foot_offsets(t)
-        return np.stack([self._neutral[:, 0] + dx, self._neutral[:, 2] + dz], axis=-1)
+        """(N, 2) m: intended sideways position y and height z of each foot tip in base_link
+        (its x is its knee axis's)."""
+        dy, dz = self.foot_offsets(t)
+        return np.stack([self._neutral[:, 1] + dy, self._neutral[:, 2] + dz], axis=-1)
 
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
@@ -186,17 +191,17 @@ class TripodGait(GaitClock, StandGait):
                                self.amplitude(t), *self._path_and_legs)
 
     def _path(self, phi, scale):
-        """Foot offsets (dx, dz) in m at phases phi (any shape), stroke and lift times scale."""
+        """Foot offsets (dy, dz) in m at phases phi (any shape), stroke and lift times scale."""
         phi = np.asarray(phi, dtype=float)
-        dx, dz = foot_path(phi.ravel(), self.stance_fraction, scale * self.step_length_m,
+        ds, dz = foot_path(phi.ravel(), self.stance_fraction, scale * self.step_length_m,
                            scale * self.step_height_m)
-        return dx.reshape(phi.shape), dz.reshape(phi.shape)
+        return ds.reshape(phi.shape), dz.reshape(phi.shape)
 
     def _check_workspace(self):
         """Raise ValueError unless every foot target over a full cycle is reachable."""
         phi = np.broadcast_to(np.linspace(0.0, 1.0, 721)[:, None], (721, len(self.legs.names)))
-        dx, dz = self._path(phi, 1.0)
-        bad = ~self.legs.reachable(self._neutral[:, 0] + dx, self._neutral[:, 2] + dz).all(axis=0)
+        ds, dz = self._path(phi, 1.0)
+        bad = ~self.legs.reachable(self._neutral[:, 1] + ds, self._neutral[:, 2] + dz).all(axis=0)
         if bad.any():
             legs = [name for name, b in zip(self.legs.names, bad) if b]
             raise ValueError(

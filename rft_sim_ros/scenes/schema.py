@@ -342,6 +342,11 @@ KEYS = (
         'replace the default count.', _mapping_of(_count)),
     Key('rft.normalisation', "'treers' or 'rft_sim'", '', 'treers', 'Which normalisation of '
         'the RFT coefficients (docs: README, "RFT conventions").', _choice('treers', 'rft_sim')),
+    Key('rft.coupling', "'exact' or 'paper'", '', 'exact', 'How sand forces meet the '
+        'dynamics: exact (from the state being integrated, no lag) or paper (the RFT-SiM '
+        "code's loop: forces from the last step's poses and finite-difference velocities, "
+        'applied one step late; for comparisons, rft_sim_ros/sand/paper_loop.py).',
+        _choice('exact', 'paper')),
     Key('rft.low_velocity', 'mapping', '', {}, 'Treatment of RFT near rest (rft_sim_ros/sand/'
         'engine.py, LowVelocity).', _section),
     Key('rft.low_velocity.method', "'implicit', 'ema' or 'none'", '', 'implicit',

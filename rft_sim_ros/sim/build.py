@@ -23,6 +23,7 @@ from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_
 from ..sand.deformable import DeformableSand
 from ..sand.engine import LowVelocity, SandEngine
 from ..sand.geoms import body_plates
+from ..sand.paper_loop import PaperLoopEngine
 from ..sand.surface import (CHECKED_SLOPE_DEG, Surface, hfield_geom, hfield_label,
                             surface_from_settings)
 from ..sand.zeta_map import zeta_map_from_settings
@@ -346,13 +347,15 @@ def _dynamic_term(config):
 
 
 def sand_engine(scene, model, data, plates, surface, zeta_map):
-    """The SandEngine over `plates` on `surface` with the scene's rft settings."""
+    """The sand engine over `plates` on `surface` with the scene's rft settings: the exact
+    coupling (SandEngine), or the RFT-SiM code's lagged loop (`rft.coupling: paper`)."""
+    engine = PaperLoopEngine if scene.coupling == 'paper' else SandEngine
     try:
-        return SandEngine(model, data, plates, scene.zeta,
-                          surface_height=scene.surface_height, surface=surface,
-                          zeta_map=zeta_map, normalisation=scene.normalisation,
-                          dynamic=_dynamic_term(scene.dynamic),
-                          low_velocity=LowVelocity(**scene.low_velocity))
+        return engine(model, data, plates, scene.zeta,
+                      surface_height=scene.surface_height, surface=surface,
+                      zeta_map=zeta_map, normalisation=scene.normalisation,
+                      dynamic=_dynamic_term(scene.dynamic),
+                      low_velocity=LowVelocity(**scene.low_velocity))
     except (TypeError, ValueError) as error:
         raise SceneError(f'scene {scene.name}: rft: {error}') from None
 

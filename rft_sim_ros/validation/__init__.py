@@ -1,7 +1,8 @@
 """`rft-sim validate`: reproduce the RFT-SiM paper's experiments and trends as a report.
 
 Runs the sweeps (`experiments`) over the bundled scenes on all cores (`cases.run_cases`),
-checks the paper's trends
+the rail and the hexapod's payload rows both with exact coupling and with the authors' loop
+(`rft.coupling: paper`), checks the paper's trends
 (`trends`), draws PNG plots (`plots`) and writes `report.md` (`report`) plus the raw
 figures as `results.json` into an output folder. `--quick` uses coarse plates and fewer
 cases (under a minute); the full run uses the scenes' timesteps and 2000 plates on the
@@ -27,6 +28,8 @@ class Results:
     rails: dict
     legs: dict
     hexapod: dict
+    rails_paper: dict
+    hexapod_paper: dict
     hexapod_ema: object
     trends: list
     plots: list
@@ -47,29 +50,34 @@ def run_validation(out_dir, quick=False, log=print, settings=None, workers=None)
     started = time.perf_counter()
     cases = run_cases({name: getattr(experiments, name)(settings) for name in (
         'torque_vs_speed', 'torque_vs_depth', 'rail_shapes', 'leg_vs_zeta', 'hexapod_grid',
-        'hexapod_paper_smoothing')}, workers, log)
+        'hexapod_paper_smoothing', 'rail_shapes_paper_loop', 'hexapod_payload_paper_loop')},
+        workers, log)
     torque, depths, rails = (cases[k] for k in ('torque_vs_speed', 'torque_vs_depth',
                                                 'rail_shapes'))
     legs, hexapod = cases['leg_vs_zeta'], cases['hexapod_grid']
     ema = cases['hexapod_paper_smoothing'][None]
+    rails_paper, hexapod_paper = (cases[k] for k in ('rail_shapes_paper_loop',
+                                                     'hexapod_payload_paper_loop'))
     names = [
         plots.torque_vs_angle(out, torque),
         plots.rail_displacement_vs_angle(out, rails, settings.speeds),
-        plots.rail_displacement_vs_speed(out, rails, settings.speeds),
+        plots.rail_displacement_vs_speed(out, rails, settings.speeds, rails_paper),
         plots.articulated_leg(out, legs),
         plots.hexapod_position_vs_time(out, hexapod, 3.75),
         plots.hexapod_sinkage_vs_zeta(out, hexapod, settings.hexapod_zetas, settings.payloads),
         plots.hexapod_speed_vs_payload(out, hexapod, settings.speed_zetas,
-                                       settings.speed_payloads),
+                                       settings.speed_payloads, hexapod_paper),
     ]
     info = machine_info()
     results = Results(
         settings=settings, torque=torque, depths=depths, rails=rails, legs=legs,
-        hexapod=hexapod, hexapod_ema=ema, trends=trends.check(settings, torque, rails, hexapod),
+        hexapod=hexapod, rails_paper=rails_paper, hexapod_paper=hexapod_paper, hexapod_ema=ema,
+        trends=(trends.check(settings, torque, rails, hexapod)
+                + trends.check_paper_loop(settings, rails_paper, hexapod_paper)),
         plots=names, date=datetime.date.today().isoformat(),
         machine=f'{info["cpu"]}, Python {info["python"]}, MuJoCo {info["mujoco"]}',
         wall_s=time.perf_counter() - started,
-        case_count=len(torque) + len(depths) + len(rails) + len(legs) + len(hexapod) + 1)
+        case_count=sum(len(group) for group in cases.values()))
     report.write(out / 'report.md', results)
     (out / 'results.json').write_text(json.dumps(_as_json(results), indent=2))
     return results
@@ -91,5 +99,7 @@ def _as_json(r):
         'rail': cases(r.rails, ('shape', 'speed_radps')),
         'articulated_leg': cases(r.legs, ('zeta',)),
         'hexapod': cases(r.hexapod, ('zeta', 'payload_kg')),
+        'rail_paper_loop': cases(r.rails_paper, ('shape', 'speed_radps')),
+        'hexapod_paper_loop': cases(r.hexapod_paper, ('zeta', 'payload_kg')),
         'hexapod_paper_smoothing': cases({0: r.hexapod_ema}, ('zeta',))[0],
     }

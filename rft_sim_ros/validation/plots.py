@@ -42,12 +42,17 @@ def rail_displacement_vs_angle(out, rails, speeds):
     return _save(fig, out, 'rail_displacement_vs_angle.png')
 
 
-def rail_displacement_vs_speed(out, rails, speeds):
-    """Final carriage displacement against rotation speed, per shape."""
+def rail_displacement_vs_speed(out, rails, speeds, rails_paper=None):
+    """Final carriage displacement against rotation speed, per shape: exact coupling (solid)
+    and, where given ({(shape, speed): Case}), the authors' loop (dashed)."""
     fig, ax = plt.subplots(figsize=(6, 4))
     for shape in RAIL_SHAPES:
         ax.plot(speeds, [100 * rails[shape, v].metrics['carriage_displacement_m'] for v in speeds],
                 'o-', color=_SHAPE_COLOURS[shape], label=shape)
+        if rails_paper:
+            ax.plot(speeds, [100 * rails_paper[shape, v].metrics['carriage_displacement_m']
+                             for v in speeds], 's--', color=_SHAPE_COLOURS[shape],
+                    label=f"{shape}, the authors' loop")
     ax.set_xlabel('rotation speed (rad/s)')
     ax.set_ylabel('carriage displacement after 180 deg (cm)')
     ax.set_ylim(0, 1.15 * ax.get_ylim()[1])  # from zero, with room above the top series
@@ -106,12 +111,17 @@ def hexapod_sinkage_vs_zeta(out, hexapod, zetas, payloads):
     return _save(fig, out, 'hexapod_sinkage_vs_zeta.png')
 
 
-def hexapod_speed_vs_payload(out, hexapod, zetas, payloads):
-    """Mean walking speed against payload, per zeta."""
+def hexapod_speed_vs_payload(out, hexapod, zetas, payloads, hexapod_paper=None):
+    """Mean walking speed against payload, per zeta: exact coupling (solid) and, where given
+    ({(zeta, payload): Case}), the authors' loop (dashed, same colour)."""
     fig, ax = plt.subplots(figsize=(6, 4))
     for zeta in zetas:
-        ax.plot(payloads, [100 * hexapod[zeta, p].metrics['mean_speed_mps'] for p in payloads],
-                'o-', label=f'zeta {zeta:g} N/cm$^3$')
+        line, = ax.plot(payloads, [100 * hexapod[zeta, p].metrics['mean_speed_mps']
+                                   for p in payloads], 'o-', label=f'zeta {zeta:g} N/cm$^3$')
+        if hexapod_paper:
+            ax.plot(payloads, [100 * hexapod_paper[zeta, p].metrics['mean_speed_mps']
+                               for p in payloads], 's--', color=line.get_color(),
+                    label=f"zeta {zeta:g}, the authors' loop")
     ax.plot([0.0], [100 * paper.HEXAPOD_SPEED_EXPERIMENT_MPS], 'k*', markersize=10,
             label='experiment, no payload: derived, not printed\n'
                   '(paper: its low-friction model within 1.2 mm/s = 1.85 %)')

@@ -50,21 +50,7 @@ def check(settings, torque, rails, hexapod):
         f'rad/s: {100 * change:.1f} % apart '
         f'(tolerance {100 * SPEED_INDEPENDENCE_TOLERANCE:.0f} %)'))
 
-    progress = rail_progress(rails)
-    rows, order_ok, open_ok = [], True, True
-    for speed in settings.speeds:
-        flat, open_c, closed_c = (progress[s, speed] for s in ('flat', 'open_c', 'closed_c'))
-        order_ok &= closed_c > flat > open_c
-        open_ok &= open_c < flat and open_c < closed_c
-        rows.append(f'{speed:g} rad/s: closed {100 * closed_c:.1f}, flat {100 * flat:.1f}, '
-                    f'open {100 * open_c:.1f} cm')
-    trends.append(Trend('Carriage progress closed C > flat > open C at every speed',
-                        'ordering held at all three speeds (simulation and experiment)',
-                        order_ok, '; '.join(rows)))
-    trends.append(Trend('Open C progresses least at every speed (part of the ordering)',
-                        'open C -25 % vs flat in simulation, -53 % in experiment',
-                        open_ok, '; '.join(rows)))
-
+    trends += shape_ordering(settings, rails)
     sink = {key: case.metrics['mean_sinkage_m'] for key, case in hexapod.items()}
     zetas, payloads = settings.hexapod_zetas, settings.payloads
     bad = [f'zeta {z:g}' for z in zetas if not _monotonic([sink[z, p] for p in payloads], True)]
@@ -94,17 +80,49 @@ def check(settings, torque, rails, hexapod):
         + '; '.join(f'zeta {z:g}: ' + '/'.join(f'{100 * distance[z, p]:.1f}' for p in payloads)
                     + ' cm' for z in zetas)))
 
+    trends.append(payload_optimum(settings, hexapod))
+    return trends
+
+
+def shape_ordering(settings, rails, loop=''):
+    """The rail trends (ordering, open C least) for rail cases {(shape, speed): Case}; `loop`
+    is appended to their names (e.g. " (the authors' loop)")."""
+    progress = rail_progress(rails)
+    rows, order_ok, open_ok = [], True, True
+    for speed in settings.speeds:
+        flat, open_c, closed_c = (progress[s, speed] for s in ('flat', 'open_c', 'closed_c'))
+        order_ok &= closed_c > flat > open_c
+        open_ok &= open_c < flat and open_c < closed_c
+        rows.append(f'{speed:g} rad/s: closed {100 * closed_c:.1f}, flat {100 * flat:.1f}, '
+                    f'open {100 * open_c:.1f} cm')
+    return [Trend('Carriage progress closed C > flat > open C at every speed' + loop,
+                  'ordering held at all three speeds (simulation and experiment)',
+                  order_ok, '; '.join(rows)),
+            Trend('Open C progresses least at every speed (part of the ordering)' + loop,
+                  'open C -25 % vs flat in simulation, -53 % in experiment',
+                  open_ok, '; '.join(rows))]
+
+
+def payload_optimum(settings, hexapod, loop=''):
+    """The payload trend for hexapod cases {(zeta, payload): Case} over settings.speed_zetas
+    x settings.speed_payloads; `loop` is appended to its name."""
     peaks = {}
     for zeta in settings.speed_zetas:
         speeds = [hexapod[zeta, p].metrics['mean_speed_mps'] for p in settings.speed_payloads]
         best = int(np.argmax(speeds))
         peaks[zeta] = (0 < best < len(speeds) - 1, settings.speed_payloads[best])
     low, high = settings.speed_zetas
-    trends.append(Trend(
-        f'Hexapod speed peaks at an intermediate payload at zeta {low:g}, not at zeta {high:g}',
+    return Trend(
+        f'Hexapod speed peaks at an intermediate payload at zeta {low:g}, not at zeta {high:g}'
+        + loop,
         'intermediate optimum at zeta 3.75 (as in experiment), none at zeta 5',
         peaks[low][0] and not peaks[high][0],
         '; '.join(f'zeta {z:g}: fastest at {peaks[z][1]:g} kg '
                   f'({"intermediate" if peaks[z][0] else "an end of the range"})'
-                  for z in settings.speed_zetas)))
-    return trends
+                  for z in settings.speed_zetas))
+
+
+def check_paper_loop(settings, rails, hexapod):
+    """The rail and payload trends again for the runs with the authors' loop."""
+    loop = " (the authors' loop)"
+    return shape_ordering(settings, rails, loop) + [payload_optimum(settings, hexapod, loop)]

@@ -1,26 +1,28 @@
-"""hexapod: the RFT-SiM 12-DOF hexapod dropped onto sand, then walking a built-in gait.
+"""hexapod: the RFT-SiM 12-DOF crab hexapod dropped onto sand, then walking a built-in gait.
 
-Model: models/hexapod.xml (4.04 kg, docs/hexapod.md) plus `payload` kg added to the
-electronics box through MjSpec. At t = 0 the robot is held in the neutral pose with its foot
-tips `drop_height` m above the sand and released; after `settle_time` s the gait starts
-(`gait`: 'tripod' = the alternating tripod of rft_sim_ros.scenes.gaits with the scene's
-frequency / stance / step length / lift; 'none' = no built-in commands, the servos hold the
-neutral pose or whatever an external controller sends through `sim.commands`).
+Model: models/hexapod.xml (4.04 kg, docs/hexapod.md) plus `payload` kg added to the box on
+its plate through MjSpec. At t = 0 the robot is held in the neutral stance (the model's
+keyframe "home") with its foot tips `drop_height` m above the sand and released; after
+`settle_time` s the gait starts (`gait`: 'tripod' = the alternating tripod of
+rft_sim_ros.scenes.gaits with the scene's frequency / stance / step length / lift, walking
+sideways; 'none' = no built-in commands, the servos hold the neutral stance or whatever an
+external controller sends through `sim.commands`).
 
 The walk that the metrics describe is the `cycles` gait cycles after `settle_time` (or as
-much of it as was run). Frames: world (odom), z up, the robot starts facing +x; SI units.
+much of it as was run). Frames: world (odom), z up; the robot starts with its long axis
+along world x, so it walks (sideways, like a crab) along world +y; SI units.
 
-Metrics:
-  forward_distance_m    base_link displacement along world +x over the walk;
-  lateral_drift_m       ... along world y;
+Metrics ("forward" is the walking direction, world +y):
+  forward_distance_m    base_link displacement along world +y over the walk;
+  lateral_drift_m       ... along world x (the body's long axis at the start);
   mean_speed_mps        forward_distance_m / walk time;
   mean_sinkage_m        foot-tip depth below the sand surface, averaged over all legs and
                         samples while the leg is in stance (gait phase < stance fraction;
                         'none': all legs, the whole walk window); a tip above the surface
                         counts 0;
-  backward_fraction     summed backward (-x) base motion over summed forward motion during
+  backward_fraction     summed backward (-y) base motion over summed forward motion during
                         the walk (the paper's "backward motion ... of the forward motion"),
-                        from the base x sampled every `observe_interval` steps, counting
+                        from the base y sampled every `observe_interval` steps, counting
                         only samples moving faster than MOTION_NOISE_MPS (so a robot that
                         stands still, jittering by nanometres, has 0, not a ratio of noise);
   settled_base_height_m base_link height at the start of the walk;
@@ -35,15 +37,15 @@ from functools import partial
 import numpy as np
 
 from ..gaits import make_gait
-from ..hexapod import FOOT_SITES, LEG_NAMES, PAYLOAD_GEOM
+from ..hexapod import FOOT_SITES, LEG_NAMES, LEGS, PAYLOAD_BODY
 from . import BaseScenario
 
-#: Height of base_link above the foot tips in the neutral pose, m (docs/hexapod.md).
-NEUTRAL_FOOT_DROP_M = 0.176
+#: Height of base_link above the foot tips in the neutral stance, m (docs/hexapod.md).
+NEUTRAL_FOOT_DROP_M = LEGS.neutral_down - LEGS.knee_xyz[0, 2]
 
 GAIT_NAMES = ('none', 'tripod')
 
-#: Base speeds along x below this (m/s; 1.4 % of the default walk's mean speed) are rest,
+#: Base speeds along y below this (m/s; 1.4 % of the default walk's mean speed) are rest,
 #: not forward or backward motion, in backward_fraction.
 MOTION_NOISE_MPS = 1e-3
 
@@ -70,7 +72,7 @@ class Scenario(BaseScenario):
         self._samples = []
 
     def edit_model(self, spec):
-        spec.geom(PAYLOAD_GEOM).mass += self.payload
+        spec.body(PAYLOAD_BODY).mass += self.payload
 
     def initialize(self, sim):
         qpos = sim.data.joint('base_free').qpos
@@ -135,15 +137,15 @@ class Scenario(BaseScenario):
         s = np.array(self._samples)
         times, base, tips_above, legs_fz = s[:, 0], s[:, 1:4], s[:, 4:10], s[:, 10:16]
         walked = times[-1] - times[0]
-        forward = base[-1, 0] - base[0, 0]
-        steps = np.diff(base[:, 0])
+        forward = base[-1, 1] - base[0, 1]
+        steps = np.diff(base[:, 1])
         steps = steps[np.abs(steps) > MOTION_NOISE_MPS * np.diff(times)]
         ahead = steps[steps > 0].sum()
         depth = np.maximum(-tips_above, 0.0)
         stance = self._stance(times)
         metrics = {
             'forward_distance_m': float(forward),
-            'lateral_drift_m': float(base[-1, 1] - base[0, 1]),
+            'lateral_drift_m': float(base[-1, 0] - base[0, 0]),
             'mean_speed_mps': float(forward / walked) if walked > 0 else 0.0,
             'mean_sinkage_m': float(depth[stance].mean()) if stance.any() else 0.0,
             'backward_fraction': float(-steps[steps < 0].sum() / ahead) if ahead > 0 else 0.0,
