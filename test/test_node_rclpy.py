@@ -177,23 +177,24 @@ def _set_parameter(ros, name, value):
 
 
 def test_the_node_answers_while_its_simulation_is_built(ros, monkeypatch):
-    """While the simulation is built (its kernels compiling on a cold cache; the build is
-    held here until the test lets it go), zeta is accepted or refused with the reason, pause
-    is taken, reset is refused with the reason, /diagnostics says it starts, and nothing
-    else is published; then the simulation starts with what was set meanwhile."""
+    """While the scene is read (the simulation's modules imported) and the simulation built
+    (its kernels compiling on a cold cache; the start-up thread is held here until the test
+    lets it go), zeta is accepted or refused with the reason, pause is taken, reset is refused
+    with the reason, /diagnostics says it starts, and nothing else is published; then the
+    simulation starts with what was set meanwhile (zeta: not the scene's 0.5)."""
     from rft_sim_ros.ros import node as node_module
     go = threading.Event()
-    build = node_module.Simulation
+    read = node_module.read_scene
 
-    def held_build(scene):
+    def held_read(*args):
         assert go.wait(BUILD_TIMEOUT_S)
-        return build(scene)
-    monkeypatch.setattr(node_module, 'Simulation', held_build)
+        return read(*args)
+    monkeypatch.setattr(node_module, 'read_scene', held_read)
     try:
         sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
             Parameter('scene', value=SERVO_RIG), Parameter('real_time_factor', value=2.0)]),
             built=False)
-        assert sim.starting
+        assert sim.starting and sim.get_parameter_or('zeta') is None  # unset: the scene's
         accepted = _set_parameter(ros, 'zeta', 5.0)
         refused = _set_parameter(ros, 'zeta', -1.0)
         assert accepted.successful
@@ -201,11 +202,11 @@ def test_the_node_answers_while_its_simulation_is_built(ros, monkeypatch):
         paused = ros.call(ros.probe.pause, SetBool.Request(data=True))
         assert paused.success and 'start paused once built' in paused.message
         reset = ros.call(ros.probe.reset, Trigger.Request())
-        assert not reset.success and 'not built yet' in reset.message
+        assert not reset.success and 'not built yet (reading the scene' in reset.message
 
         def starting(zeta, paused):  # /diagnostics of the start-up saying what it starts with
             return [m for m in ros.probe.diagnostics
-                    if m.status[0].message.startswith('starting: ')
+                    if m.status[0].message.startswith('starting: reading the scene')
                     and {kv.key: kv.value for kv in m.status[0].values}.get(
                         'zeta_n_per_cm3') == zeta
                     and {kv.key: kv.value for kv in m.status[0].values}.get('paused') == paused]
@@ -215,13 +216,27 @@ def test_the_node_answers_while_its_simulation_is_built(ros, monkeypatch):
         go.set()
     assert ros.spin_until(lambda: not sim.starting, timeout=BUILD_TIMEOUT_S)
     assert sim.runtime.paused and sim.runtime.sim.zeta == 5.0 and sim.runtime.sim.time == 0.0
+    assert sim.get_parameter('publish_rate').value == 100.0     # the scene's, once read
     assert ros.call(ros.probe.pause, SetBool.Request(data=False)).success
     assert ros.spin_until(lambda: ros.probe.joint_states)
     assert sim.runtime.sim.zeta == 5.0
 
 
+def test_the_node_module_imports_none_of_the_simulation():
+    """`ros2 run rft_sim_ros sim` imports the node's module before rclpy.init: it imports
+    rclpy and light modules only, so the node is on the graph, answering, while the start-up
+    thread imports MuJoCo, numba and the engine (seconds) and reads the scene."""
+    heavy = ('numba', 'mujoco', 'trimesh', 'rft_sim_ros.sim.simulation',
+             'rft_sim_ros.scenes.config', 'rft_sim_ros.ros.runtime')
+    done = subprocess.run([sys.executable, '-c', 'import sys, rft_sim_ros.ros.node; '
+                           f'print([m for m in {heavy!r} if m in sys.modules])'],
+                          capture_output=True, text=True, timeout=120, check=True)
+    assert done.stdout.strip() == '[]'
+
+
 def test_zeta_parameter_is_validated(ros):
     sim = start_sim(ros)
+    assert sim.get_parameter('zeta').value == 0.5              # unset: the scene's
 
     def set_(name, value):
         request = SetParameters.Request(parameters=[Parameter(name, value=value)
@@ -331,8 +346,11 @@ def test_pause_step_and_reset_services(ros):
     assert not refused.success and 'pause' in refused.message
     answer = ros.call(ros.probe.pause, SetBool.Request(data=True))
     assert answer.success and sim.get_parameter('paused').value is True
-    ros.spin_for(0.2)
-    count, last = len(ros.probe.clocks), ros.probe.clock_times()[-1]
+    last = sim.runtime.sim.time                                # paused here
+    # the probe gets what was published before the pause (on a busy machine it lags behind
+    # the simulator by up to its queue), then nothing more
+    assert ros.spin_until(lambda: ros.probe.clock_times()[-1] == last)
+    count = len(ros.probe.clocks)
     ros.spin_for(0.3)
     assert len(ros.probe.clocks) == count                      # time stands still
     assert ros.call(ros.probe.step, Trigger.Request()).success

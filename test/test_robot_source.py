@@ -6,7 +6,8 @@ import pytest
 
 from rft_sim_ros.robot.xacro_files import expand_xacro
 from rft_sim_ros.robot.packages import PackageResolver
-from rft_sim_ros.ros.robot_source import description_file, load_node_scene, needs_topic
+from rft_sim_ros.ros.parameters import needs_topic
+from rft_sim_ros.ros.robot_source import description_file, load_node_scene
 from rft_sim_ros.scenes.config import SceneError
 
 ROBOTS = Path(__file__).parent / 'robots'

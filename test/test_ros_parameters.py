@@ -5,7 +5,7 @@ import pytest
 
 from rft_sim_ros.ros import parameters
 from rft_sim_ros.ros.parameters import parameter_problem
-from rft_sim_ros.ros.robot_source import load_node_scene
+from rft_sim_ros.ros.robot_source import load_node_scene, scene_overrides
 from rft_sim_ros.scenes.config import SceneError, load_scene
 
 
@@ -65,13 +65,13 @@ def test_publish_rate_must_be_positive(bad):
 
 
 def test_scene_overrides_parse_like_the_cli():
-    assert parameters.scene_overrides(['gait=none', 'payload=1.5', 'rft.plates_per_body=80']) == {
+    assert scene_overrides(['gait=none', 'payload=1.5', 'rft.plates_per_body=80']) == {
         'gait': 'none', 'payload': 1.5, 'rft.plates_per_body': 80}
-    assert parameters.scene_overrides(None) == {}
+    assert scene_overrides(None) == {}
     with pytest.raises(SceneError, match='key=value'):
-        parameters.scene_overrides(['gait'])
+        scene_overrides(['gait'])
     with pytest.raises(SceneError, match='list'):
-        parameters.scene_overrides('gait=none')
+        scene_overrides('gait=none')
 
 
 @pytest.mark.parametrize('name, kept', [('arm_controller', 'arm_controller'),
@@ -116,13 +116,13 @@ def test_other_unreadable_arguments_keep_rcls_reason_without_its_sources():
 def test_scene_overrides_are_named_so_in_errors(tmp_path):
     """A bad value or assignment in the node's scene_overrides is named `scene_overrides KEY`,
     not with the CLI's `--set` (which keeps its own wording)."""
-    bad = parameters.scene_overrides(['sand.deformable.enabled=true', 'sand.deformable.cell=-1'])
+    bad = scene_overrides(['sand.deformable.enabled=true', 'sand.deformable.cell=-1'])
     with pytest.raises(SceneError, match=r'plate_drop.yaml: scene_overrides sand.deformable.cell: '
                                          r'must be > 0, got -1'):
         load_node_scene('plate_drop', '', '', '', bad, tmp_path)
     with pytest.raises(SceneError, match="scene_overrides expects key=value, got 'gait'"):
-        parameters.scene_overrides(['gait'])
+        scene_overrides(['gait'])
     with pytest.raises(SceneError, match="scene_overrides params: 'factor:0.3' was read as a key"):
-        parameters.scene_overrides(['params={x: 1, factor:0.3}'])
+        scene_overrides(['params={x: 1, factor:0.3}'])
     with pytest.raises(SceneError, match='plate_drop.yaml: --set sand.deformable.cell: must be'):
         load_scene('plate_drop', {'sand.deformable.cell': -1})

@@ -5,12 +5,21 @@ import os
 import subprocess
 import sys
 import threading
+import time
 
 import pytest
 
 from rft_sim_ros.ros.startup import SimStartup, StartFailed, compile_in_child
 from rft_sim_ros.scenes.config import SceneError, load_scene
 from rft_sim_ros.sim.simulation import Simulation
+
+
+def _until(predicate, timeout=30.0):
+    """Wait (wall s) for `predicate()` to be true; returns it."""
+    deadline = time.monotonic() + timeout
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return predicate()
 
 
 class _Clock:
@@ -24,18 +33,26 @@ class _Clock:
 
 
 def _held_build(value):
-    """(build function returning `value` once `release` is set, release Event)."""
+    """(build function of a scene returning `value` once `release` is set, release Event)."""
     release = threading.Event()
 
-    def build():
+    def build(scene):
         assert release.wait(30)
         return value
     return build, release
 
 
+def _read(scene='the scene'):
+    return lambda: scene
+
+
+def _compiles(scene):
+    return 'compiling kernels, first run only'
+
+
 def test_nothing_is_handed_over_until_built_then_once():
     build, release = _held_build('the simulation')
-    startup = SimStartup(build, compiling=True)
+    startup = SimStartup(_read(), build, notice=_compiles)
     assert startup.building and startup.result() is None
     release.set()
     assert startup.wait(30)
@@ -46,8 +63,19 @@ def test_nothing_is_handed_over_until_built_then_once():
 def test_progress_counts_wall_seconds_and_says_what_it_does():
     clock = _Clock(100.0)
     build, release = _held_build(1)
-    compiling = SimStartup(build, compiling=True, clock=clock)
-    cached = SimStartup(build, compiling=False, clock=clock)
+    scene_read = threading.Event()
+
+    def held_read():
+        assert scene_read.wait(30)
+        return 'the scene'
+    compiling = SimStartup(held_read, build, notice=_compiles, clock=clock)
+    cached = SimStartup(held_read, build, clock=clock)
+    clock.now = 101.6
+    assert compiling.progress() == 'reading the scene, 2 s so far' and compiling.scene is None
+    scene_read.set()
+    assert _until(lambda: compiling.scene and cached.scene)
+    assert compiling.compiling and compiling.notice == 'compiling kernels, first run only'
+    assert not cached.compiling and cached.notice is None
     clock.now = 112.4
     assert compiling.progress() == 'compiling kernels, 12 s so far'
     assert cached.progress() == 'building the simulation, 12 s so far'
@@ -56,18 +84,27 @@ def test_progress_counts_wall_seconds_and_says_what_it_does():
 
 
 def test_a_bad_scene_fails_the_start_with_its_reason():
-    def build():
+    def build(scene):
         raise SceneError('scene x: model does not compile: no such mesh')
-    startup = SimStartup(build, compiling=False, errors=(SceneError, ValueError))
+    startup = SimStartup(_read(), build, errors=(SceneError, ValueError))
     assert startup.wait(30)
     with pytest.raises(StartFailed, match='no such mesh'):
         startup.result()
 
 
+def test_a_scene_that_does_not_read_fails_the_start_with_its_reason():
+    def read():
+        raise SceneError('unknown scene no_such_scene')
+    startup = SimStartup(read, lambda scene: pytest.fail('built'), errors=(ValueError,))
+    assert startup.wait(30) and startup.scene is None
+    with pytest.raises(StartFailed, match='unknown scene no_such_scene'):
+        startup.result()
+
+
 def test_a_defect_in_the_build_propagates_as_it_is():
-    def build():
+    def build(scene):
         raise ZeroDivisionError('a bug')
-    startup = SimStartup(build, compiling=False, errors=(SceneError,))
+    startup = SimStartup(_read(), build, errors=(SceneError,))
     assert startup.wait(30)
     with pytest.raises(ZeroDivisionError, match='a bug'):
         startup.result()
@@ -76,7 +113,8 @@ def test_a_defect_in_the_build_propagates_as_it_is():
 def test_services_meanwhile_take_pause_and_refuse_the_rest_with_the_reason():
     clock = _Clock(0.0)
     build, release = _held_build(1)
-    startup = SimStartup(build, compiling=True, clock=clock)
+    startup = SimStartup(_read(), build, notice=_compiles, clock=clock)
+    assert _until(lambda: startup.scene)
     clock.now = 7.0
     paused = startup.pause_answer(True)
     assert paused.success and paused.message == ('the simulation will start paused once built '
@@ -93,7 +131,8 @@ def test_services_meanwhile_take_pause_and_refuse_the_rest_with_the_reason():
 def test_diagnostics_meanwhile_say_it_starts_and_with_what():
     clock = _Clock(0.0)
     build, release = _held_build(1)
-    startup = SimStartup(build, compiling=True, clock=clock)
+    startup = SimStartup(_read(), build, notice=_compiles, clock=clock)
+    assert _until(lambda: startup.scene)
     clock.now = 3.25
     fields = startup.diagnostic_fields('quadruped', 5.0, False)
     assert (fields.level, fields.name, fields.hardware_id) == (0, 'rft_sim: simulation',
@@ -103,12 +142,14 @@ def test_diagnostics_meanwhile_say_it_starts_and_with_what():
     assert values == {'starting_s': '3.2', 'compiling_kernels': 'true',
                       'zeta_n_per_cm3': '5.0', 'paused': 'false'}
     assert float(values['zeta_n_per_cm3']) == 5.0
+    unread = dict(startup.diagnostic_fields('quadruped', None, True).values)
+    assert 'zeta_n_per_cm3' not in unread and unread['paused'] == 'true'  # (the scene's)
     release.set()
 
 
 def test_a_real_simulation_is_built_in_the_worker_thread():
     scene = load_scene('plate_drop')
-    startup = SimStartup(lambda: Simulation(scene), compiling=False)
+    startup = SimStartup(lambda: scene, Simulation)
     assert startup.wait(900)
     sim = startup.result()
     assert isinstance(sim, Simulation) and sim.time == 0.0
@@ -119,18 +160,18 @@ def test_a_real_simulation_is_built_in_the_worker_thread():
 def test_the_kernels_compile_first_in_a_child_process_where_they_must():
     calls = []
 
-    def warm():
-        calls.append('warm')
+    def warm(scene):
+        calls.append(f'warm {scene}')
         return 'no compiling process: test'
 
-    def build():
-        calls.append('build')
+    def build(scene):
+        calls.append(f'build {scene}')
         return 'sim'
-    cached = SimStartup(build, compiling=False, warm=warm)
-    assert cached.wait(30) and cached.result() == 'sim' and calls == ['build']
+    cached = SimStartup(_read('s'), build, notice=lambda scene: None, warm=warm)
+    assert cached.wait(30) and cached.result() == 'sim' and calls == ['build s']
     calls.clear()
-    cold = SimStartup(build, compiling=True, warm=warm)
-    assert cold.wait(30) and cold.result() == 'sim' and calls == ['warm', 'build']
+    cold = SimStartup(_read('s'), build, notice=_compiles, warm=warm)
+    assert cold.wait(30) and cold.result() == 'sim' and calls == ['warm s', 'build s']
     assert cold.warm_problem == 'no compiling process: test'  # the build went on anyway
 
 
@@ -150,8 +191,7 @@ from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
 scene = load_scene("plate_drop")
 compiling = compile_notice(scene) is not None
-startup = SimStartup(lambda: Simulation(scene), compiling=compiling,
-                     warm=lambda: compile_in_child(scene))
+startup = SimStartup(lambda: scene, Simulation, notice=compile_notice, warm=compile_in_child)
 gaps, last = [], time.monotonic()
 while startup.building:          # the executor thread's turns, 10 ms apart when idle
     time.sleep(0.01)

@@ -938,7 +938,7 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
     folder; a missing one is refused naming where it was looked for."""
     from rft_sim_ros.cli import main
     from rft_sim_ros.resources import config_dir
-    from rft_sim_ros.ros.parameters import scene_overrides
+    from rft_sim_ros.ros.robot_source import scene_overrides
     from rft_sim_ros.scenes.config import anchor_paths
     from rft_sim_ros.study import study_from_mapping
     here, there = tmp_path / 'here', tmp_path / 'there'

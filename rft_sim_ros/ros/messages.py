@@ -50,6 +50,13 @@ _IDENTITY_WXYZ = (1.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
+class ServiceResult:
+    """Answer of a service: std_srvs' `success` and `message`."""
+    success: bool
+    message: str
+
+
+@dataclass(frozen=True)
 class RunStatus:
     """Run-level values reported on /diagnostics that a `SimState` does not carry.
 

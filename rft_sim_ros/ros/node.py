@@ -16,11 +16,14 @@ set, from the first valid message on /robot_description (rft_sim_ros.ros.robot_s
 node publishes /clock itself and must not run on sim time; its timer runs on the steady
 wall clock.
 
-Start-up (`rft_sim_ros.ros.startup`): the scene is read at once (a bad one stops the node);
-the simulation is built (its kernels compiled on a cold cache) in a worker thread while the
-dynamic parameters, the services and /diagnostics already answer; the topics, the
-subscriptions and the action come once it is built, and it starts with the parameters as
-they are then.
+Start-up (`rft_sim_ros.ros.startup`): this module imports rclpy and the node's light
+modules only, so the node is on the graph and answers before the simulation's modules are
+imported (seconds on a busy machine); the scene is read
+(the simulation's modules imported: MuJoCo, numba, the engine) and the simulation built (its
+kernels compiled on a cold cache) in a worker thread while the dynamic parameters, the
+services and /diagnostics already answer; a bad scene or parameter stops the node once
+read; the topics, the subscriptions and the action come once it is built, and it starts
+with the parameters as they are then.
 """
 import sys
 import tempfile
@@ -37,17 +40,12 @@ from rclpy.task import Future
 
 from rft_sim_ros.control.trajectory_goals import GoalState
 from rft_sim_ros.ros import follow_messages, messages, parameters, topics
+from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
-from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule
-from rft_sim_ros.ros.runtime import ServiceResult, SimRuntime
+from rft_sim_ros.ros.messages import ServiceResult
 from rft_sim_ros.ros.simulation_services import SimulationServices
 from rft_sim_ros.ros.startup import SimStartup, StartFailed, compile_in_child
-from rft_sim_ros.ros.terrain import DEFAULT_RATE, TerrainFeed
-from rft_sim_ros.ros.robot_source import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
-                                          load_node_scene, needs_topic)
-from rft_sim_ros.scenes.config import SceneError
-from rft_sim_ros.sim.simulation import Simulation, compile_notice
 
 NODE_NAME = 'rft_sim'
 #: Where robot_description strings are stored as files for the scene to name.
@@ -75,13 +73,43 @@ def _as_doubles(changes):
             for change in changes]
 
 
+def read_scene(robot, robot_description, assignments, keyframe):
+    """The SceneConfig the node's parameters ask for: `robot` {scene, model, sand_bodies:
+    the parameters}, `robot_description` (XML or ''), `assignments` (scene_overrides) and
+    `keyframe` (`robot_source.load_node_scene`); raises SceneError or ValueError. Called
+    in the start-up thread: it imports the simulation's side of the node (MuJoCo, numba, the
+    sand engine, the runtime: seconds on a busy two-core machine), so the node is on the graph
+    and answers meanwhile, and the executor thread, which never imports them itself, finds
+    them imported once the scene is read."""
+    from rft_sim_ros.ros import runtime, terrain  # noqa: F401  (for `_serve`: see above)
+    from rft_sim_ros.ros.robot_source import load_node_scene, scene_overrides
+    overrides = scene_overrides(assignments)
+    for sensor in ('sensors.imu', 'sensors.contacts'):  # (on in the node unless set off)
+        overrides.setdefault(sensor, True)
+    if keyframe:
+        overrides['robot.keyframe'] = keyframe
+    return load_node_scene(robot[parameters.SCENE], robot[parameters.MODEL], robot_description,
+                           robot[parameters.SAND_BODIES], overrides, DESCRIPTION_FOLDER)
+
+
+def build_simulation(scene):
+    """The Simulation of `scene` (in the start-up thread: its kernels compile if not cached)."""
+    from rft_sim_ros.sim.simulation import Simulation
+    return Simulation(scene)
+
+
+def _compile_notice(scene):
+    from rft_sim_ros.sim.simulation import compile_notice
+    return compile_notice(scene)
+
+
 class SimNode(Node):
     """Loads the scene named by its parameters and serves it over ROS (see module docstring).
 
-    Raises SceneError, ValueError or rclpy's ParameterException (the message says what to
-    fix) if the scene or a parameter is unusable; a simulation that cannot be built (a model
-    that does not compile) raises StartFailed from the executor, once its build ended.
-    `starting` says whether it is being built.
+    Raises ValueError or rclpy's ParameterException (the message says what to fix) if a
+    parameter it checks at once (zeta, real_time_factor, paused) is unusable; a scene that
+    cannot be read or built, or a parameter checked against it, raises StartFailed from the
+    executor, once the start-up thread got that far. `starting` says whether it is starting.
     """
 
     def __init__(self, **kwargs):
@@ -92,28 +120,25 @@ class SimNode(Node):
             (change.name, change) for change in _as_doubles(self._parameter_overrides.values()))
         self.runtime = None
         self._startup = None
+        self._scene = None
         self._description_subscription = None
         self._topic_publishers = {}
         self._factory = RclpyFactory()
         self._robot = {name: self._declare(name, '') for name in (
             parameters.SCENE, parameters.MODEL, parameters.ROBOT_DESCRIPTION,
             parameters.SAND_BODIES)}
-        self._overrides = parameters.scene_overrides(
-            self._declare(parameters.SCENE_OVERRIDES, Parameter.Type.STRING_ARRAY) or [])
-        for sensor in ('sensors.imu', 'sensors.contacts'):  # (on in the node unless set off)
-            self._overrides.setdefault(sensor, True)
-        keyframe = self._declare(parameters.KEYFRAME, '')
-        if keyframe:
-            self._overrides['robot.keyframe'] = keyframe
-        if needs_topic(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
-                       self._robot[parameters.ROBOT_DESCRIPTION]):
+        self._assignments = self._declare(parameters.SCENE_OVERRIDES,
+                                          Parameter.Type.STRING_ARRAY) or []
+        self._keyframe = self._declare(parameters.KEYFRAME, '')
+        if parameters.needs_topic(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
+                                  self._robot[parameters.ROBOT_DESCRIPTION]):
             self.get_logger().info(f'no scene, model or robot_description set: waiting for '
-                                   f'the robot on {ROBOT_DESCRIPTION_TOPIC}')
+                                   f'the robot on {topics.ROBOT_DESCRIPTION}')
             latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                  reliability=ReliabilityPolicy.RELIABLE)
             self._description_subscription = self.create_subscription(
-                self._factory.message_class(ROBOT_DESCRIPTION_TYPE),
-                topics.relative(ROBOT_DESCRIPTION_TOPIC), self._on_robot_description, latched)
+                self._factory.message_class(topics.ROBOT_DESCRIPTION_TYPE),
+                topics.relative(topics.ROBOT_DESCRIPTION), self._on_robot_description, latched)
             return
         self._start(self._robot[parameters.ROBOT_DESCRIPTION])
 
@@ -124,46 +149,35 @@ class SimNode(Node):
             return
         try:
             self._start(message.data)
-        except (SceneError, ValueError) as error:
+        except ValueError as error:
             self._wait_for_another(error)
 
     def _wait_for_another(self, error):
-        self.get_logger().error(f'cannot start from {ROBOT_DESCRIPTION_TOPIC}: {error}; '
+        self.get_logger().error(f'cannot start from {topics.ROBOT_DESCRIPTION}: {error}; '
                                 'waiting for another description')
 
     def _start(self, robot_description):
-        """Load the scene the parameters (and `robot_description`, XML or '') ask for, then
-        serve at once what needs no simulation (the dynamic parameters, the services,
-        /diagnostics) while the simulation is built in a worker thread (`startup`: kernels
-        compile on a cold cache); `_poll_startup` serves the rest once it is built."""
-        scene = load_node_scene(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
-                                robot_description, self._robot[parameters.SAND_BODIES],
-                                self._overrides, DESCRIPTION_FOLDER)
+        """Serve at once what needs no simulation (the dynamic parameters, the services,
+        /diagnostics) while the start-up thread reads the scene the parameters (and
+        `robot_description`, XML or '') ask for and builds its simulation (`startup`:
+        kernels compile on a cold cache); `_poll_startup` reads the parameters that depend
+        on the scene once it is read, and serves the rest once it is built. zeta unset
+        (no -p zeta) is the scene's once read."""
         initial = {name: self._declare(name, default) for name, default in (
-            (parameters.ZETA, scene.zeta), (parameters.REAL_TIME_FACTOR, 1.0),
+            (parameters.ZETA, Parameter.Type.DOUBLE), (parameters.REAL_TIME_FACTOR, 1.0),
             (parameters.PAUSED, False))}
         for name, value in initial.items():
-            problem = parameters.parameter_problem(name, value)
+            problem = parameters.parameter_problem(name, value) if value is not None else None
             if problem:
                 raise ValueError(problem)
-        # the static parameters that need no simulation, checked now (a bad one stops the
-        # node before anything is built)
-        self._plates = self._declare(parameters.PLATES, False)
-        self._publish_rate = self._declare(parameters.PUBLISH_RATE, scene.publish_rate)
-        parameters.publish_rate(self._publish_rate)
-        self._terrain_rate = self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE)
-        parameters.publish_rate(self._terrain_rate, parameters.TERRAIN_RATE)
-        self._trajectory_controller = self._declare(parameters.TRAJECTORY_CONTROLLER,
-                                                    topics.TRAJECTORY_CONTROLLER)
-        parameters.trajectory_controller(self._trajectory_controller)
-        self._scene_name = scene.name
-        notice = compile_notice(scene)
-        self._startup = SimStartup(lambda: Simulation(scene), compiling=notice is not None,
-                                   warm=lambda: compile_in_child(scene),
-                                   errors=(SceneError, ValueError))
-        self.get_logger().info(f'scene {scene.name}: building the simulation'
-                               f'{f" ({notice})" if notice else ""}; parameters, services and '
-                               '/diagnostics answer meanwhile')
+        self._scene = None
+        self._scene_name = (self._robot[parameters.SCENE] or self._robot[parameters.MODEL]
+                            or parameters.ROBOT_DESCRIPTION)
+        robot = dict(self._robot)
+        self._startup = SimStartup(
+            lambda: read_scene(robot, robot_description, self._assignments, self._keyframe),
+            build_simulation, notice=_compile_notice, warm=compile_in_child,
+            errors=(ValueError,))
         if not self._topic_publishers:  # (a description from the topic may come again)
             self._serve_while_starting()
         self._startup_schedule = DiagnosticsSchedule(STARTUP_DIAGNOSTICS_PERIOD_S)
@@ -185,11 +199,41 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-    def _poll_startup(self):
-        """Start-up timer: /diagnostics while the simulation is being built; once built, serve
-        it with the parameters as they are now. Raises StartFailed if it could not be built
-        (a description from the topic: logged, and the node waits for another)."""
+    def _read_scene_parameters(self, scene):
+        """The scene is read: zeta from it where unset, and the static parameters whose
+        default is the scene's or that need no simulation, checked now (a bad one stops the
+        node before the simulation is built). Raises StartFailed."""
+        from rft_sim_ros.ros.terrain import DEFAULT_RATE  # (imported: `read_scene`)
+        self._scene, self._scene_name = scene, scene.name
         try:
+            if self._value(parameters.ZETA) is None:
+                outcome = self.set_parameters([Parameter(parameters.ZETA,
+                                                         value=float(scene.zeta))])[0]
+                if not outcome.successful:
+                    raise ValueError(outcome.reason)
+            self._plates = self._declare(parameters.PLATES, False)
+            self._publish_rate = self._declare(parameters.PUBLISH_RATE, scene.publish_rate)
+            parameters.publish_rate(self._publish_rate)
+            self._terrain_rate = self._declare(parameters.TERRAIN_RATE, DEFAULT_RATE)
+            parameters.publish_rate(self._terrain_rate, parameters.TERRAIN_RATE)
+            self._trajectory_controller = self._declare(parameters.TRAJECTORY_CONTROLLER,
+                                                        topics.TRAJECTORY_CONTROLLER)
+            parameters.trajectory_controller(self._trajectory_controller)
+        except ValueError as error:
+            raise StartFailed(str(error)) from error
+        notice = self._startup.notice
+        self.get_logger().info(f'scene {scene.name}: building the simulation'
+                               f'{f" ({notice})" if notice else ""}; parameters, services and '
+                               '/diagnostics answer meanwhile')
+
+    def _poll_startup(self):
+        """Start-up timer: /diagnostics while the simulation is being built; the scene's
+        parameters once it is read; once built, serve it with the parameters as they are
+        now. Raises StartFailed if it could not be read or built, or a parameter does not
+        fit it (a description from the topic: logged, and the node waits for another)."""
+        try:
+            if self._scene is None and self._startup.scene is not None:
+                self._read_scene_parameters(self._startup.scene)
             sim = self._startup.result()
         except StartFailed as error:
             self.destroy_timer(self._timer)
@@ -199,8 +243,7 @@ class SimNode(Node):
             self._wait_for_another(error)
             return
         if sim is None:
-            zeta, paused = (self.get_parameter(name).value
-                            for name in (parameters.ZETA, parameters.PAUSED))
+            zeta, paused = (self._value(name) for name in (parameters.ZETA, parameters.PAUSED))
             if self._startup_schedule.due(self._startup.elapsed(), (zeta, paused)):
                 fields = self._startup.diagnostic_fields(self._scene_name, zeta, paused)
                 self._topic_publishers[topics.DIAGNOSTICS].publish(
@@ -209,7 +252,7 @@ class SimNode(Node):
         self.destroy_timer(self._timer)
         try:
             self._serve(sim)
-        except (SceneError, ValueError) as error:  # (joint_names that do not fit the scene)
+        except ValueError as error:  # (joint_names that do not fit the scene)
             raise StartFailed(str(error)) from error
         if self._description_subscription is not None:
             self.destroy_subscription(self._description_subscription)
@@ -224,6 +267,8 @@ class SimNode(Node):
     def _serve(self, sim):
         """Serve the built simulation `sim`: its publishers, subscriptions, action and
         timer; it starts with the zeta, real_time_factor and paused set by now."""
+        from rft_sim_ros.ros.runtime import SimRuntime  # (imported: `read_scene`)
+        from rft_sim_ros.ros.terrain import TerrainFeed
         sim.zeta = float(self.get_parameter(parameters.ZETA).value)
         joint_names = self._declare(parameters.JOINT_NAMES,
                                     list(sim.servo_joint_names) or Parameter.Type.STRING_ARRAY)
@@ -374,11 +419,17 @@ class SimNode(Node):
         """Declare parameter `name` from its spec; returns its value (None if unset). One
         declared already (a second description from the topic) keeps its value."""
         if self.has_parameter(name):
-            return self.get_parameter(name).value
+            return self._value(name)
         spec = parameters.SPECS[name]
         descriptor = ParameterDescriptor(description=spec.description,
                                          read_only=not spec.dynamic)
         return self.declare_parameter(name, default, descriptor).value
+
+    def _value(self, name):
+        """The value of declared parameter `name`; None while unset (declared without a
+        value: zeta before the scene is read, joint_gains)."""
+        parameter = self.get_parameter_or(name)
+        return None if parameter is None else parameter.value
 
     # --- sink of SimRuntime -----------------------------------------------------------------
 
@@ -443,7 +494,7 @@ class SimNode(Node):
     def _no_simulation(service):
         """A service's answer after a description from the topic failed to build."""
         return ServiceResult(False, f'{service}: no simulation; waiting for a robot on '
-                                    f'{ROBOT_DESCRIPTION_TOPIC} that builds')
+                                    f'{topics.ROBOT_DESCRIPTION} that builds')
 
     def _answer(self, result, response):
         response.success, response.message = result.success, result.message
@@ -504,7 +555,7 @@ class _GoalListener:
 
 def main(args=None):
     """Entry point of `ros2 run rft_sim_ros sim`; returns the exit status."""
-    return run_node(SimNode, NODE_NAME, (SceneError, ValueError), args,
+    return run_node(SimNode, NODE_NAME, (ValueError,), args,
                     late_errors=(StartFailed,))
 
 

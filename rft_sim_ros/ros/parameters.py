@@ -3,15 +3,15 @@
 ROS-free: the rclpy node declares its parameters from `PARAMETERS` (static ones read-only)
 and asks `parameter_problem` before it accepts a change; a non-empty answer is the reason
 `ros2 param set` prints. Defaults that depend on the scene (zeta, publish_rate,
-joint_names) are taken from the loaded scene by the node.
+joint_names) are taken from the loaded scene by the node. Light to import (no MuJoCo, no
+numba): the node answers its parameters before the simulation's modules are imported; the
+scene_overrides are read with the scene (`robot_source.scene_overrides`).
 """
 import math
 import re
 from dataclasses import dataclass
-from pathlib import Path
 
 from rft_sim_ros.control.hybrid import gain_patterns
-from rft_sim_ros.scenes.config import SceneError, anchor_paths, parse_assignment
 from rft_sim_ros.units import zeta_problem
 
 
@@ -180,11 +180,7 @@ def arguments_problem(rcl_error):
             "'sand.surface.size=[2,2]']\"")
 
 
-def scene_overrides(assignments):
-    """{key: value} from 'key=value' strings (values read as YAML; relative files from the
-    working directory, `anchor_paths`); raises SceneError."""
-    if isinstance(assignments, str):
-        raise SceneError(f"scene_overrides must be a list of 'key=value' strings, "
-                         f'got the string {assignments!r}')
-    overrides = dict(parse_assignment(str(text), SCENE_OVERRIDES) for text in assignments or ())
-    return anchor_paths(overrides, Path.cwd())  # files it names: from the working directory
+def needs_topic(scene, model, robot_description):
+    """Whether the node must wait for /robot_description (none of the parameters scene,
+    model and robot_description set)."""
+    return not (scene or model or robot_description)

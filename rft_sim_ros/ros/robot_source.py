@@ -6,10 +6,11 @@ publishes it). Rules:
 - `model` and `robot_description` exclude each other;
 - with a `scene`, either replaces the scene's model (scene key `model`);
 - without one, the robot runs in the scene `rft-sim run ROBOT_FILE` would give it;
-- none of the three set: the description comes from the /robot_description topic
-  (`ROBOT_DESCRIPTION_TOPIC`, std_msgs/String, transient local), then as
-  `robot_description`.
-`sand_bodies` ('A,B*' or 'auto') sets rft.bodies. A description string is stored as a file
+- none of the three set (`parameters.needs_topic`): the description comes from the
+  /robot_description topic (`topics.ROBOT_DESCRIPTION`, std_msgs/String, transient local),
+  then as `robot_description`.
+`sand_bodies` ('A,B*' or 'auto') sets rft.bodies; `scene_overrides` reads the parameter of
+that name. A description string is stored as a file
 (`description_file`, content-addressed) so the scene can name it; package:// and file://
 URIs and absolute paths in it resolve as usual, relative paths have no folder to resolve
 against but the file's.
@@ -19,17 +20,8 @@ from pathlib import Path
 
 from rft_sim_ros.robot.urdf import parse_xml
 from rft_sim_ros.ros.parameters import SCENE_OVERRIDES
-from rft_sim_ros.scenes.config import load_scene, robot_overrides
-
-#: Topic robot_state_publisher publishes the description on (latched: transient local).
-ROBOT_DESCRIPTION_TOPIC = '/robot_description'
-ROBOT_DESCRIPTION_TYPE = 'std_msgs/msg/String'
-
-
-def needs_topic(scene, model, robot_description):
-    """Whether the node must wait for /robot_description (no scene, model or string set)."""
-    return not (scene or model or robot_description)
-
+from rft_sim_ros.scenes.config import (SceneError, anchor_paths, load_scene, parse_assignment,
+                                       robot_overrides)
 
 def description_file(text, folder):
     """Path of a file in `folder` holding description `text` (.urdf or .xml by its root
@@ -55,3 +47,13 @@ def load_node_scene(scene, model, robot_description, sand_bodies, overrides, fol
     if scene and robot:
         overrides = {**overrides, 'model': str(Path(robot).expanduser().resolve())}
     return load_scene(scene or robot, overrides, SCENE_OVERRIDES)
+
+
+def scene_overrides(assignments):
+    """{key: value} from 'key=value' strings (values read as YAML; relative files from the
+    working directory, `anchor_paths`); raises SceneError."""
+    if isinstance(assignments, str):
+        raise SceneError(f"scene_overrides must be a list of 'key=value' strings, "
+                         f'got the string {assignments!r}')
+    overrides = dict(parse_assignment(str(text), SCENE_OVERRIDES) for text in assignments or ())
+    return anchor_paths(overrides, Path.cwd())  # files it names: from the working directory

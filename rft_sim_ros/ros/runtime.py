@@ -26,7 +26,7 @@ rclpy node only forwards events to it:
 * `parameter_problem` / `set_parameter`: checks and applies zeta, real_time_factor, paused,
   joint_gains.
 * `pause(flag)`, `reset()`, `step()`, `reset_terrain()`: the services, each answering a
-  `ServiceResult`.
+  `ServiceResult` (`messages`).
 * `resend_terrain(cloud=..., markers=...)`: a subscriber of the terrain cloud or of its
   markers joined.
 
@@ -42,11 +42,10 @@ only resume after `reset()`. Times in s (sim time unless said otherwise).
 import math
 import time
 from collections import Counter
-from dataclasses import dataclass
 
 from rft_sim_ros.ros import inbound, parameters, topics
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_key
-from rft_sim_ros.ros.messages import RunStatus
+from rft_sim_ros.ros.messages import RunStatus, ServiceResult
 from rft_sim_ros.ros.pacing import Pacer
 from rft_sim_ros.control import trajectory_goals as goals
 from rft_sim_ros.control.commands import CommandRejected, CommandResult, Reason, Targets
@@ -55,13 +54,6 @@ from rft_sim_ros.control.joint_state_commands import read_joint_state_command
 from rft_sim_ros.sim.publishing import PublishSchedule
 from rft_sim_ros.sim.simulation import SimulationDiverged
 from rft_sim_ros.control.throttle import ThrottledLog
-
-
-@dataclass(frozen=True)
-class ServiceResult:
-    """Answer of a service: std_srvs' `success` and `message`."""
-    success: bool
-    message: str
 
 
 def array_order(servo_joints, joint_names):

@@ -1,16 +1,24 @@
-"""Start-up of the `rft_sim` node (ROS-free): the simulation is built off the executor.
+"""Start-up of the `rft_sim` node (ROS-free): the scene is read and the simulation built off
+the executor.
 
-Building a `Simulation` compiles its sand kernels when numba's cache lacks them (a first
-start after an install or an upgrade: a minute or more on a busy two-core machine). The node
-serves ROS meanwhile: its parameters, its services and /diagnostics answer at once, and the
-simulation starts publishing once it is built. `SimStartup` runs the build in a worker
-thread and says how far it got; the node polls it from its executor:
+Reading the scene needs the simulation's modules (MuJoCo, numba, the sand engine: seconds
+of imports on a busy two-core machine), and building a `Simulation` compiles its sand
+kernels when numba's cache lacks them (a first start after an install or an upgrade: a
+minute or more). The node serves ROS meanwhile: it is on the graph (its module imports
+none of the simulation's), and its parameters, its services and /diagnostics answer at
+once; the simulation
+starts publishing once it is built. `SimStartup` runs `read` (imports and the scene), then
+`build` in a worker thread and says how far it got; the node polls it from its executor:
 
+* `scene`: None until read, then the scene `read` returned (the node then reads its
+  scene-dependent parameters), `compiling` and `notice` what it compiles.
 * `result()`: None while building; the built object once (then None again); raises
-  `StartFailed` (the reason) if the build raised one of the start-up errors (a scene that
-  does not build); any other error propagates as it is (a defect, with its traceback).
-* `progress(now)`: 'compiling kernels, 12 s so far' (or 'building the simulation, 0 s so
-  far' when the kernels are cached), for /diagnostics and the answers below.
+  `StartFailed` (the reason) if reading or building raised one of the start-up errors (a
+  scene that does not load or build); any other error propagates as it is (a defect, with
+  its traceback).
+* `progress(now)`: 'reading the scene, 1 s so far', then 'compiling kernels, 12 s so far'
+  (or 'building the simulation, 12 s so far' when the kernels are cached), for
+  /diagnostics and the answers below.
 * `pause_answer(paused)` / `refusal(service)`: what the services answer meanwhile: pause
   is taken (the simulation then starts paused, or running), reset, step and reset_terrain
   are refused with the reason, as there is nothing to reset or step yet.
@@ -37,8 +45,7 @@ import sys
 import threading
 import time
 
-from rft_sim_ros.ros.messages import DiagnosticFields
-from rft_sim_ros.ros.runtime import ServiceResult
+from rft_sim_ros.ros.messages import DiagnosticFields, ServiceResult
 
 #: /diagnostics status name and level while starting (as `messages.diagnostic_fields`).
 STATUS_NAME = 'rft_sim: simulation'
@@ -50,22 +57,28 @@ class StartFailed(Exception):
 
 
 class SimStartup:
-    """Runs `build()` (returns the simulation) in a daemon thread from construction on.
+    """Runs `read()` (returns the scene), then `build(scene)` (returns the simulation) in a
+    daemon thread from construction on.
 
-    compiling: whether the build compiles kernels (`sim.simulation.compile_notice` had a
-    line), which `progress` says. warm: called first when compiling (`compile_in_child`);
-    returns None, or why it did not fill the cache (then `warm_problem`, and `build`
-    compiles the rest). errors: exception classes that mean a bad scene or parameter
-    (re-raised as StartFailed by `result`). clock: wall time, s (monotonic). The thread is
-    a daemon: a node shut down while it builds does not wait for it.
+    notice(scene): None where the kernels are cached, else what compiles
+    (`sim.simulation.compile_notice`); then `compiling` is true, which `progress` says.
+    warm(scene): called before `build` when compiling (`compile_in_child`); returns None, or
+    why it did not fill the cache (then `warm_problem`, and `build` compiles the rest).
+    errors: exception classes that mean a bad scene or parameter (re-raised as StartFailed
+    by `result`). clock: wall time, s (monotonic). The thread is a daemon: a node shut down
+    while it builds does not wait for it.
     """
 
-    def __init__(self, build, *, compiling, warm=None, errors=(), clock=time.monotonic):
+    def __init__(self, read, build, *, notice=None, warm=None, errors=(), clock=time.monotonic):
+        self._read = read
         self._build = build
-        self._warm = warm if compiling else None
+        self._notice = notice
+        self._warm = warm
         self._errors = tuple(errors)
         self._clock = clock
-        self.compiling = bool(compiling)
+        self.scene = None
+        self.notice = None
+        self.compiling = False
         self.started = clock()
         self.warm_problem = None
         self._built = None
@@ -76,9 +89,13 @@ class SimStartup:
 
     def _run(self):
         try:
-            if self._warm is not None:
-                self.warm_problem = self._warm()
-            self._built = self._build()
+            scene = self._read()
+            self.notice = self._notice(scene) if self._notice is not None else None
+            self.compiling = self.notice is not None
+            self.scene = scene  # (last: the node reads notice and compiling once it is set)
+            if self.compiling and self._warm is not None:
+                self.warm_problem = self._warm(scene)
+            self._built = self._build(scene)
         except BaseException as error:  # handed to the executor thread by `result`
             self._error = error
 
@@ -105,13 +122,16 @@ class SimStartup:
         return self._built
 
     def elapsed(self, now=None):
-        """Wall seconds since the build began (until `now`, default the clock's now)."""
+        """Wall seconds since the start-up began (until `now`, default the clock's now)."""
         return (self._clock() if now is None else now) - self.started
 
     def progress(self, now=None):
-        """What the start-up is doing: 'compiling kernels, N s so far' (or 'building the
-        simulation, N s so far'), N in whole seconds."""
-        doing = 'compiling kernels' if self.compiling else 'building the simulation'
+        """What the start-up is doing: 'reading the scene, N s so far', then 'compiling
+        kernels, N s so far' (or 'building the simulation, N s so far'), N in whole seconds."""
+        if self.scene is None:
+            doing = 'reading the scene'
+        else:
+            doing = 'compiling kernels' if self.compiling else 'building the simulation'
         return f'{doing}, {self.elapsed(now):.0f} s so far'
 
     def pause_answer(self, paused, now=None):
@@ -129,12 +149,13 @@ class SimStartup:
 
     def diagnostic_fields(self, scene, zeta, paused, now=None):
         """`messages.DiagnosticFields` of the start-up: level OK, message 'starting: ...'
-        (`progress`), hardware_id the scene's name; values (texts, as /diagnostics writes
-        them when running): starting_s (wall s so far), compiling_kernels, and the
-        zeta_n_per_cm3 and paused the simulation will start with."""
+        (`progress`), hardware_id `scene` (its name, or the parameter naming it); values
+        (texts, as /diagnostics writes them when running): starting_s (wall s so far),
+        compiling_kernels, and the zeta_n_per_cm3 (left out while None: the scene's, not
+        read yet) and paused the simulation will start with."""
         values = (('starting_s', repr(round(self.elapsed(now), 1))),
                   ('compiling_kernels', 'true' if self.compiling else 'false'),
-                  ('zeta_n_per_cm3', repr(float(zeta))),
+                  *((('zeta_n_per_cm3', repr(float(zeta))),) if zeta is not None else ()),
                   ('paused', 'true' if paused else 'false'))
         return DiagnosticFields(level=OK, name=STATUS_NAME,
                                 message=f'starting: {self.progress(now)}',

@@ -56,6 +56,10 @@ IMU = '/imu/data'
 FOOT_CONTACTS = '/rft/foot_contacts'
 MODEL_SENSORS = '/rft/sensors'
 
+#: The robot's description, as robot_state_publisher publishes it (latched: transient local),
+#: which the node reads where no scene, model or robot_description parameter is set.
+ROBOT_DESCRIPTION = '/robot_description'
+
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
@@ -71,6 +75,7 @@ EFFORT_COMMANDS_TYPE = 'std_msgs/msg/Float64MultiArray'
 FOLLOW_JOINT_TRAJECTORY_TYPE = 'control_msgs/action/FollowJointTrajectory'
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 FLOAT64_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
+ROBOT_DESCRIPTION_TYPE = 'std_msgs/msg/String'
 
 #: Message types of the model's own sensors by MuJoCo kind (`sensors.ModelSensor.kind`):
 #: forces as the force_torque_sensor_broadcaster publishes them, the imu parts as Imu;
