@@ -99,7 +99,8 @@ def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
     outcome = summary['outcome']
     assert set(outcome) == {'fell', 'fell_at_s', 'tilt_limit_deg', 'max_tilt_deg',
                             'final_tilt_deg', 'deepest', 'unsettled_step_share',
-                            'max_uncovered_penetration_m', 'words'}
+                            'rows_handed_back_step_share', 'max_uncovered_penetration_m',
+                            'words'}
     assert set(outcome['deepest']) == {'body', 'depth_m', 'time_s', 'has_plates'}
     assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
     assert summary['other_bodies'] and 'trunk' in summary['plates_per_body']

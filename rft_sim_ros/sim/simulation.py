@@ -374,24 +374,30 @@ class Simulation:
         if over:
             self.notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
                                 'tessellate (a mesh decimates) no coarser')
-        density, without = scene.other_bodies_density_per_mm2, []
+        density, without, asked = scene.other_bodies_density_per_mm2, [], 0
         for body in self.other_bodies:
             try:
                 plates[body] = body_plates(self.model, self.model.body(body).id,
-                                           density_per_mm2=density)
+                                           density_per_mm2=density, outline=True)
             except ValueError as error:
                 without.append(f'{body} ({error})')
+            else:
+                asked += max(1, round(density * plates[body].total_area * 1e6))
         if without:
             self.notices.append(f'other bodies without plates, which pass through the sand: '
                                 f'{first_few(without)}')
         self.other_bodies = tuple(b for b in self.other_bodies if b in plates)
         if self.other_bodies:
             count = sum(len(plates[b].areas) for b in self.other_bodies)
+            coarsest = ('' if count <= asked else
+                        f', {count - asked} more than {density:g} per mm^2 asks: small bodies '
+                        "carry their geoms' coarsest tessellation")
             self.notices.append(
                 f'other bodies: {first_few(list(self.other_bodies))} carry {count} plates '
-                f'({density:g} per mm^2), so that the sand holds them too (those on a '
-                "leg's branch add to that leg's wrench; rft.other_bodies_density_per_mm2: null "
-                'leaves them without)')
+                f'({density:g} per mm^2{coarsest}; meshes as the convex outline MuJoCo '
+                "collides), so that the sand holds them too (those on a leg's branch add to "
+                "that leg's wrench; rft.other_bodies_density_per_mm2: null leaves them "
+                'without)')
         return plates
 
     def _named_joints(self):
@@ -533,7 +539,7 @@ class Simulation:
                                            self.data.qpos[self._command_qpos])
         if kind == 'rest':
             self._settle()
-        self._unsettled_before = self._engine_counts()[1] - self._settle_counts[1]
+        self._counts_before = self._engine_counts() - self._settle_counts
         self._outcome.start(self.data, self.time)
 
     def _settle(self):
@@ -618,9 +624,11 @@ class Simulation:
         summary.json's `outcome` says it (sim/outcome.py): fell, how deep any body went, the
         unsettled share, in words."""
         self._outcome.observe(self.data, self.engine.surface, self.time)
-        unsettled = self._engine_counts()[1] - self._settle_counts[1] - self._unsettled_before
+        _, unsettled, handed_back = (self._engine_counts() - self._settle_counts
+                                     - self._counts_before)
         return self._outcome.result(self.data, self.engine.surface,
-                                    self.steps - self._steps_before, int(unsettled))
+                                    self.steps - self._steps_before, int(unsettled),
+                                    int(handed_back))
 
     def implicit_counts(self):
         """The implicit solve's counts over the steps the run took (`step`, resets
