@@ -104,3 +104,24 @@ def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
     assert set(outcome['deepest']) == {'body', 'depth_m', 'time_s', 'has_plates'}
     assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
     assert summary['other_bodies'] and 'trunk' in summary['plates_per_body']
+
+
+def test_the_walking_scenario_walks_the_biped_upright():
+    """march.py (the humanoid walking case of the other bodies' cost bench): from keyframe
+    `stand` it walks forward on the sand, upright, each foot in turn lifted out of it (its
+    plates leave the sand) and set down, no other body touching it."""
+    sim = _run('biped.xml', 1.0, **{'robot.keyframe': 'stand',
+                                    'scenario': str(BIPED / 'march.py')})
+    start = sim.data.xpos[sim.model.body('trunk').id].copy()
+    feet = [sim.model.body(name).id for name in ('left_foot', 'right_foot')]
+    lowest, highest = np.full(2, np.inf), np.full(2, -np.inf)
+    for _ in range(40):  # 2 s, two gait cycles
+        sim.step(int(round(0.05 / sim.timestep)))
+        lowest = np.minimum(lowest, sim.data.xpos[feet, 2])
+        highest = np.maximum(highest, sim.data.xpos[feet, 2])
+    outcome = sim.outcome()
+    assert not outcome['fell'] and outcome['max_tilt_deg'] < 10.0
+    assert sim.data.xpos[sim.model.body('trunk').id, 0] - start[0] > 0.15  # ~0.12 m/s
+    assert (highest - lowest > 0.015).all()  # each foot lifted
+    assert outcome['deepest']['body'].endswith('_foot')
+    assert outcome['deepest']['depth_m'] < 0.02  # (one sole bearing 13 kg, pushing off)

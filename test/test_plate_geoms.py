@@ -152,3 +152,19 @@ def test_noslip_iterations_the_sand_solve_does_not_run_are_said(biped, tmp_path)
     assert len(said) == 1 and '(3)' in said[0]
     explicit = _sim(path, **{'rft.low_velocity.method': 'ema'})
     assert not [n for n in explicit.notices if 'noslip' in n]
+
+
+def test_other_bodies_plates_beyond_the_density_are_said(biped):
+    """The legs' capsules tessellate no coarser than ~100 triangles where 0.001 per mm^2
+    asks ~40: start-up says how many plates the other bodies carry beyond the density."""
+    sim = _sim(biped)
+    assert set(sim.other_bodies) == {'trunk', 'left_leg', 'right_leg'}
+    engine, start = sim.engine, sim.engine.plate_start
+    first = len(sim.sand_bodies)
+    counts = np.diff(start[first:])
+    asked = [max(1, round(0.001 * engine.areas[a:b].sum() * 1e6))
+             for a, b in zip(start[first:-1], start[first + 1:])]
+    assert (counts >= asked).all() and counts.sum() > sum(asked)
+    [notice] = [n for n in sim.notices if n.startswith('other bodies:')]
+    assert (f'carry {counts.sum()} plates (0.001 per mm^2, {counts.sum() - sum(asked)} more '
+            'than 0.001 per mm^2 asks') in notice
