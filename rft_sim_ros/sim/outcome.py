@@ -29,9 +29,10 @@ The summary's `outcome` (summary.json, /diagnostics):
                               did not settle, over the run's steps (0 without sand contact).
                               A plate is frozen where its leading/trailing set would cycle
                               within a step: at rest, where its direction of motion is
-                              noise, and on a foot turning slowly through the sand (a
-                              walking hexapod's stance feet: 5-10 % of steps), where RFT's
-                              lift makes the law non-monotone. It then takes the linear
+                              noise (a fallen humanoid lying still: most steps), and on a
+                              foot turning slowly through the sand (the walking hexapod's
+                              stance feet: 11 % of steps), where RFT's lift makes the law
+                              non-monotone. It then takes the linear
                               response through its speed (coupling.implicit_wrenches): at
                               rest the resting law, moving a damper that brakes it;
   rows_handed_back_step_share steps whose constraint rows (contacts, limits, closed loops)
