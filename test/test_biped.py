@@ -4,6 +4,7 @@ its side, lies on the sand and comes to rest, and its `outcome` says so."""
 import importlib.util
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -65,8 +66,13 @@ def test_a_biped_pushed_over_lands_on_its_side_and_lies_on_the_sand():
     assert -0.03 < lowest < 0.03
     assert outcome['deepest']['depth_m'] < 0.03 and outcome['deepest']['has_plates']
     base = sim.model.body('trunk').id
-    speeds = np.linalg.norm(sim.data.cvel[1:, 3:], axis=1)  # (each body's, about its frame)
-    assert np.linalg.norm(sim.data.qvel[:3]) < 1e-3 and speeds.max() < 0.01, speeds
+    speeds = []  # of each body's origin, m/s
+    for body in range(1, sim.model.nbody):
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(sim.model, sim.data, mujoco.mjtObj.mjOBJ_BODY, body,
+                                 velocity, 0)
+        speeds.append(np.linalg.norm(velocity[3:]))
+    assert max(speeds) < 1e-3, speeds  # at rest (~1e-5 m/s)
     assert sim.data.xpos[base, 2] < 0.25  # lying, not standing (0.74 m)
     assert outcome['words'].startswith(f"fell at t = {outcome['fell_at_s']:.2f} s: base turned ")
     assert outcome['words'].split('; ')[1] == 'lying on the sand'
@@ -99,7 +105,29 @@ def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
     outcome = summary['outcome']
     assert set(outcome) == {'fell', 'fell_at_s', 'tilt_limit_deg', 'max_tilt_deg',
                             'final_tilt_deg', 'deepest', 'unsettled_step_share',
-                            'max_uncovered_penetration_m', 'words'}
+                            'rows_handed_back_step_share', 'max_uncovered_penetration_m',
+                            'words'}
     assert set(outcome['deepest']) == {'body', 'depth_m', 'time_s', 'has_plates'}
     assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
     assert summary['other_bodies'] and 'trunk' in summary['plates_per_body']
+
+
+def test_the_walking_scenario_walks_the_biped_upright():
+    """march.py (the humanoid walking case of the other bodies' cost bench): from keyframe
+    `stand` it walks forward on the sand, upright, each foot in turn lifted out of it (its
+    plates leave the sand) and set down, no other body touching it."""
+    sim = _run('biped.xml', 1.0, **{'robot.keyframe': 'stand',
+                                    'scenario': str(BIPED / 'march.py')})
+    start = sim.data.xpos[sim.model.body('trunk').id].copy()
+    feet = [sim.model.body(name).id for name in ('left_foot', 'right_foot')]
+    lowest, highest = np.full(2, np.inf), np.full(2, -np.inf)
+    for _ in range(40):  # 2 s, two gait cycles
+        sim.step(int(round(0.05 / sim.timestep)))
+        lowest = np.minimum(lowest, sim.data.xpos[feet, 2])
+        highest = np.maximum(highest, sim.data.xpos[feet, 2])
+    outcome = sim.outcome()
+    assert not outcome['fell'] and outcome['max_tilt_deg'] < 10.0
+    assert sim.data.xpos[sim.model.body('trunk').id, 0] - start[0] > 0.15  # ~0.12 m/s
+    assert (highest - lowest > 0.015).all()  # each foot lifted
+    assert outcome['deepest']['body'].endswith('_foot')
+    assert outcome['deepest']['depth_m'] < 0.02  # (one sole bearing 13 kg, pushing off)

@@ -5,7 +5,8 @@ import pytest
 import trimesh
 
 from rft_sim_ros.rft import Plates, body_wrench, refine
-from rft_sim_ros.sand.geoms import body_plates, body_plates_at_edge
+from rft_sim_ros.sand.geoms import (body_geoms, body_plates, body_plates_at_edge, contact_spheres,
+                                   mesh_vertices)
 
 GEOMS = """
 <mujoco><asset><mesh name="cone" vertex="{cone_vertices}" face="{cone_faces}"/></asset>
@@ -130,3 +131,70 @@ def test_mesh_convergence_of_the_body_force(model, name, position):
     change = np.linalg.norm(forces[2] - forces[1]) / np.linalg.norm(forces[2])
     assert change < 0.02
     assert np.linalg.norm(forces[2]) > 1.0
+
+
+CONTACT_POINTS = """
+<mujoco><asset><mesh name="link" vertex="{vertices}"/></asset>
+<worldbody>
+  <body name="points">{spheres}</body>
+  <body name="touching"><geom type="sphere" size="0.01"/><geom type="sphere" pos="0.015 0 0" size="0.01"/></body>
+  <body name="sphere_and_box"><geom type="sphere" size="0.01" pos="0.1 0 0"/><geom type="box" size="0.02 0.02 0.02"/></body>
+  <body name="link"><geom type="mesh" mesh="link" euler="10 20 30"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.fixture(scope='module')
+def contact_model():
+    spheres = ''.join(f'<geom type="sphere" size="0.005" pos="{x} {y} -0.03"/>'
+                      for x in (-0.05, 0.12) for y in (-0.03, 0.03))
+    # a vendor's link: a fine, lumpy, elongated mesh (MuJoCo collides its convex hull)
+    ball = trimesh.creation.icosphere(subdivisions=4)
+    lumps = 1.0 + 0.1 * np.sin(7 * ball.vertices[:, 0]) * np.cos(5 * ball.vertices[:, 1])
+    vertices = ball.vertices * lumps[:, None] * [0.15, 0.04, 0.03]
+    return mujoco.MjModel.from_xml_string(CONTACT_POINTS.format(
+        spheres=spheres, vertices=' '.join(map(str, vertices.ravel()))))
+
+
+def test_contact_spheres_carry_plates_on_their_hull(contact_model):
+    """Separate spheres (a vendor's foot: four 5 mm contact points) carry their plates on
+    their convex hull, the sole they mark: its bottom face spans the spheres' lowest points;
+    spheres that touch, or a sphere beside another geom, keep their own surfaces."""
+    m = contact_model
+    assert contact_spheres(m, body_geoms(m, m.body('points').id))
+    assert not contact_spheres(m, body_geoms(m, m.body('touching').id))
+    assert not contact_spheres(m, body_geoms(m, m.body('sphere_and_box').id))
+    plates = body_plates(m, m.body('points').id, count=300, cache=False)
+    assert len(plates) == 300
+    sole = plates.normals[:, 2] < -0.999
+    assert plates.areas[sole].sum() == pytest.approx(0.17 * 0.06, rel=0.02)
+    assert plates.centroids[:, 2].min() == pytest.approx(-0.035, abs=1e-9)
+    hull_area = trimesh.convex.convex_hull(np.concatenate([
+        trimesh.creation.icosphere(subdivisions=4, radius=0.005).vertices + [x, y, -0.03]
+        for x in (-0.05, 0.12) for y in (-0.03, 0.03)])).area
+    assert plates.total_area == pytest.approx(hull_area, rel=0.02)
+    touching = body_plates(m, m.body('touching').id, count=300, cache=False)
+    assert touching.total_area < 2 * 4 * np.pi * 0.01 ** 2  # their outer surfaces only
+
+
+def test_outline_plates_cover_the_collided_hull_of_a_mesh(contact_model):
+    """outline=True (the other bodies'): a fine mesh carries plates on its convex outline:
+    in every direction their centroids reach within a facet's centroid offset of the hull
+    MuJoCo collides (its lowest point, however it lies), with at most 80 triangles at a
+    coarse density; the mesh itself, decimated to the same count, shrinks further inward."""
+    m = contact_model
+    body = m.body('link').id
+    geom = body_geoms(m, body)[0]
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, m.geom_quat[geom])
+    hull = mesh_vertices(m, geom) @ rotation.reshape(3, 3).T + m.geom_pos[geom]
+    directions = trimesh.creation.icosphere(subdivisions=3).vertices
+    reach = (hull @ directions.T).max(axis=0)
+
+    def gap(plates):
+        return (reach - (plates.centroids @ directions.T).max(axis=0)).max()
+
+    outline = body_plates(m, body, density_per_mm2=0.001, outline=True, cache=False)
+    assert len(outline) <= 80
+    assert gap(outline) < 0.08 * 0.15  # (1 cm: the centroids of 5 cm triangles)
+    decimated = body_plates(m, body, count=len(outline), cache=False)
+    assert gap(decimated) > 1.5 * gap(outline)  # (2.3 cm; Unitree G1's shoulder: 11 cm)

@@ -8,7 +8,8 @@ the Simulation) of each.
     python -m rft_sim_ros.bench.other_bodies [scene-or-robot-file ...]
 
 Default cases: the hexapod and the bundled quadruped standing (gait none) and walking, and
-the bipedal test robot (test/robots/biped) standing from its keyframe.
+the bipedal test robot (test/robots/biped) standing from its keyframe and walking (its
+scenario march.py).
 """
 import statistics
 import sys
@@ -27,7 +28,10 @@ CASES = (
 )
 BIPED = Path(__file__).resolve().parents[2] / 'test' / 'robots' / 'biped' / 'biped.xml'
 if BIPED.is_file():  # (a source checkout)
-    CASES += (('biped standing', str(BIPED), {'robot.keyframe': 'stand'}, 1.0),)
+    CASES += (('biped standing', str(BIPED), {'robot.keyframe': 'stand'}, 1.0),
+              ('biped walking', str(BIPED), {'robot.keyframe': 'stand',
+                                             'scenario': str(BIPED.with_name('march.py'))},
+               1.5))
 WITHOUT = {'rft.other_bodies_density_per_mm2': None}
 
 

@@ -6,7 +6,9 @@ remeshing.
 Each geom (sphere, capsule, cylinder, box, ellipsoid, mesh) is tessellated with trimesh at a
 target edge length, refined so that no edge is longer, and expressed in the body frame (the
 frame of mjData.xpos / xmat). Plates whose centroid lies inside another geom of the same body
-are dropped, so overlapping geoms contribute their outer surface only. A target plate count
+are dropped, so overlapping geoms contribute their outer surface only. A body given by
+contact points only (separate small spheres, `contact_spheres`) carries plates on their
+convex hull, the sole the points mark. A target plate count
 per body is met by searching the edge length; a target density (plates/mm^2) sets it directly.
 A mesh far finer than its share of the count is first simplified (quadric decimation,
 trimesh with fast_simplification), so the count asked is the count made. Plates of an
@@ -80,6 +82,48 @@ def model_mesh(model, geom_id):
     f0, nf = model.mesh_faceadr[mesh_id], model.mesh_facenum[mesh_id]
     return trimesh.Trimesh(vertices=model.mesh_vert[v0:v0 + nv].copy(),
                            faces=model.mesh_face[f0:f0 + nf].copy(), process=True)
+
+
+def mesh_vertices(model, geom_id):
+    """(V, 3) vertices (m, geom frame) of mesh geom `geom_id`: those of the convex hull
+    MuJoCo made of it (what it collides), else all of its mesh's."""
+    mesh = model.geom_dataid[geom_id]
+    start = model.mesh_vertadr[mesh]
+    vertices = model.mesh_vert[start:start + model.mesh_vertnum[mesh]]
+    graph = model.mesh_graphadr[mesh]
+    if graph < 0:
+        return vertices
+    count = model.mesh_graph[graph]
+    return vertices[model.mesh_graph[graph + 2 + count:graph + 2 + 2 * count]]
+
+
+#: Directions (unit vectors, the 42 vertices of a once-subdivided icosahedron, about 30 deg
+#: apart) in which a mesh geom's outline takes its extreme points (`collided_outline`).
+_OUTLINE_SUBDIVISIONS = 1
+
+
+def collided_outline(model, geom_id):
+    """Mesh geom `geom_id`'s convex outline, a trimesh (geom frame): the convex hull of the
+    vertices MuJoCo collides (`mesh_vertices`) that lie farthest in each of 42 directions,
+    at most 80 triangles. It touches the collided hull at its extreme points, so wherever
+    the body lies its lowest point is on the outline or within a few per cent of its size
+    below it, where a vendor's link mesh decimated to a few dozen triangles shrank inward by
+    up to 11 cm (Unitree G1's shoulder). A flat or degenerate mesh: its mesh as given."""
+    import trimesh
+    vertices = np.asarray(mesh_vertices(model, geom_id), dtype=float)
+    directions = trimesh.creation.icosphere(subdivisions=_OUTLINE_SUBDIVISIONS).vertices
+    extreme = vertices[np.unique(np.argmax(vertices @ directions.T, axis=0))]
+    try:
+        outline = trimesh.convex.convex_hull(extreme)
+    except Exception:  # (qhull: coplanar or too few points)
+        return model_mesh(model, geom_id)
+    return outline if outline.area > 0 else model_mesh(model, geom_id)
+
+
+def collided_outlines(model, body_id):
+    """{geom id: `collided_outline`} of the mesh geoms of body `body_id`."""
+    return {g: collided_outline(model, g) for g in body_geoms(model, body_id)
+            if int(model.geom_type[g]) == mujoco.mjtGeom.mjGEOM_MESH}
 
 
 def _hull_planes(model, geom_id):
@@ -187,11 +231,40 @@ def same_geom(model, a, b):
                 and abs(abs(float(np.dot(qa, qb))) - 1.0) < 1e-12)
 
 
+def contact_spheres(model, geoms):
+    """Whether `geoms` (ids, one body's) are contact points: two or more spheres and nothing
+    else, none touching another. Vendors give a foot that way for rigid ground (Unitree's
+    G1: four 5 mm spheres at the corners of each sole), where the ground meets the convex
+    hull of a body's geoms; sand meets a surface, and 6 cm^2 of spheres bear a 33 kg robot
+    only 15 cm deep, so the plates of such a body are made on that hull (the sole they
+    mark, `body_triangles`)."""
+    spheres = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+    if len(geoms) < 2 or any(int(model.geom_type[g]) != spheres for g in geoms):
+        return False
+    centres = np.array([model.geom_pos[g] for g in geoms])
+    radii = np.array([model.geom_size[g, 0] for g in geoms])
+    apart = np.linalg.norm(centres[:, None] - centres[None], axis=2) > radii[:, None] + radii
+    return bool(apart[~np.eye(len(geoms), dtype=bool)].all())
+
+
+def _hull_triangles(model, geoms, edge):
+    """Triangles ((T, 3, 3), m, body frame, edges <= ~`edge`) of the convex hull of the
+    sphere geoms `geoms`: their tessellations' vertices hulled (the caps as fine as the
+    spheres'), the flat parts between them refined."""
+    import trimesh
+    points = np.concatenate([np.asarray(geom_mesh(model, g, edge).vertices) + model.geom_pos[g]
+                             for g in geoms])
+    return np.asarray(refine(trimesh.convex.convex_hull(points), edge).triangles)
+
+
 def body_triangles(model, body_id, edge, meshes=None):
     """Surface triangles of body `body_id` ((T, 3, 3), m, body frame) with edges <= ~`edge`:
-    its geoms' surfaces without the parts inside another geom of the body. meshes: {geom id:
-    simplified trimesh} to use for mesh geoms (`simplified_meshes`)."""
+    its geoms' surfaces without the parts inside another geom of the body, or the convex
+    hull of its contact points (`contact_spheres`). meshes: {geom id: simplified trimesh}
+    to use for mesh geoms (`simplified_meshes`)."""
     geoms = body_geoms(model, body_id)
+    if contact_spheres(model, geoms):
+        return _hull_triangles(model, geoms, edge)
     meshes = meshes or {}
     parts = []
     for geom_id in geoms:
@@ -238,13 +311,13 @@ def plate_cache_dir():
 
 
 #: Bump when the plate-making changes, so that old cache entries are not used.
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2  # (2: contact spheres' hull; outlines)
 
 
-def _geometry_key(model, body_id, count, density_per_mm2):
+def _geometry_key(model, body_id, count, density_per_mm2, outline):
     """A hash of everything body_plates reads: the surface geoms' types, sizes, poses and
-    meshes, and the count or density asked."""
-    digest = hashlib.sha256(repr((_CACHE_VERSION, count, density_per_mm2)).encode())
+    meshes, and the count or density and the surface asked."""
+    digest = hashlib.sha256(repr((_CACHE_VERSION, count, density_per_mm2, outline)).encode())
     for g in body_geoms(model, body_id):
         for array in (model.geom_type[g:g + 1], model.geom_size[g], model.geom_pos[g],
                       model.geom_quat[g]):
@@ -258,13 +331,16 @@ def _geometry_key(model, body_id, count, density_per_mm2):
     return digest.hexdigest()
 
 
-def body_plates(model, body_id, count=None, density_per_mm2=None, cache=True):
+def body_plates(model, body_id, count=None, density_per_mm2=None, cache=True, outline=False):
     """Plates of body `body_id` in its body frame, sized by a target count or density.
 
     count: number of plates on the body. density_per_mm2: plates per mm^2 of surface (the
     paper's unit), i.e. a count of density x area. Give one. The count is met exactly
     (above the coarsest tessellation of the body's geoms): the finest refinement that stays
     within it is found by bisecting the edge length, then its largest triangles are halved.
+    outline: mesh geoms carry plates on their convex outline (`collided_outline`, what
+    MuJoCo collides, coarsely: the other bodies' plates, there so that nothing passes
+    through the sand), not on their mesh as drawn (a foot's shape: the paper's C-legs).
     cache: read and write the plate cache (`plate_cache_dir`).
     """
     if (count is None) == (density_per_mm2 is None):
@@ -277,14 +353,15 @@ def body_plates(model, body_id, count=None, density_per_mm2=None, cache=True):
         raise ValueError(f'plate count must be a positive integer, got {count!r}')
     if density_per_mm2 is not None and not density_per_mm2 > 0:
         raise ValueError(f'plate density must be > 0 plates/mm^2, got {density_per_mm2}')
-    path = plate_cache_dir() / f'{_geometry_key(model, body_id, count, density_per_mm2)}.npz'
+    key = _geometry_key(model, body_id, count, density_per_mm2, outline)
+    path = plate_cache_dir() / f'{key}.npz'
     if cache and path.is_file():
         try:
             with np.load(path) as stored:
                 return Plates(stored['centroids'], stored['normals'], stored['areas'])
         except (OSError, KeyError, ValueError):
             pass  # unreadable entry: make the plates again
-    plates = _make_plates(model, body_id, count, density_per_mm2)
+    plates = _make_plates(model, body_id, count, density_per_mm2, outline)
     if cache:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -297,9 +374,11 @@ def body_plates(model, body_id, count=None, density_per_mm2=None, cache=True):
     return plates
 
 
-def _make_plates(model, body_id, count, density_per_mm2):
+def _make_plates(model, body_id, count, density_per_mm2, outline):
     meshes = {}
-    if count is not None:
+    if outline:
+        meshes = collided_outlines(model, body_id)
+    elif count is not None:
         meshes = simplified_meshes(model, body_id, count)
     coarsest = body_triangles(model, body_id, np.inf, meshes)
     area = Plates.from_triangles(coarsest).total_area
@@ -309,8 +388,9 @@ def _make_plates(model, body_id, count, density_per_mm2):
                          'to make RFT plates from (each lies inside another)')
     if density_per_mm2 is not None:
         count = max(1, int(round(density_per_mm2 * area * 1e6)))
-        meshes = simplified_meshes(model, body_id, count)
-        coarsest = body_triangles(model, body_id, np.inf, meshes)
+        if not outline:
+            meshes = simplified_meshes(model, body_id, count)
+            coarsest = body_triangles(model, body_id, np.inf, meshes)
     best = coarsest  # the most triangles found that do not exceed `count`
     edge = edge_for_plate_area(area / count)
     fine, coarse = None, None  # edges known to give too many / at most `count` triangles

@@ -324,8 +324,9 @@ KEYS = (
         "auto's picks and a loose crate's). The bodies chosen are printed at start-up.", _names),
     Key('rft.plate_geoms', "'collision' or 'visual'", '', 'collision', 'Which geoms of a sand '
         'body carry its plates: the ones MuJoCo collides (a body without any: its visual '
-        'geoms), or its visual geoms, the shape as drawn (a model whose feet collide as a few '
-        'small spheres; a body without visual geoms keeps its collision geoms).',
+        'geoms; a body whose collision geoms are separate spheres, contact points for rigid '
+        'ground, carries them on their convex hull, the sole they mark), or its visual geoms, '
+        'the shape as drawn (a body without visual geoms keeps its collision geoms).',
         _choice('collision', 'visual')),
     Key('rft.plates_per_body', 'integer >= 1', 'plates', 300, 'Plates on each sand body '
         '(ignored when rft.plate_density_per_mm2 is given).', _count),
@@ -334,8 +335,10 @@ KEYS = (
     Key('rft.other_bodies_density_per_mm2', 'number > 0 or null', 'plates/mm^2',
         OTHER_BODIES_DENSITY_PER_MM2, 'Plates per mm^2 on every other moving body with '
         'collision geoms (not chosen by rft.bodies: shins, trunk, head, arms), so that no body '
-        'passes through the sand (a fallen robot lies on it); coarser than the sand bodies, '
-        'and free while above the sand; null: only the rft.bodies carry plates, the others '
+        'passes through the sand (a fallen robot lies on it); coarser than the sand bodies '
+        "(a mesh as the convex outline MuJoCo collides; a small body its geoms' coarsest "
+        'tessellation, said at start-up where that is more), and free while above the sand; '
+        'null: only the rft.bodies carry plates, the others '
         'pass through the sand (rft_sim_ros/robot/sand_bodies.py).',
         lambda v: None if v is None else _positive(v)),
     Key('rft.plates', 'mapping body -> integer', 'plates', {}, 'Per-body plate counts that '

@@ -318,23 +318,30 @@ def plates_of(scene, model, sand_bodies, others, notices):
     if over:
         notices.append(f'plates: {", ".join(over)}, more than asked: their geoms '
                        'tessellate (a mesh decimates) no coarser')
-    density, without = scene.other_bodies_density_per_mm2, []
+    density, without, asked = scene.other_bodies_density_per_mm2, [], 0
     for body in others:
         try:
-            plates[body] = body_plates(model, model.body(body).id, density_per_mm2=density)
+            plates[body] = body_plates(model, model.body(body).id, density_per_mm2=density,
+                                       outline=True)
         except ValueError as error:
             without.append(f'{body} ({error})')
+        else:
+            asked += max(1, round(density * plates[body].total_area * 1e6))
     if without:
         notices.append(f'other bodies without plates, which pass through the sand: '
                        f'{first_few(without)}')
     others = tuple(b for b in others if b in plates)
     if others:
         count = sum(len(plates[b].areas) for b in others)
+        coarsest = ('' if count <= asked else
+                    f', {count - asked} more than {density:g} per mm^2 asks: small bodies '
+                    "carry their geoms' coarsest tessellation")
         notices.append(
             f'other bodies: {first_few(list(others))} carry {count} plates '
-            f'({density:g} per mm^2), so that the sand holds them too (those on a '
-            "leg's branch add to that leg's wrench; rft.other_bodies_density_per_mm2: null "
-            'leaves them without)')
+            f'({density:g} per mm^2{coarsest}; meshes as the convex outline MuJoCo '
+            "collides), so that the sand holds them too (those on a leg's branch add to "
+            "that leg's wrench; rft.other_bodies_density_per_mm2: null leaves them "
+            'without)')
     return plates, others
 
 

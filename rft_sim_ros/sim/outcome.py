@@ -26,7 +26,18 @@ The summary's `outcome` (summary.json, /diagnostics):
                               the sand surface of any collision geom (null: no geom ever
                               went below it);
   unsettled_step_share        steps in which the implicit solve froze a plate or its sets
-                              did not settle, over the run's steps (0 without sand contact);
+                              did not settle, over the run's steps (0 without sand contact).
+                              A plate is frozen where its leading/trailing set would cycle
+                              within a step: at rest, where its direction of motion is
+                              noise (a fallen humanoid lying still: most steps), and on a
+                              foot turning slowly through the sand (the walking hexapod's
+                              stance feet: 11 % of steps), where RFT's lift makes the law
+                              non-monotone. It then takes the linear
+                              response through its speed (coupling.implicit_wrenches): at
+                              rest the resting law, moving a damper that brakes it;
+  rows_handed_back_step_share steps whose constraint rows (contacts, limits, closed loops)
+                              MuJoCo's own solver took because the implicit solve could
+                              not settle them, over the run's steps;
   max_uncovered_penetration_m deepest point below the surface of a body without plates
                               (null: every collision body carries plates);
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
@@ -37,7 +48,7 @@ import math
 import mujoco
 import numpy as np
 
-from ..sand.geoms import is_collision_geom
+from ..sand.geoms import is_collision_geom, mesh_vertices
 
 #: deg: the robot fell once its base has turned this far from how it started.
 TILT_LIMIT_DEG = 45.0
@@ -52,19 +63,6 @@ _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = (
     int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE),
     int(mujoco.mjtGeom.mjGEOM_ELLIPSOID), int(mujoco.mjtGeom.mjGEOM_CYLINDER),
     int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_MESH))
-
-
-def mesh_vertices(model, geom):
-    """(V, 3) vertices (m, geom frame) of mesh geom `geom`: those of the convex hull MuJoCo
-    made of it (what it collides), else all of its mesh's."""
-    mesh = model.geom_dataid[geom]
-    start = model.mesh_vertadr[mesh]
-    vertices = model.mesh_vert[start:start + model.mesh_vertnum[mesh]]
-    graph = model.mesh_graphadr[mesh]
-    if graph < 0:
-        return vertices
-    count = model.mesh_graph[graph]
-    return vertices[model.mesh_graph[graph + 2 + count:graph + 2 + 2 * count]]
 
 
 class LowestPoints:
@@ -192,10 +190,10 @@ class OutcomeWatch:
     def _body(self, g):
         return self._model.body(int(self._bodies[g])).name
 
-    def result(self, data, surface, steps, unsettled):
+    def result(self, data, surface, steps, unsettled, handed_back=0):
         """The `outcome` mapping (module docstring) of the run so far, `data` its final state;
         steps: the run's steps; unsettled: how many of them the implicit solve did not
-        settle."""
+        settle; handed_back: in how many it handed MuJoCo's constraint rows back."""
         final = self.tilt(data)
         deepest = None
         if self.deepest is not None:
@@ -207,6 +205,7 @@ class OutcomeWatch:
             'tilt_limit_deg': self.tilt_limit_deg, 'max_tilt_deg': self.max_tilt,
             'final_tilt_deg': final, 'deepest': deepest,
             'unsettled_step_share': unsettled / steps if steps else 0.0,
+            'rows_handed_back_step_share': handed_back / steps if steps else 0.0,
             'max_uncovered_penetration_m': self.uncovered,
         }
         now = self.depths(data, surface) if self._lowest.geoms.size else np.zeros(1)
@@ -236,5 +235,12 @@ def words(outcome, final_depth, final_body):
         parts.append(f'a body without plates reached {uncovered * 100:.3g} cm into the sand')
     share = outcome['unsettled_step_share']
     if share > UNSETTLED_SAID:
-        parts.append(f'the implicit solve did not settle in {share * 100:.0f} % of steps')
+        parts.append(f'in {share * 100:.0f} % of steps the implicit solve froze plates whose '
+                     'leading/trailing sets cycled (at rest, or turning slowly in the sand): '
+                     "they took a linear response through their speed, not RFT's switch")
+    handed_back = outcome.get('rows_handed_back_step_share', 0.0)
+    if handed_back > UNSETTLED_SAID:
+        parts.append(f"in {handed_back * 100:.0f} % of steps MuJoCo's own solver took the "
+                     'constraint rows (contacts, limits, loops) the implicit solve could not '
+                     'settle')
     return '; '.join(parts)

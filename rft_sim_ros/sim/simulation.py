@@ -236,7 +236,7 @@ class Simulation:
                                            self.data.qpos[self._command_qpos])
         if kind == 'rest':
             self._settle()
-        self._unsettled_before = self._engine_counts()[1] - self._settle_counts[1]
+        self._counts_before = self._engine_counts() - self._settle_counts
         self._outcome.start(self.data, self.time)
 
     def _settle(self):
@@ -321,9 +321,11 @@ class Simulation:
         summary.json's `outcome` says it (sim/outcome.py): fell, how deep any body went, the
         unsettled share, in words."""
         self._outcome.observe(self.data, self.engine.surface, self.time)
-        unsettled = self._engine_counts()[1] - self._settle_counts[1] - self._unsettled_before
+        _, unsettled, handed_back = (self._engine_counts() - self._settle_counts
+                                     - self._counts_before)
         return self._outcome.result(self.data, self.engine.surface,
-                                    self.steps - self._steps_before, int(unsettled))
+                                    self.steps - self._steps_before, int(unsettled),
+                                    int(handed_back))
 
     def implicit_counts(self):
         """The implicit solve's counts over the steps the run took (`step`, resets
