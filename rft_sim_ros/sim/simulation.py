@@ -494,6 +494,8 @@ class Simulation:
         leg_of_row = np.repeat(np.arange(len(self.legs)),
                                [len(bodies) for bodies in self.legs.values()])
         self._leg_membership = (leg_of_row == np.arange(len(self.legs))[:, None]).astype(float)
+        self._foot_rows = np.array([self.engine.body_names.index(bodies[-1])
+                                    for bodies in self.legs.values()], dtype=int)
 
     def _start(self):
         """Initial state (keyframe, initial positions, scenario, spawn), fresh command
@@ -808,12 +810,19 @@ class Simulation:
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean
         over the steps since the previous call (`SandEngine.mean_wrenches`), with the torque
         about the leg's point now."""
+        return self._legs_and_feet()[0]
+
+    def _legs_and_feet(self):
+        """(`leg_wrenches`, (legs, 3) the sand force on each leg's foot, its last sand body,
+        N, world axes), means over the steps since the previous call."""
+        wrenches = self.engine.mean_wrenches()
         # summed per leg: [force, torque about the world origin]
-        sums = self._leg_membership @ self.engine.mean_wrenches()[self._leg_rows]
+        sums = self._leg_membership @ wrenches[self._leg_rows]
         points = self.data.xpos[self._leg_feet]
         forces = sums[:, :3]
         torques = sums[:, 3:] - _cross(points, forces)
-        return tuple(map(LegWrench, self._leg_names, forces, torques, points))
+        return (tuple(map(LegWrench, self._leg_names, forces, torques, points)),
+                wrenches[self._foot_rows, :3])
 
     def state(self, with_plates=False):
         """A SimState snapshot of the current state; its leg wrenches are the means over the
@@ -827,8 +836,8 @@ class Simulation:
         if with_plates:
             positions, forces, areas = self.engine.active_plates()
             plates = ActivePlates(positions, forces, areas)
-        legs = self.leg_wrenches()
-        sensors = self.sensors.read(d, legs) if self.sensors.active else None
+        legs, feet = self._legs_and_feet()
+        sensors = self.sensors.read(d, legs, feet) if self.sensors.active else None
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
