@@ -3,9 +3,11 @@
 
 ROS-free: `SimulationServices` decides every answer as plain numbers and text; the node
 fills the package's messages from them (and starts without these services, saying so once,
-where the package is not installed). The constants are those of simulation_interfaces 2.x
+where the package is not installed). The constants are those of simulation_interfaces 1.x
+(its jazzy branch; checked against 1.5.1 on a real Jazzy) and 2.x
 (github.com/ros-simulation/simulation_interfaces: msg/SimulatorFeatures.msg,
-msg/SimulationState.msg, msg/Result.msg, srv/ResetSimulation.srv, srv/SetSimulationState.srv).
+msg/SimulationState.msg, msg/Result.msg, srv/ResetSimulation.srv, srv/SetSimulationState.srv,
+action/SimulateSteps.action).
 
 What this simulator supports, as GetSimulatorFeatures says it:
 
