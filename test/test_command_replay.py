@@ -14,7 +14,6 @@ robot_joint_commands, the sensor_msgs/JointState commands the topic hardware int
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 from rosbags.rosbag2 import Writer
 
