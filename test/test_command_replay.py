@@ -1,10 +1,19 @@
 """`rft-sim run ... --commands FILE` (rft_sim_ros.ros.replay): recorded commands replayed in
 sim time from a rosbag2 folder (JTC trajectory, forward effort array, JointState commands)
 and from CSV / YAML joint targets, on the bundled quadruped and on a robot file; a malformed
-file is one clear error line."""
-import math
+file is one clear error line.
 
-import numpy as np
+test/bags/ holds two bags that `ros2 bag record` (ROS 2 Jazzy, MCAP storage) recorded from a
+real controller_manager (ros2_control 4.22, launch/control.launch.py) driving the simulator:
+jtc_trajectory, the trajectory_msgs/JointTrajectory published to joint_trajectory_controller
+(every joint, hips 0.6 -> 0.8 rad, knees -1.2 -> -1.5 rad in 1 s), and
+robot_joint_commands, the sensor_msgs/JointState commands the topic hardware interface
+(JointStateTopicSystem) sent while that JTC ran the same motion (zstd-compressed, trimmed to
+2.5 s by `ros2 bag convert`: held, moving from 0.5 s to 1.5 s, held).
+"""
+import math
+from pathlib import Path
+
 import pytest
 from rosbags.rosbag2 import Writer
 
@@ -22,6 +31,7 @@ from ros_test_support import SERVO_RIG
 FACTORY = RosbagsFactory(jazzy_typestore())
 RIG_MODEL = SERVO_RIG.replace('servo_rig.yaml', 'servo_rig.xml')
 NS = 1_000_000_000
+BAGS = Path(__file__).parent / 'bags'
 
 
 class States:
@@ -99,6 +109,25 @@ def test_a_recorded_bag_replays_trajectory_then_joint_state_commands(quadruped, 
     assert states.joint('fl_knee', 0.75) == pytest.approx(-1.0, abs=0.03)
     assert states.joint('fl_knee', 1.2) == pytest.approx(-1.3, abs=0.03)
     assert states.joint('rr_knee', 1.2) == pytest.approx(-1.0, abs=0.03)  # NaN: held
+
+
+def standing_joints(states, time):
+    """{joint: position} at `time`, after checking the quadruped stands upright."""
+    state = min(states.states, key=lambda s: abs(s.time - time))
+    assert state.base_quaternion_wxyz[0] > 0.99  # (no tilt over ~16 degrees)
+    return dict(zip(state.joint_names, state.joint_positions))
+
+
+@pytest.mark.parametrize('bag, start, end', [('jtc_trajectory', 0.0, 1.0),
+                                             ('robot_joint_commands', 0.5, 1.5)])
+def test_bags_that_ros2_bag_record_recorded_of_a_real_controller_replay(quadruped, bag, start,
+                                                                         end):
+    states = replay(quadruped, BAGS / bag, end + 0.6)
+    before, after = standing_joints(states, start - 0.02), standing_joints(states, end + 0.6)
+    for leg in ('fl', 'fr', 'rl', 'rr'):  # the JTC's goal tolerance: 0.02 rad
+        assert before[f'{leg}_knee'] == pytest.approx(-1.2, abs=0.02)
+        assert after[f'{leg}_hip_pitch'] == pytest.approx(0.8, abs=0.02)
+        assert after[f'{leg}_knee'] == pytest.approx(-1.5, abs=0.02)
 
 
 def test_forward_effort_commands_from_a_bag_on_a_robot_file(tmp_path):

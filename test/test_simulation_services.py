@@ -17,7 +17,7 @@ def rig():
 
 def test_features_list_what_is_served_and_not_time_reset():
     features, formats, info = si.SimulationServices.features()
-    assert set(features) == {20, 22, 24, 25, 26, 31, 32}
+    assert set(features) == {20, 22, 24, 25, 26, 31, 32, 33}
     assert si.SIMULATION_RESET_TIME not in features and formats == []
     assert 'publish period' in info
 
@@ -47,10 +47,22 @@ def test_step_needs_a_pause_and_advances_whole_publish_periods(rig):
     assert refused.result == si.RESULT_OPERATION_FAILED and 'pause' in refused.message
     services.set_state(si.STATE_PAUSED)
     published = len(h.sink.states)
-    assert services.step(3).result == si.RESULT_OK
+    stepped = services.step(3)
+    assert stepped.result == si.RESULT_OK
+    assert stepped.message.startswith('3 steps: 0.03 s to sim time'), stepped.message
     assert h.sim.time == pytest.approx(3 * h.runtime.publish_period)
     assert len(h.sink.states) == published + 3
     assert services.step(0).result == si.RESULT_OPERATION_FAILED
+
+
+def test_simulate_steps_gives_feedback_after_each_step(rig):
+    h, services = rig
+    services.set_state(si.STATE_PAUSED)
+    feedback = []
+    done = services.step(3, lambda completed, remaining: feedback.append(
+        (completed, remaining, round(h.sim.time / h.runtime.publish_period))))
+    assert done.result == si.RESULT_OK
+    assert feedback == [(1, 2, 1), (2, 1, 2), (3, 0, 3)]
 
 
 def test_reset_restores_the_state_and_says_time_runs_on(rig):

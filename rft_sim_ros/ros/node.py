@@ -9,8 +9,8 @@ joint_states_topic);
 joint_trajectory_controller's FollowJointTrajectory action server (control_msgs); services
 ~/pause (std_srvs/SetBool), ~/reset, ~/step and ~/reset_terrain (std_srvs/Trigger);
 simulation_interfaces' get_simulator_features, reset_simulation, step_simulation,
-get_simulation_state and set_simulation_state where that package is installed
-(`simulation_services`). The
+get_simulation_state and set_simulation_state services and simulate_steps action where that
+package is installed (`simulation_services`). The
 robot comes from the parameters scene / model / robot_description, or, with none of them
 set, from the first valid message on /robot_description (rft_sim_ros.ros.robot_source). The
 node publishes /clock itself and must not run on sim time; its timer runs on the steady
@@ -39,12 +39,11 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from rft_sim_ros.control.trajectory_goals import GoalState
-from rft_sim_ros.ros import follow_messages, messages, parameters, topics
+from rft_sim_ros.ros import follow_messages, messages, parameters, simulation_services, topics
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.messages import ServiceResult
-from rft_sim_ros.ros.simulation_services import SimulationServices
 from rft_sim_ros.ros.startup import SimStartup, StartFailed, compile_in_child
 
 NODE_NAME = 'rft_sim'
@@ -348,12 +347,12 @@ class SimNode(Node):
         """simulation_interfaces' services (`simulation_services`), where the package is
         installed; else said once."""
         try:
-            from simulation_interfaces import srv
+            from simulation_interfaces import action, srv
         except ImportError:
             self.get_logger().info('simulation_interfaces is not installed: its simulator '
                                    'services are off (~/pause, ~/step, ~/reset serve instead)')
             return
-        services = SimulationServices(self.runtime)
+        services = simulation_services.SimulationServices(self.runtime)
 
         def answer(response, outcome):
             response.result.result, response.result.error_message = (outcome.result,
@@ -382,6 +381,21 @@ class SimNode(Node):
                  lambda request, response: answer(response,
                                                    services.set_state(request.state.state)))):
             self.create_service(kind, name, callback)
+
+        def simulate_steps(goal_handle):
+            def feedback(completed, remaining):
+                goal_handle.publish_feedback(action.SimulateSteps.Feedback(
+                    completed_steps=completed, remaining_steps=remaining))
+            result = answer(action.SimulateSteps.Result(),
+                            services.step(goal_handle.request.steps, feedback))
+            if result.result.result == simulation_services.RESULT_OK:
+                goal_handle.succeed()
+            else:
+                goal_handle.abort()
+            return result
+
+        self._simulate_steps = ActionServer(self, action.SimulateSteps, 'simulate_steps',
+                                            execute_callback=simulate_steps)
 
     def _on_subscriber(self, **resend):
         """Publisher events: a subscriber joining makes the runtime re-send the terrain

@@ -3,9 +3,11 @@
 
 ROS-free: `SimulationServices` decides every answer as plain numbers and text; the node
 fills the package's messages from them (and starts without these services, saying so once,
-where the package is not installed). The constants are those of simulation_interfaces 2.x
+where the package is not installed). The constants are those of simulation_interfaces 1.x
+(its jazzy branch; checked against 1.5.1 on a real Jazzy) and 2.x
 (github.com/ros-simulation/simulation_interfaces: msg/SimulatorFeatures.msg,
-msg/SimulationState.msg, msg/Result.msg, srv/ResetSimulation.srv, srv/SetSimulationState.srv).
+msg/SimulationState.msg, msg/Result.msg, srv/ResetSimulation.srv, srv/SetSimulationState.srv,
+action/SimulateSteps.action).
 
 What this simulator supports, as GetSimulatorFeatures says it:
 
@@ -14,19 +16,21 @@ What this simulator supports, as GetSimulatorFeatures says it:
   goes back), so SCOPE_TIME alone is not supported (SIMULATION_RESET_TIME is not listed);
   SCOPE_DEFAULT and SCOPE_ALL reset everything else and say so. Nothing is ever spawned, so
   SCOPE_SPAWNED has nothing to remove.
-* StepSimulation (STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE): while paused, `steps`
+* StepSimulation (STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE) and the SimulateSteps
+  action (STEP_SIMULATION_ACTION, feedback after each step): while paused, `steps`
   iterations of the simulation loop, each one publish period of sim time followed by its
-  state publication, as ~/step.
+  state publication, as ~/step. The action runs its steps at once (as the service does): a
+  cancel request is refused.
 * GetSimulationState / SetSimulationState (SIMULATION_STATE_GETTING, _SETTING, _PAUSE):
   PLAYING, PAUSED, and STOPPED (paused and reset, until played or paused).
-Not supported: spawning, entities, named poses, worlds, the SimulateSteps action, quitting.
+Not supported: spawning, entities, named poses, worlds, quitting.
 """
 from dataclasses import dataclass
 
 # simulation_interfaces/msg/SimulatorFeatures
 SIMULATION_RESET, SIMULATION_RESET_TIME, SIMULATION_RESET_STATE = 20, 21, 22
 SIMULATION_STATE_GETTING, SIMULATION_STATE_SETTING, SIMULATION_STATE_PAUSE = 24, 25, 26
-STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE = 31, 32
+STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE, STEP_SIMULATION_ACTION = 31, 32, 33
 # simulation_interfaces/msg/SimulationState
 STATE_STOPPED, STATE_PLAYING, STATE_PAUSED, STATE_QUITTING = 0, 1, 2, 3
 # simulation_interfaces/msg/Result
@@ -40,7 +44,7 @@ ALREADY_IN_TARGET_STATE, STATE_TRANSITION_ERROR, INCORRECT_TRANSITION = 101, 102
 #: What GetSimulatorFeatures lists (module docstring).
 FEATURES = (SIMULATION_RESET, SIMULATION_RESET_STATE, SIMULATION_STATE_GETTING,
             SIMULATION_STATE_SETTING, SIMULATION_STATE_PAUSE, STEP_SIMULATION_SINGLE,
-            STEP_SIMULATION_MULTIPLE)
+            STEP_SIMULATION_MULTIPLE, STEP_SIMULATION_ACTION)
 CUSTOM_INFO = ('rft_sim (rft_sim_ros): MuJoCo with granular resistive force theory. A step '
                'is one publish period of sim time; a reset keeps sim time running forward.')
 _STATE_NAMES = {STATE_STOPPED: 'stopped', STATE_PLAYING: 'playing', STATE_PAUSED: 'paused'}
@@ -79,20 +83,26 @@ class SimulationServices:
             scope & SCOPE_TIME else ''
         return Answer(RESULT_OK, done.message + note)
 
-    def step(self, steps):
-        """StepSimulation of `steps` loop iterations (publish periods); only while paused."""
+    def step(self, steps, feedback=None):
+        """StepSimulation (and SimulateSteps) of `steps` loop iterations (publish periods);
+        only while paused. feedback: called (completed steps, remaining steps) after each."""
         runtime = self._runtime
         if steps < 1:
             return Answer(RESULT_OPERATION_FAILED, f'steps must be >= 1, got {steps}')
         if not runtime.paused:
             return Answer(RESULT_OPERATION_FAILED, 'the simulation is playing: pause it first '
                                                    '(SetSimulationState STATE_PAUSED)')
+        before = runtime.sim.time
         for done in range(steps):
             stepped = runtime.step()
             if not stepped.success:
                 return Answer(RESULT_OPERATION_FAILED,
                               f'after {done} of {steps} steps: {stepped.message}')
-        return Answer(RESULT_OK, stepped.message)
+            if feedback is not None:
+                feedback(done + 1, steps - done - 1)
+        return Answer(RESULT_OK, f'{steps} step{"s" if steps > 1 else ""}: '
+                                 f'{runtime.sim.time - before:.6g} s to sim time '
+                                 f'{runtime.sim.time:.6f} s')
 
     def state(self):
         """GetSimulationState: STOPPED, PAUSED or PLAYING."""

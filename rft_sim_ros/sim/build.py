@@ -42,7 +42,7 @@ CompiledModel = namedtuple('CompiledModel', 'model keyframe joint_plan patterns'
 #: The legs (`legs_of`): {leg: sand bodies}, the leg names, each leg's point (its last
 #: body's id), the engine's body index of every (leg, sand body) pair (rows) and the
 #: (legs, rows) 0/1 matrix that sums the rows of each leg.
-Legs = namedtuple('Legs', 'legs names feet rows membership')
+Legs = namedtuple('Legs', 'legs names feet rows membership foot_rows')
 
 
 def in_scenario(scene, scenario, call, *args):
@@ -396,7 +396,9 @@ def legs_of(scene, model, engine, sand_bodies, others, base):
                     dtype=int)
     leg_of_row = np.repeat(np.arange(len(legs)), [len(bodies) for bodies in legs.values()])
     membership = (leg_of_row == np.arange(len(legs))[:, None]).astype(float)
-    return Legs(legs, tuple(legs), feet, rows, membership)
+    foot_rows = np.array([engine.body_names.index(bodies[-1]) for bodies in legs.values()],
+                         dtype=int)  # each leg's foot: its last sand body
+    return Legs(legs, tuple(legs), feet, rows, membership, foot_rows)
 
 
 def servo_stiffness(scene, model):

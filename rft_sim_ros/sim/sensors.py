@@ -14,10 +14,13 @@ the last step's start, its accelerations. All SI; frames named per field.
   (`imu_noise.gyro_std` rad/s, `accel_std` m/s^2) and constant biases (`gyro_bias`,
   `accel_bias`, 3 values each), off by default, seeded (`imu_noise.seed`); covariances are
   the noise variances on the diagonal (0: exact; orientation: always exact).
-* Foot contacts (`sensors.contacts`): per leg, the normal force N (its sand force, the
-  publish-period mean of /rft/<leg>/wrench, along the sand surface's upward normal under
-  its reference point) and stance = normal force > `sensors.contact_threshold` N (default:
-  5 % of the robot's weight over the number of legs).
+* Foot contacts (`sensors.contacts`): per leg, the normal force N on its foot (the sand
+  force on the leg's last sand body, its reference point, the publish-period mean, along
+  the sand surface's upward normal under that point) and stance = normal force >
+  `sensors.contact_threshold` N (default: 5 % of the robot's weight over the number of
+  legs). The foot alone: a shank or mid segment resting in the sand loads the leg's wrench
+  (/rft/<leg>/wrench) but is no stance (the hexapod's rear mid segments drag through the
+  sand while their feet swing).
 * Model sensors (`sensors.model_sensors`): every named `<sensor>` of the MJCF, its values as
   MuJoCo computes them (mjData.sensordata; the model's units). MuJoCo's touch sensors feel
   rigid contacts only, not the sand (its force reaches force/torque sensors, through
@@ -221,13 +224,13 @@ class Sensors:
     def active(self):
         return bool(self.imu or self.contact_legs is not None or self._model_sensors)
 
-    def read(self, data, legs):
-        """SensorReadings of `data` now; legs: the state's LegWrenches (their mean forces and
-        points)."""
+    def read(self, data, legs, feet):
+        """SensorReadings of `data` now; legs: the state's LegWrenches (their points); feet:
+        (legs, 3) the mean sand force on each leg's foot, N, world axes."""
         imu = self.imu.read(data) if self.imu is not None else None
         contacts = None
         if self.contact_legs is not None:
-            forces = np.array([leg.force for leg in legs]).reshape(-1, 3)
+            forces = np.asarray(feet, dtype=float).reshape(-1, 3)
             if self._level:
                 force = forces[:, 2]
             else:

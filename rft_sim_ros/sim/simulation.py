@@ -150,6 +150,7 @@ class Simulation:
         legs = legs_of(scene, model, engine, self.sand_bodies, self.other_bodies, base)
         self.legs, self._leg_names, self._leg_feet = legs.legs, legs.names, legs.feet
         self._leg_rows, self._leg_membership = legs.rows, legs.membership
+        self._foot_rows = legs.foot_rows
         try:
             self.sensors = Sensors(model, base, self._leg_names, scene_settings(scene.values),
                                    engine.surface, engine.deformable)
@@ -489,12 +490,19 @@ class Simulation:
         """Per-leg summed sand wrenches (LegWrench, world axes; see state.py), each the mean
         over the steps since the previous call (`SandEngine.mean_wrenches`), with the torque
         about the leg's point now."""
+        return self._legs_and_feet()[0]
+
+    def _legs_and_feet(self):
+        """(`leg_wrenches`, (legs, 3) the sand force on each leg's foot, its last sand body,
+        N, world axes), means over the steps since the previous call."""
+        wrenches = self.engine.mean_wrenches()
         # summed per leg: [force, torque about the world origin]
-        sums = self._leg_membership @ self.engine.mean_wrenches()[self._leg_rows]
+        sums = self._leg_membership @ wrenches[self._leg_rows]
         points = self.data.xpos[self._leg_feet]
         forces = sums[:, :3]
         torques = sums[:, 3:] - _cross(points, forces)
-        return tuple(map(LegWrench, self._leg_names, forces, torques, points))
+        return (tuple(map(LegWrench, self._leg_names, forces, torques, points)),
+                wrenches[self._foot_rows, :3])
 
     def state(self, with_plates=False):
         """A SimState snapshot of the current state; its leg wrenches are the means over the
@@ -508,8 +516,8 @@ class Simulation:
         if with_plates:
             positions, forces, areas = self.engine.active_plates()
             plates = ActivePlates(positions, forces, areas)
-        legs = self.leg_wrenches()
-        sensors = self.sensors.read(d, legs) if self.sensors.active else None
+        legs, feet = self._legs_and_feet()
+        sensors = self.sensors.read(d, legs, feet) if self.sensors.active else None
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
