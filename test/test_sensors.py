@@ -100,9 +100,13 @@ def test_hexapod_tripod_gait_alternates_stance_sets():
     a_stance_half = phases[:, 0] < gait.stance_fraction
     only_a = stance[:, in_a].all(1) & ~stance[:, ~in_a].any(1)
     only_b = stance[:, ~in_a].all(1) & ~stance[:, in_a].any(1)
-    # each tripod alone in stance for much of its half cycle (both are in stance around the
-    # touchdowns), never in the other's
-    assert only_a[a_stance_half].mean() > 0.3 and only_b[~a_stance_half].mean() > 0.3
+    # each leg loaded more in its own tripod's half than in the other's; each tripod alone in
+    # stance for a good part of its half (both are in stance around the touchdowns, and the
+    # crab's swinging feet, lifted 6 cm, can still drag through sand they sank deeper into),
+    # never in the other's
+    a_loaded, b_loaded = stance[a_stance_half].mean(0), stance[~a_stance_half].mean(0)
+    assert (a_loaded[in_a] > b_loaded[in_a]).all() and (b_loaded[~in_a] > a_loaded[~in_a]).all()
+    assert only_a[a_stance_half].mean() > 0.2 and only_b[~a_stance_half].mean() > 0.2
     assert not only_a[~a_stance_half].any() and not only_b[a_stance_half].any()
     pattern = [a for a, b in zip(only_a, only_b) if a or b]
     switches = sum(x != y for x, y in zip(pattern, pattern[1:]))
