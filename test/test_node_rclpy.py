@@ -398,7 +398,9 @@ def test_bad_start_parameters_are_refused_with_the_reason(ros, parameters, words
 @pytest.mark.parametrize('main, arguments', [
     (sim_main, ['-p', 'scene:=no_such_scene']),
     (gait_main, ['-p', 'frequency:=-1.0'])])
-def test_executables_exit_with_status_1_on_a_bad_start_parameter(main, arguments):
+def test_executables_exit_with_status_1_on_a_bad_start_parameter(main, arguments, monkeypatch):
+    # (the default context: on this test's DDS domain, not the one of the environment)
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(DOMAIN_ID))
     assert main(['--ros-args', *arguments]) == 1
     assert not rclpy.ok()                          # the default context is shut down again
 
