@@ -194,7 +194,7 @@ def test_the_node_answers_while_its_simulation_is_built(ros, monkeypatch):
         sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
             Parameter('scene', value=SERVO_RIG), Parameter('real_time_factor', value=2.0)]),
             built=False)
-        assert sim.starting and sim.get_parameter_or('zeta') is None  # unset: the scene's
+        assert sim.starting and sim.get_parameter_or('zeta').value is None  # (the scene's)
         accepted = _set_parameter(ros, 'zeta', 5.0)
         refused = _set_parameter(ros, 'zeta', -1.0)
         assert accepted.successful
@@ -346,11 +346,11 @@ def test_pause_step_and_reset_services(ros):
     assert not refused.success and 'pause' in refused.message
     answer = ros.call(ros.probe.pause, SetBool.Request(data=True))
     assert answer.success and sim.get_parameter('paused').value is True
-    last = sim.runtime.sim.time                                # paused here
+    paused_at = sim.runtime.sim.time
     # the probe gets what was published before the pause (on a busy machine it lags behind
     # the simulator by up to its queue), then nothing more
-    assert ros.spin_until(lambda: ros.probe.clock_times()[-1] == last)
-    count = len(ros.probe.clocks)
+    assert ros.spin_until(lambda: abs(ros.probe.clock_times()[-1] - paused_at) < 1e-6)
+    count, last = len(ros.probe.clocks), ros.probe.clock_times()[-1]
     ros.spin_for(0.3)
     assert len(ros.probe.clocks) == count                      # time stands still
     assert ros.call(ros.probe.step, Trigger.Request()).success

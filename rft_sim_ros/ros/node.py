@@ -183,7 +183,6 @@ class SimNode(Node):
         self._startup_schedule = DiagnosticsSchedule(STARTUP_DIAGNOSTICS_PERIOD_S)
         self._timer = self.create_timer(STARTUP_POLL_S, self._poll_startup,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self._poll_startup()
 
     def _serve_while_starting(self):
         """/diagnostics, the services and the parameter checks: served from the start."""
