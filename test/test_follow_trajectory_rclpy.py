@@ -95,7 +95,9 @@ def test_a_goal_runs_sends_feedback_and_succeeds(ros):
         return [f.feedback for f in client.feedback
                 if _seconds(f.feedback.desired.time_from_start) >= 0.2 - 1e-9
                 and abs(f.feedback.error.positions[0]) <= 0.01]
-    assert ros.spin_until(reached, timeout=5.0)
+    assert ros.spin_until(reached, timeout=5.0), [  # (the last feedback: time, error)
+        (_seconds(f.feedback.desired.time_from_start), f.feedback.error.positions[0])
+        for f in client.feedback[-3:]]
     final = reached()[0]
     assert list(final.joint_names) == ['hip', 'knee']
     assert abs(final.desired.positions[0] - 0.3) < 1e-9
@@ -137,7 +139,9 @@ def test_cancel_holds_the_joints_and_a_new_goal_preempts(ros):
     assert answer.status == GoalStatus.STATUS_CANCELED
     held = sim.runtime.sim.commands.sample(sim.runtime.sim.time).positions[0]
     assert -0.8 < held < 0.0
-    ros.spin_for(0.3)
+    since = sim.runtime.sim.time
+    assert ros.spin_until(lambda: sim.runtime.sim.time >= since + 0.6)  # held 0.6 s of sim time
+    assert ros.catch_up(sim)
     assert abs(hip(ros.probe.joint_states[-1]) - held) < 0.01
 
 

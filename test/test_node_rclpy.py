@@ -122,6 +122,16 @@ class Ros:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.01)
 
+    def catch_up(self, sim, timeout=10.0):
+        """Spin until the probe has the /clock and /joint_states of `sim`'s sim time now: on a
+        busy machine the probe lags behind the simulator by up to its queues, and what was
+        published before a moment keeps arriving after it."""
+        now = sim.runtime.sim.time - 1e-6
+        return self.spin_until(lambda: self.probe.clocks and self.probe.joint_states
+                               and self.probe.clock_times()[-1] >= now
+                               and seconds(self.probe.joint_states[-1].header.stamp) >= now,
+                               timeout)
+
     def call(self, client, request):
         assert client.wait_for_service(timeout_sec=5.0), client.srv_name
         future = client.call_async(request)
@@ -194,7 +204,7 @@ def test_the_node_answers_while_its_simulation_is_built(ros, monkeypatch):
         sim = ros.add(SimNode(context=ros.context, parameter_overrides=[
             Parameter('scene', value=SERVO_RIG), Parameter('real_time_factor', value=2.0)]),
             built=False)
-        assert sim.starting and sim.get_parameter_or('zeta') is None  # unset: the scene's
+        assert sim.starting and sim.get_parameter_or('zeta').value is None  # (the scene's)
         accepted = _set_parameter(ros, 'zeta', 5.0)
         refused = _set_parameter(ros, 'zeta', -1.0)
         assert accepted.successful
@@ -346,11 +356,8 @@ def test_pause_step_and_reset_services(ros):
     assert not refused.success and 'pause' in refused.message
     answer = ros.call(ros.probe.pause, SetBool.Request(data=True))
     assert answer.success and sim.get_parameter('paused').value is True
-    last = sim.runtime.sim.time                                # paused here
-    # the probe gets what was published before the pause (on a busy machine it lags behind
-    # the simulator by up to its queue), then nothing more
-    assert ros.spin_until(lambda: ros.probe.clock_times()[-1] == last)
-    count = len(ros.probe.clocks)
+    assert ros.catch_up(sim)                  # what was published before the pause, then
+    count, last = len(ros.probe.clocks), ros.probe.clock_times()[-1]
     ros.spin_for(0.3)
     assert len(ros.probe.clocks) == count                      # time stands still
     assert ros.call(ros.probe.step, Trigger.Request()).success
@@ -398,7 +405,9 @@ def test_bad_start_parameters_are_refused_with_the_reason(ros, parameters, words
 @pytest.mark.parametrize('main, arguments', [
     (sim_main, ['-p', 'scene:=no_such_scene']),
     (gait_main, ['-p', 'frequency:=-1.0'])])
-def test_executables_exit_with_status_1_on_a_bad_start_parameter(main, arguments):
+def test_executables_exit_with_status_1_on_a_bad_start_parameter(main, arguments, monkeypatch):
+    # (the default context: on this test's DDS domain, not the one of the environment)
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(DOMAIN_ID))
     assert main(['--ros-args', *arguments]) == 1
     assert not rclpy.ok()                          # the default context is shut down again
 

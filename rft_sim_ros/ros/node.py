@@ -172,17 +172,16 @@ class SimNode(Node):
         self._scene = None
         self._scene_name = (self._robot[parameters.SCENE] or self._robot[parameters.MODEL]
                             or parameters.ROBOT_DESCRIPTION)
-        robot = dict(self._robot)
-        self._startup = SimStartup(
-            lambda: read_scene(robot, robot_description, self._assignments, self._keyframe),
-            build_simulation, notice=_compile_notice, warm=compile_in_child,
-            errors=(ValueError,))
         if not self._topic_publishers:  # (a description from the topic may come again)
             self._serve_while_starting()
         self._startup_schedule = DiagnosticsSchedule(STARTUP_DIAGNOSTICS_PERIOD_S)
         self._timer = self.create_timer(STARTUP_POLL_S, self._poll_startup,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self._poll_startup()
+        robot = dict(self._robot)  # (the thread starts last: its imports compete for the GIL)
+        self._startup = SimStartup(
+            lambda: read_scene(robot, robot_description, self._assignments, self._keyframe),
+            build_simulation, notice=_compile_notice, warm=compile_in_child,
+            errors=(ValueError,))
 
     def _serve_while_starting(self):
         """/diagnostics, the services and the parameter checks: served from the start."""
