@@ -145,6 +145,38 @@ def test_a_run_stopped_early_leaves_a_playable_video_of_what_was_rendered(tmp_pa
 
 
 @needs_rendering
+def test_ctrl_c_ends_a_cli_run_with_its_whole_video(tmp_path):
+    """SIGINT to the run's process group, as a terminal's Ctrl-C sends it (the video's
+    painting process gets it too): the run stops, status 130, and the video holds every
+    frame of the sim time it ran."""
+    import json
+    import math
+    out = tmp_path / 'run'
+    child = subprocess.Popen([sys.executable, '-m', 'rft_sim_ros', 'run', 'plate_drop',
+                              '--video', '--duration', '600', '--out', str(out), '--quiet',
+                              *[f'--set={k}={v}' for k, v in SMALL.items()]],
+                             env={**os.environ, 'PYTHONPATH': os.getcwd()},
+                             start_new_session=True, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while _playable_frames(out / 'video.mp4') < FPS:  # a second of video written
+            assert child.poll() is None and time.monotonic() < deadline, child.stderr.read()
+            time.sleep(0.5)
+        os.killpg(child.pid, signal.SIGINT)
+        _, stderr = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+            child.communicate()
+    assert child.returncode == 130 and 'Traceback' not in stderr, stderr
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['interrupted'] is True
+    codec, _, _, frames = _decode(out / 'video.mp4')
+    assert codec == 'h264'
+    assert len(frames) == math.floor(summary['sim_time_s'] * FPS + 1e-6) + 1
+
+
+@needs_rendering
 def test_a_killed_run_leaves_the_fragments_written_playable(tmp_path):
     """SIGKILL: nothing is closed, yet every whole fragment (a second of video) plays."""
     script = (
