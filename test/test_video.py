@@ -82,6 +82,9 @@ def test_a_run_with_video_writes_a_decodable_h264_of_its_frames_showing_the_robo
     codec, pix_fmt, size, frames = _decode(tmp_path / 'video.mp4')
     assert (codec, pix_fmt, size) == ('h264', 'yuv420p', (WIDTH, HEIGHT))
     assert len(frames) == recorder.frames == round(0.3 * FPS) + 1  # t = 0, 0.05, ..., 0.3
+    with av.open(str(tmp_path / 'video.mp4')) as container:  # each at its sim time
+        times = [frame.time for frame in container.decode(video=0)]
+    assert times == pytest.approx([k / FPS for k in range(len(frames))])
     assert summary['sim_time_s'] == pytest.approx(0.3)
     last = frames[-1].astype(float)
     assert last.std() > 10  # not blank: sky, sand, the plate

@@ -29,7 +29,7 @@ pytestmark = [pytest.mark.ros,
               pytest.mark.skipif(OFFSCREEN is not None, reason=OFFSCREEN or '')]
 
 #: A DDS domain of this test process (no other ROS graph mixes in).
-DOMAIN_ID = 101 + os.getpid() % 100
+DOMAIN_ID = int(os.environ.get('ROS_DOMAIN_ID') or 101 + os.getpid() % 100)
 WIDTH, HEIGHT, FPS = 160, 120, 20
 SMALL = ['rft.plates_per_body=64', f'video.width={WIDTH}', f'video.height={HEIGHT}',
          f'video.fps={FPS}']
