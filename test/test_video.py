@@ -318,3 +318,19 @@ def test_deformable_sand_is_drawn_with_the_hole_a_body_stands_in_and_its_colour(
     rgb = model.tex_data[start:start + rows * columns * 3].reshape(rows, columns, 3)[::-1]
     assert (rgb[dug][:, 2] > rgb[dug][:, 0]).all()  # dug: blue over red
     assert (rgb[~dug][:, 0] > rgb[~dug][:, 2]).all()  # the rest: sand
+
+
+def test_the_sand_keeps_its_colour_in_a_model_whose_geoms_default_to_another():
+    """test/robots/biped gives every geom a colour in its <default>: the sand drawn in it
+    has the sand's colour and opacity still (it had the robot's grey, opaque)."""
+    from pathlib import Path
+    import mujoco
+    from rft_sim_ros.render.stage import SAND_RGB, Stage
+    from rft_sim_ros.sim.simulation import Simulation
+    biped = Path(__file__).parent / 'robots' / 'biped' / 'biped.xml'
+    stage = Stage(Simulation(load_scene(biped, {'robot.keyframe': 'stand'})), sand_alpha=0.4)
+    model = stage.model
+    sand = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+                          & (model.geom_matid >= 0))
+    assert len(sand) == 1
+    assert model.geom_rgba[sand[0]] == pytest.approx([*SAND_RGB, 0.4])

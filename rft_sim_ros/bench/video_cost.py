@@ -1,7 +1,7 @@
 """What a run's video costs: a scene run with its bag, without and with `--video`, on this
 machine (wall and CPU seconds, their ratios, and per frame the CPU, rendering and encoding).
 
-    python -m rft_sim_ros.bench.video_cost [SCENE] [DURATION_S] [REPEATS]
+    python -m rft_sim_ros.bench.video_cost [SCENE] [DURATION_S] [REPEATS] [KEY=VALUE ...]
 
 Each run is made REPEATS times (3), alternating without and with, and the medians are given.
 CPU time counts every thread of both processes (the run's and its video painter's, whose
@@ -42,14 +42,12 @@ def _run(scene, out, duration, video):
 
 
 def video_cost(scene_name='hexapod', duration=6.0, repeats=3, width=640, height=480,
-               fps=None):
+               overrides=None):
     """Medians of `repeats` runs of the scene, `duration` s with its bag, without and with
-    its video at `width` x `height` and `fps` (None: the scene's): {'without': {...},
-    'with': {...}, 'wall_ratio', 'cpu_ratio', 'runs': every run}."""
+    its video at `width` x `height` (and the scene values `overrides`, e.g. video.fps):
+    {'without': {...}, 'with': {...}, 'wall_ratio', 'cpu_ratio', 'runs': every run}."""
     from ..scenes.config import load_scene
-    overrides = {'video.width': width, 'video.height': height}
-    if fps is not None:
-        overrides['video.fps'] = fps
+    overrides = {'video.width': width, 'video.height': height, **(overrides or {})}
     scene = load_scene(scene_name, overrides)
     runs = {'without': [], 'with': []}
     with tempfile.TemporaryDirectory() as folder:
@@ -68,10 +66,12 @@ def video_cost(scene_name='hexapod', duration=6.0, repeats=3, width=640, height=
 
 if __name__ == '__main__':
     import os
+    from ..scenes.config import parse_assignment
     from ..sim.runner import machine_info
     arguments = sys.argv[1:]
     result = video_cost(arguments[0] if arguments else 'hexapod',
                         float(arguments[1]) if len(arguments) > 1 else 6.0,
-                        int(arguments[2]) if len(arguments) > 2 else 3)
+                        int(arguments[2]) if len(arguments) > 2 else 3,
+                        overrides=dict(parse_assignment(text) for text in arguments[3:]))
     print(json.dumps({**result, 'cpu': machine_info()['cpu'],
                       'load_average': os.getloadavg()}, indent=2))

@@ -80,6 +80,7 @@ class Stage(DrawnModel):
     the start, `base_body` the base's id (the camera follows it)."""
 
     def __init__(self, sim, width=640, height=480, sand_alpha=SAND_ALPHA):
+        self._sand_rgba = (*SAND_RGB, sand_alpha)
         spec = sim.description.spec.copy()
         # (the simulation's compile removed the visual-only geoms from the spec; without
         # this, compiling again would remove the sand's material, textures and sky too)
@@ -91,7 +92,7 @@ class Stage(DrawnModel):
                                    builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
                                    rgb1=list(CHECKER[0]), rgb2=list(CHECKER[1]),
                                    width=64, height=64)
-        material = spec.add_material(name='rft_sand', rgba=[*SAND_RGB, sand_alpha],
+        material = spec.add_material(name='rft_sand', rgba=list(self._sand_rgba),
                                      texuniform=True, texrepeat=[1.0 / CHECKER_M] * 2)
         material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
         # a sky (the transparent sand is seen over it) and a sun without shadows: in Mesa's
@@ -112,7 +113,7 @@ class Stage(DrawnModel):
             bed_texture = spec.add_texture(name='rft_bed', type=mujoco.mjtTexture.mjTEXTURE_2D,
                                            width=columns, height=rows, nchannel=3)
             bed_texture.data = bytes(rows * columns * 3)  # (`update_sand` draws it)
-            bed = spec.add_material(name='rft_bed', rgba=[*SAND_RGB, sand_alpha])
+            bed = spec.add_material(name='rft_bed', rgba=list(self._sand_rgba))
             bed.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = bed_texture.name
             self._add_grid(spec, surface, 'rft_bed', BED_MARGIN_M, material='rft_bed')
             self.bed = surface
@@ -152,11 +153,18 @@ class Stage(DrawnModel):
         else:
             raise ValueError(f'cannot draw a sand surface of type {type(surface).__name__}')
 
-    @staticmethod
-    def _add_plane(spec, point, normal):
-        geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, PLANE_GRID_M],
-                                       pos=list(point), quat=list(_up_quaternion(normal)))
-        geom.material = 'rft_sand'  # (add_geom takes no material)
+    def _add_plane(self, spec, point, normal):
+        geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                       size=[0.0, 0.0, PLANE_GRID_M], pos=list(point),
+                                       quat=list(_up_quaternion(normal)))
+        self._dress(geom, 'rft_sand')
+
+    def _dress(self, geom, material):
+        """Give a sand geom its material and the material's colour: a geom colour of the
+        model's default class (e.g. `<geom rgba=...>` in its `<default>`) would else replace
+        the sand's colour and opacity."""
+        geom.material = material  # (add_geom takes no material)
+        geom.rgba = list(self._sand_rgba)
 
     def _add_grid(self, spec, grid, name, margin, lowered=0.0, material='rft_sand'):
         """An hfield geom drawing the HeightGrid `grid` `lowered` m, its heights' span
@@ -171,7 +179,7 @@ class Stage(DrawnModel):
                         userdata=data.tolist())
         geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=name,
                                        pos=[grid.center[0], grid.center[1], low - lowered])
-        geom.material = material
+        self._dress(geom, material)
         self._grids.append((name, grid, low, high))
 
     def _write_heights(self, name, heights, low, high):
