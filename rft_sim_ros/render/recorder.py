@@ -31,7 +31,7 @@ from .stage import Stage
 
 #: Changes of zeta the overlay lists (the latest).
 OVERLAY_CHANGES = 3
-#: Frames given to the painter and not painted yet, at most (a second of video at 30 fps).
+#: Frames given to the painter and not painted yet, at most (1.2 s of video at 25 fps).
 QUEUED_FRAMES = 30
 
 
