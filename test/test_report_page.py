@@ -172,19 +172,36 @@ def test_a_study_page_links_each_runs_page_and_shows_its_plots(tmp_path):
 CHROMIUM = shutil.which('chromium') or shutil.which('chromium-browser')
 
 
+#: The colours of the test's video (its every frame) and plot, told apart in the screenshot.
+VIDEO_RGB, PLOT_RGB = (20, 200, 60), (230, 0, 230)
+
+
+def _pixels_of(shot, rgb, tolerance=40):
+    """How many pixels of the screenshot (floats in [0, 1]) have the colour `rgb` (0-255)."""
+    return int((np.abs(shot * 255 - np.array(rgb)) < tolerance).all(axis=2).sum())
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason='chromium is not installed (apt-get install '
                                               'chromium): the page is not opened in a browser')
 def test_headless_chromium_shows_the_page_with_its_video_and_plots(tmp_path):
-    folder = _run_folder(tmp_path / 'run')
+    """The page opened in headless Chromium, a real H.264 video (every frame green) and a
+    plot (magenta) in its folder: the screenshot shows the video's frame and the plot."""
+    av = pytest.importorskip('av')  # (the video is written with the package's encoder)
+    del av
+    from rft_sim_ros.render.encoder import Mp4Writer
+    folder = _run_folder(tmp_path / 'run', video=False)
+    with Mp4Writer(folder / 'video.mp4', 320, 240, 25) as video:
+        video.write(np.tile(np.array(VIDEO_RGB, np.uint8), (240, 320, 1)), repeat=25)
+    plt.imsave(folder / 'timeseries.png', np.tile(np.array(PLOT_RGB, np.uint8), (200, 300, 1)))
     page = write_run_page(folder, _summary())
     shot = tmp_path / 'shot.png'
     flags = [CHROMIUM, '--headless', '--no-sandbox', '--disable-gpu',
              '--disable-background-networking', '--disable-component-update',
              '--disable-sync', '--no-first-run', f'--user-data-dir={tmp_path / "profile"}',
-             '--window-size=1000,1400']
+             '--window-size=1000,2400']  # (the video fills the page's width)
     url = page.resolve().as_uri()                         # a file URL: nothing fetched
-    subprocess.run([*flags, f'--screenshot={shot}', url], check=True, timeout=120,
-                   capture_output=True)
+    subprocess.run([*flags, '--virtual-time-budget=10000', f'--screenshot={shot}', url],
+                   check=True, timeout=120, capture_output=True)  # (time to load the video)
     dom = subprocess.run([*flags, '--dump-dom', url], check=True, timeout=120,
                          capture_output=True, text=True).stdout
     parsed = Page(dom)                                    # what the browser made of it
@@ -192,8 +209,8 @@ def test_headless_chromium_shows_the_page_with_its_video_and_plots(tmp_path):
     assert parsed.elements['video'][0]['src'] == 'video.mp4'
     assert parsed.elements['img'][0]['src'] == 'timeseries.png'
     pixels = plt.imread(shot)[..., :3]
-    assert pixels.shape[:2] == (1400, 1000)
+    assert pixels.shape[:2] == (2400, 1000)
+    assert _pixels_of(pixels, VIDEO_RGB) > 0.3 * 320 * 240   # the video's frame, decoded
+    assert _pixels_of(pixels, PLOT_RGB) > 0.3 * 300 * 200    # the plot
     ink = np.any(pixels < 0.9, axis=2)                    # not blank: text, tables, a plot
     assert 0.01 < ink.mean() < 0.9
-    rows_with_ink = np.flatnonzero(ink.any(axis=1))
-    assert rows_with_ink[-1] - rows_with_ink[0] > 700     # drawn down the page, not one line

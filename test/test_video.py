@@ -82,6 +82,9 @@ def test_a_run_with_video_writes_a_decodable_h264_of_its_frames_showing_the_robo
     codec, pix_fmt, size, frames = _decode(tmp_path / 'video.mp4')
     assert (codec, pix_fmt, size) == ('h264', 'yuv420p', (WIDTH, HEIGHT))
     assert len(frames) == recorder.frames == round(0.3 * FPS) + 1  # t = 0, 0.05, ..., 0.3
+    with av.open(str(tmp_path / 'video.mp4')) as container:  # each at its sim time
+        times = [frame.time for frame in container.decode(video=0)]
+    assert times == pytest.approx([k / FPS for k in range(len(frames))])
     assert summary['sim_time_s'] == pytest.approx(0.3)
     last = frames[-1].astype(float)
     assert last.std() > 10  # not blank: sky, sand, the plate
@@ -142,6 +145,38 @@ def test_a_run_stopped_early_leaves_a_playable_video_of_what_was_rendered(tmp_pa
     codec, _, _, frames = _decode(tmp_path / 'video.mp4')
     assert codec == 'h264' and len(frames) == recorder.frames
     assert 1 <= len(frames) <= round(summary['sim_time_s'] * FPS) + 1
+
+
+@needs_rendering
+def test_ctrl_c_ends_a_cli_run_with_its_whole_video(tmp_path):
+    """SIGINT to the run's process group, as a terminal's Ctrl-C sends it (the video's
+    painting process gets it too): the run stops, status 130, and the video holds every
+    frame of the sim time it ran."""
+    import json
+    import math
+    out = tmp_path / 'run'
+    child = subprocess.Popen([sys.executable, '-m', 'rft_sim_ros', 'run', 'plate_drop',
+                              '--video', '--duration', '600', '--out', str(out), '--quiet',
+                              *[f'--set={k}={v}' for k, v in SMALL.items()]],
+                             env={**os.environ, 'PYTHONPATH': os.getcwd()},
+                             start_new_session=True, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while _playable_frames(out / 'video.mp4') < FPS:  # a second of video written
+            assert child.poll() is None and time.monotonic() < deadline, child.stderr.read()
+            time.sleep(0.5)
+        os.killpg(child.pid, signal.SIGINT)
+        _, stderr = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+            child.communicate()
+    assert child.returncode == 130 and 'Traceback' not in stderr, stderr
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['interrupted'] is True
+    codec, _, _, frames = _decode(out / 'video.mp4')
+    assert codec == 'h264'
+    assert len(frames) == math.floor(summary['sim_time_s'] * FPS + 1e-6) + 1
 
 
 @needs_rendering
@@ -283,3 +318,19 @@ def test_deformable_sand_is_drawn_with_the_hole_a_body_stands_in_and_its_colour(
     rgb = model.tex_data[start:start + rows * columns * 3].reshape(rows, columns, 3)[::-1]
     assert (rgb[dug][:, 2] > rgb[dug][:, 0]).all()  # dug: blue over red
     assert (rgb[~dug][:, 0] > rgb[~dug][:, 2]).all()  # the rest: sand
+
+
+def test_the_sand_keeps_its_colour_in_a_model_whose_geoms_default_to_another():
+    """test/robots/biped gives every geom a colour in its <default>: the sand drawn in it
+    has the sand's colour and opacity still (it had the robot's grey, opaque)."""
+    from pathlib import Path
+    import mujoco
+    from rft_sim_ros.render.stage import SAND_RGB, Stage
+    from rft_sim_ros.sim.simulation import Simulation
+    biped = Path(__file__).parent / 'robots' / 'biped' / 'biped.xml'
+    stage = Stage(Simulation(load_scene(biped, {'robot.keyframe': 'stand'})), sand_alpha=0.4)
+    model = stage.model
+    sand = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+                          & (model.geom_matid >= 0))
+    assert len(sand) == 1
+    assert model.geom_rgba[sand[0]] == pytest.approx([*SAND_RGB, 0.4])

@@ -9,7 +9,9 @@ frame."""
 from fractions import Fraction
 
 #: libx264 settings: constant quality 23 (its default), the 'veryfast' preset (a quarter of
-#: 'medium''s CPU for a few per cent more bytes), a keyframe every second.
+#: 'medium''s CPU for a few per cent more bytes), a keyframe every second, no B-frames
+#: (with them the fragmented MP4, which has no edit list, starts its first frame two frames
+#: late: the picture of sim time t would show at t + 2 / fps).
 CRF = '23'
 PRESET = 'veryfast'
 
@@ -33,7 +35,7 @@ class Mp4Writer:
         stream.width, stream.height, stream.pix_fmt = width, height, 'yuv420p'
         keyframes = str(max(1, round(float(rate))))
         stream.options = {'crf': CRF, 'preset': PRESET, 'g': keyframes,
-                          'keyint_min': keyframes}
+                          'keyint_min': keyframes, 'bf': '0'}
         self._stream, self._time_base = stream, 1 / rate
 
     def write(self, rgb, repeat=1):

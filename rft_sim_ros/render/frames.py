@@ -27,14 +27,15 @@ CAMERAS = ('follow', 'fixed')
 @dataclass(frozen=True)
 class VideoSettings:
     """A video's frames: fps (frames per second of sim time), width and height (pixels,
-    even: H.264 in yuv420p), camera ('follow', 'fixed' or a camera of the model), and whether
-    the force arrows and the plates are drawn."""
-    fps: float = 30.0
+    even: H.264 in yuv420p), camera ('follow', 'fixed' or a camera of the model), whether
+    the force arrows and the plates are drawn, and the sand's opacity (0, 1]."""
+    fps: float = 25.0
     width: int = 640
     height: int = 480
     camera: str = 'follow'
     forces: bool = True
     plates: bool = True
+    sand_alpha: float = 0.55
 
     @classmethod
     def from_scene(cls, scene):
@@ -42,7 +43,8 @@ class VideoSettings:
         values = scene.values
         return cls(fps=values['video.fps'], width=values['video.width'],
                    height=values['video.height'], camera=values['video.camera'],
-                   forces=values['video.forces'], plates=values['video.plates'])
+                   forces=values['video.forces'], plates=values['video.plates'],
+                   sand_alpha=values['video.sand_alpha'])
 
 
 def camera_for(stage, name):

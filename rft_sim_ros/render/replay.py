@@ -103,7 +103,7 @@ def render_bag(bag, sim, path, settings, log=None):
     """Render the rosbag2 folder `bag` of a run of `sim` (a Simulation of the scene it ran,
     not stepped) into the MP4 `path` as `settings` (VideoSettings) ask. Returns the frames
     written. Raises ValueError when the bag holds no /joint_states."""
-    stage = Stage(sim, settings.width, settings.height)
+    stage = Stage(sim, settings.width, settings.height, settings.sand_alpha)
     painter = FramePainter(stage, settings)
     poser = BagPoser(stage, sim.base_body)
     cycle = _Cycle(stage, sim)

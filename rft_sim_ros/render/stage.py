@@ -9,8 +9,8 @@ each node moved from the pristine surface: dug deeper blue, piled higher red, fu
 CHANGE_FULL_SCALE_M, so footprints and craters show however shallow). A layer under another
 is drawn LAYER_GAP lower so the two never fight for the same pixels. The model's own ground
 that the sand replaces (floor planes and the sand's hfield geom, whose collisions the
-simulation switched off) is hidden. The sand is a little transparent, so that feet and the
-plates under its surface show.
+simulation switched off) is hidden. The sand is a little transparent (its opacity
+`sand_alpha`), so that feet and the plates under its surface show.
 
 The sand geoms keep MuJoCo's default collision bits (the compiler discards geoms that
 collide with nothing, as visual-only): the copy is posed (kinematics), never stepped, so
@@ -22,9 +22,11 @@ import numpy as np
 
 from ..sand.deformable import DeformableSand
 from ..sand.surface import HeightGrid, Plane, Slope
+from .drawn_model import DrawnModel
 
-#: Dry sand's colour (RGBA; alpha < 1: a foot under the surface shows through it).
-SAND_RGBA = (0.87, 0.76, 0.55, 0.55)
+#: Dry sand's colour (RGB) and opacity (below 1: a foot and the plates under the surface
+#: show through it; the scene's video.sand_alpha).
+SAND_RGB, SAND_ALPHA = (0.87, 0.76, 0.55), 0.55
 #: The two tones of the sand's checker, 25 cm squares: motion over a flat bed is seen.
 CHECKER = ((0.90, 0.80, 0.60), (0.80, 0.69, 0.48))
 CHECKER_M = 0.25
@@ -41,6 +43,14 @@ CHANGE_FULL_SCALE_M = 0.01
 DUG_RGB, PILED_RGB = (0.20, 0.30, 0.80), (0.85, 0.30, 0.20)
 #: m of solid drawn under an hfield's lowest point.
 HFIELD_BASE_M = 0.02
+#: m between the grid lines a plane of sand is drawn with (MuJoCo's plane size[2]; the
+#: checker is the texture's, and a directional light shades a plane evenly: finer grids only
+#: cost vertices).
+PLANE_GRID_M = 1.0
+#: Samples per pixel of offscreen frames (MuJoCo's visual/quality/offsamples, 4 by default):
+#: none. In Mesa's software renderer multisampling costs as much as the rest of a frame
+#: (its 4 samples resolved on each read): edges show steps instead.
+OFFSCREEN_SAMPLES = 0
 
 
 def _ground_replaced(model):
@@ -59,27 +69,31 @@ def _up_quaternion(normal):
     return quat
 
 
-class Stage:
-    """The drawn copy of `sim`'s model (a sim.simulation.Simulation, read, never changed).
+class Stage(DrawnModel):
+    """The drawn copy of `sim`'s model (a sim.simulation.Simulation, read, never changed),
+    a DrawnModel that builds itself and redraws deformable sand from the simulation's bed.
 
-    width, height: the largest frames it renders offscreen (pixels). `model` and `data`: the
+    width, height: the largest frames it renders offscreen (pixels); sand_alpha: the sand's
+    opacity (0, 1]. `model` and `data`: the
     copy; `pose(qpos, mocap_pos, mocap_quat)` poses it; `update_sand()` redraws deformable
     sand from a grid of heights; `robot_size` (m): the radius of the robot about its base at
     the start, `base_body` the base's id (the camera follows it)."""
 
-    def __init__(self, sim, width=640, height=480):
+    def __init__(self, sim, width=640, height=480, sand_alpha=SAND_ALPHA):
+        self._sand_rgba = (*SAND_RGB, sand_alpha)
         spec = sim.description.spec.copy()
         # (the simulation's compile removed the visual-only geoms from the spec; without
         # this, compiling again would remove the sand's material, textures and sky too)
         spec.compiler.discardvisual = False
         spec.visual.global_.offwidth = max(int(width), spec.visual.global_.offwidth)
         spec.visual.global_.offheight = max(int(height), spec.visual.global_.offheight)
+        spec.visual.quality.offsamples = OFFSCREEN_SAMPLES
         texture = spec.add_texture(name='rft_sand', type=mujoco.mjtTexture.mjTEXTURE_2D,
                                    builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
                                    rgb1=list(CHECKER[0]), rgb2=list(CHECKER[1]),
                                    width=64, height=64)
-        material = spec.add_material(name='rft_sand', rgba=list(SAND_RGBA), texuniform=True,
-                                     texrepeat=[1.0 / CHECKER_M] * 2)
+        material = spec.add_material(name='rft_sand', rgba=list(self._sand_rgba),
+                                     texuniform=True, texrepeat=[1.0 / CHECKER_M] * 2)
         material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
         # a sky (the transparent sand is seen over it) and a sun without shadows: in Mesa's
         # software renderer (llvmpipe) shadows cost about as much as the rest of a frame
@@ -99,7 +113,7 @@ class Stage:
             bed_texture = spec.add_texture(name='rft_bed', type=mujoco.mjtTexture.mjTEXTURE_2D,
                                            width=columns, height=rows, nchannel=3)
             bed_texture.data = bytes(rows * columns * 3)  # (`update_sand` draws it)
-            bed = spec.add_material(name='rft_bed', rgba=list(SAND_RGBA))
+            bed = spec.add_material(name='rft_bed', rgba=list(self._sand_rgba))
             bed.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = bed_texture.name
             self._add_grid(spec, surface, 'rft_bed', BED_MARGIN_M, material='rft_bed')
             self.bed = surface
@@ -116,11 +130,11 @@ class Stage:
             self.bed_hfield = self.model.hfield('rft_bed').id
             self.bed_texture = self.model.texture('rft_bed').id
             self._write_colours(self.bed.heights_as_seen())
-        self.data = mujoco.MjData(self.model)
-        self.base_body = sim.model.body(sim.base_body).id
         self._bed_epoch = None if self.bed is None else self.bed.change_epoch
         self._under = 0  # nodes under bodies at the last redraw
-        self.pose(sim.data.qpos, sim.data.mocap_pos, sim.data.mocap_quat)
+        super().__init__(self.model, sim.model.body(sim.base_body).id, None, self.bed_hfield,
+                         self.bed_texture, sim.data.qpos, sim.data.mocap_pos,
+                         sim.data.mocap_quat)
         self.robot_size = self._robot_size()
 
     def _add_surface(self, spec, surface, lowered):
@@ -139,11 +153,18 @@ class Stage:
         else:
             raise ValueError(f'cannot draw a sand surface of type {type(surface).__name__}')
 
-    @staticmethod
-    def _add_plane(spec, point, normal):
-        geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05],
-                                       pos=list(point), quat=list(_up_quaternion(normal)))
-        geom.material = 'rft_sand'  # (add_geom takes no material)
+    def _add_plane(self, spec, point, normal):
+        geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                       size=[0.0, 0.0, PLANE_GRID_M], pos=list(point),
+                                       quat=list(_up_quaternion(normal)))
+        self._dress(geom, 'rft_sand')
+
+    def _dress(self, geom, material):
+        """Give a sand geom its material and the material's colour: a geom colour of the
+        model's default class (e.g. `<geom rgba=...>` in its `<default>`) would else replace
+        the sand's colour and opacity."""
+        geom.material = material  # (add_geom takes no material)
+        geom.rgba = list(self._sand_rgba)
 
     def _add_grid(self, spec, grid, name, margin, lowered=0.0, material='rft_sand'):
         """An hfield geom drawing the HeightGrid `grid` `lowered` m, its heights' span
@@ -158,7 +179,7 @@ class Stage:
                         userdata=data.tolist())
         geom = spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=name,
                                        pos=[grid.center[0], grid.center[1], low - lowered])
-        geom.material = material
+        self._dress(geom, material)
         self._grids.append((name, grid, low, high))
 
     def _write_heights(self, name, heights, low, high):
@@ -167,17 +188,6 @@ class Stage:
         start, count = int(self.model.hfield_adr[hfield.id]), heights.size
         self.model.hfield_data[start:start + count] = np.clip(
             (heights.ravel() - low) / (high - low), 0.0, 1.0)
-
-    def pose(self, qpos, mocap_pos=None, mocap_quat=None):
-        """Put the copy in the state `qpos` (and the mocap bodies' poses): positions, the
-        centres of mass the tracking camera follows, cameras and lights."""
-        self.data.qpos[:] = qpos
-        if self.model.nmocap:
-            self.data.mocap_pos[:] = mocap_pos
-            self.data.mocap_quat[:] = mocap_quat
-        mujoco.mj_kinematics(self.model, self.data)
-        mujoco.mj_comPos(self.model, self.data)
-        mujoco.mj_camlight(self.model, self.data)
 
     def _write_colours(self, heights):
         """The bed's texture from its height changes (see module docstring); texture row 0
@@ -207,6 +217,22 @@ class Stage:
         self._write_heights(name, np.asarray(heights), low, high)
         self._write_colours(heights)
         return True
+
+    def sand_drawing(self):
+        """(hfield data, texture bytes) of deformable sand as drawn now (None without it),
+        for a copy of the drawn model to draw (`DrawnModel.draw_sand`)."""
+        if self.bed_hfield is None:
+            return None
+        return (self.model.hfield_data[self._hfield_slice()].copy(),
+                self.model.tex_data[self._texture_slice()].copy())
+
+    def __reduce__(self):
+        """Pickled (for the video's painting process) as a DrawnModel posed as now: the
+        drawn model without the simulation's sand, which that copy draws as it is given
+        (`sand_drawing`)."""
+        return DrawnModel, (self.model, self.base_body, self.robot_size, self.bed_hfield,
+                            self.bed_texture, self.data.qpos.copy(),
+                            self.data.mocap_pos.copy(), self.data.mocap_quat.copy())
 
     def _robot_size(self):
         """m: the farthest reach of the robot's geoms from its base body now (at least 5 cm)."""

@@ -129,6 +129,11 @@ class SimNode(Node):
         self._assignments = self._declare(parameters.SCENE_OVERRIDES,
                                           Parameter.Type.STRING_ARRAY) or []
         self._keyframe = self._declare(parameters.KEYFRAME, '')
+        self._video_file = parameters.video_file(self._declare(parameters.VIDEO_PATH, ''))
+        self._video = None
+        if self._video_file is not None:  # (before the build: no frame, no simulation)
+            from rft_sim_ros.render.gl import check_offscreen
+            check_offscreen()
         if parameters.needs_topic(self._robot[parameters.SCENE], self._robot[parameters.MODEL],
                                   self._robot[parameters.ROBOT_DESCRIPTION]):
             self.get_logger().info(f'no scene, model or robot_description set: waiting for '
@@ -302,6 +307,11 @@ class SimNode(Node):
             paused=self.get_parameter(parameters.PAUSED).value, plates=self._plates,
             terrain=terrain, warn=logger.warning, error=logger.error)
         self._view = self._open_viewer(sim) if self._declare(parameters.VIEWER, False) else None
+        if self._video_file is not None:
+            from rft_sim_ros.render.recorder import PainterFailed, VideoRecorder
+            self._video_failed = PainterFailed
+            self._video = VideoRecorder(self._video_file, sim.scene)
+            self._video.start(sim)
         for msgtype, topic, callback in (
                 (topics.JOINT_TRAJECTORY_TYPE, self.runtime.trajectory_topic,
                  self.runtime.on_trajectory),
@@ -453,6 +463,12 @@ class SimNode(Node):
             self._topic_publishers[topic].publish(message)
             if topic == topics.JOINT_STATES:
                 self._hardware_states.publish(message)
+        if self._video is not None:
+            try:
+                self._video.record(state)
+            except self._video_failed as error:  # (the node runs on without its video)
+                self.get_logger().error(f'{parameters.VIDEO_PATH}: {error}; recording stopped')
+                self._close_video()
 
     def write_terrain(self, update):
         """Publish the sand surface of `update` (terrain.TerrainUpdate): its cloud and one
@@ -475,6 +491,22 @@ class SimNode(Node):
                 self._view.show()
             else:  # (the window was closed: the node runs on without it)
                 self._view = None
+
+    def _close_video(self):
+        """Finish the video (the frames queued are painted first) and say where it is."""
+        video, self._video = self._video, None
+        try:
+            video.close()
+            self.get_logger().info(f'{parameters.VIDEO_PATH}: {video.frames} frames in '
+                                   f'{video.path}')
+        except self._video_failed as error:
+            self.get_logger().error(f'{parameters.VIDEO_PATH}: {error}')
+
+    def destroy_node(self):
+        """Finish the video, then destroy the node."""
+        if self._video is not None:
+            self._close_video()
+        super().destroy_node()
 
     def _open_viewer(self, sim):
         """A LiveView window on `sim`, or None (no display: said in one error line)."""

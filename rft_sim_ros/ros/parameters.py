@@ -41,6 +41,7 @@ JOINT_COMMANDS_TOPIC = 'joint_commands_topic'
 JOINT_STATES_TOPIC = 'joint_states_topic'
 JOINT_GAINS = 'joint_gains'
 VIEWER = 'viewer'
+VIDEO_PATH = 'video_path'
 
 PARAMETERS = (
     ParameterSpec(SCENE, 'bundled scene name, path to a scene YAML, or a robot file', False),
@@ -83,6 +84,10 @@ PARAMETERS = (
                                "scene's joint_gains, else the position servos' gains)", True),
     ParameterSpec(VIEWER, "open MuJoCo's interactive viewer on the simulation (needs a "
                           'display; the sand and plates drawn as in rft-sim videos)', False),
+    ParameterSpec(VIDEO_PATH, 'record the simulation into this MP4 file (a new one), as rft-sim '
+                              'run --video does; the scene\'s video.* keys (scene_overrides) '
+                              'set camera, size and rate; finished when the node stops',
+                  False),
 )
 
 SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -159,6 +164,22 @@ def trajectory_controller(value):
                          f"underscores, each part starting with a letter, parts joined by '/'), "
                          f'got {value!r}')
     return value.lstrip('/')
+
+
+def video_file(value):
+    """The new MP4 file of `video_path` (`value`), or None where it is empty; raises
+    ValueError where it ends otherwise than .mp4, exists (a video is never replaced) or its
+    folder does not."""
+    if not value:
+        return None
+    path = Path(value).expanduser()
+    if path.suffix.lower() != '.mp4':
+        raise ValueError(f'{VIDEO_PATH} must name an .mp4 file, got {value!r}')
+    if path.exists():
+        raise ValueError(f'{VIDEO_PATH} {value!r} exists: remove it or name another file')
+    if not path.parent.is_dir():
+        raise ValueError(f'{VIDEO_PATH} {value!r}: no folder {str(path.parent)!r}')
+    return path
 
 
 #: rcl's error for a parameter rule (`-p NAME:=VALUE`) whose value is not YAML.

@@ -445,7 +445,7 @@ KEYS = (
     Key('video', 'mapping', '', {}, "The run's video (docs/video.md).", _section),
     Key('video.enabled', 'true or false', '', False, 'Whether `rft-sim run` renders the run '
         'into video.mp4 in its output folder (`--video` sets it).', _flag),
-    Key('video.fps', 'number > 0', 'Hz', 30.0, 'Frames per second of sim time: the video '
+    Key('video.fps', 'number > 0', 'Hz', 25.0, 'Frames per second of sim time: the video '
         'plays in real time.', _positive),
     Key('video.width', 'even integer >= 16', 'px', 640, 'Frame width.', lambda v: _pixels(v)),
     Key('video.height', 'even integer >= 16', 'px', 480, 'Frame height.', lambda v: _pixels(v)),
@@ -456,6 +456,9 @@ KEYS = (
         _flag),
     Key('video.plates', 'true or false', '', True, 'The plates in the sand, coloured by '
         'their stress.', _flag),
+    Key('video.sand_alpha', 'number in (0, 1]', '', 0.55, "The sand's opacity: below 1 the "
+        'plates and the feet in it show through; 1 (opaque) costs about half as much a frame '
+        'and hides them.', lambda v: _number(v, positive=True, maximum=1.0)),
     Key('params', 'mapping', '', {}, "The scenario's own values (see its module docstring); "
         'each can be overridden with `--set NAME=VALUE`.', _mapping),
 )
