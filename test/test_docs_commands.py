@@ -187,3 +187,17 @@ def test_readme_gives_the_commands_ci_runs():
     install, test = (block.strip() for block in blocks[:2])
     ci = (ROOT / '.ci' / 'run').read_text().splitlines()
     assert install in ci and test in ci, (install, test)
+
+
+def broken_links(page, text):
+    """The relative link targets of markdown `text` (a file at `page`) that name no file."""
+    targets = re.findall(r'\]\(([^)#\s]+)(?:#[^)]*)?\)', text)
+    return [target for target in targets if '://' not in target
+            and not (page.parent / target).exists()]
+
+
+def test_every_link_of_readme_and_docs_names_a_file():
+    assert broken_links(ROOT / 'README.md', '[a](docs/none.md) [b](docs/README.md#x)') == [
+        'docs/none.md']
+    assert {page.name: broken_links(page, page.read_text()) for page in PAGES} == {
+        page.name: [] for page in PAGES}
