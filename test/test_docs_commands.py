@@ -11,10 +11,11 @@ an option that does not exist fails here. Then each runs, from the repository's 
 - a template is not run: it names a placeholder, a word in capitals (`STUDY.yaml`, `DIR`,
   `HEAD_IP:6379`) or one starting with `my_` (`my_robot.urdf.xacro`); it is parsed only;
 - `view` (MuJoCo's interactive viewer) is parsed only: it runs until its window is closed;
-- `sweep`, `validate`, `bench` and `warmup` take minutes: they run in the slow suite
-  (`pytest -m slow`);
-- a `--video` run (and a `render`) needs offscreen rendering: skipped, saying why, where
-  there is none.
+- `sweep`, `validate`, `bench` and `warmup` take minutes, and a `--video` run or a `render`
+  (which test/test_video.py covers) half a minute: they run in the slow suite
+  (`pytest -m slow`); the video ones need offscreen rendering, and are skipped, saying why,
+  where there is none;
+- a command that differs from one already run only in its `--out` folder runs once.
 """
 import re
 import shlex
@@ -67,14 +68,24 @@ def is_template(args):
     return any(PLACEHOLDER.search(word) for word in args)
 
 
+def needs_rendering(args):
+    return args[0] == 'render' or '--video' in args or 'video.enabled=true' in args
+
+
 def page_commands():
-    """pytest params of every command, by page, with the commands of its page."""
-    params = []
+    """pytest params of every command, by page, with the commands of its page (a command
+    already listed, on this page or another, once)."""
+    params, seen = [], set()
     for page in PAGES:
         listed = commands(page.read_text())
         for index, (args, status) in enumerate(listed):
+            same = tuple('OUT' if i and args[i - 1] == '--out' else word  # (any folder)
+                         for i, word in enumerate(args))
+            if (same, status) in seen:
+                continue
+            seen.add((same, status))
             name = f'{page.relative_to(ROOT)}:{" ".join(args)}'
-            marks = [pytest.mark.slow] if args[0] in SLOW else []
+            marks = [pytest.mark.slow] if args[0] in SLOW or needs_rendering(args) else []
             params.append(pytest.param(listed, index, id=name, marks=marks))
     return params
 
@@ -82,11 +93,20 @@ def page_commands():
 PARAMS = page_commands()
 
 
+def runs(param):
+    """Whether the command of a PARAMS entry is run (not a template, not the viewer)."""
+    listed, index = param.values
+    args = listed[index][0]
+    return not is_template(args) and args[0] != 'view'
+
+
+RUNNABLE = [param for param in PARAMS if runs(param)]
+
+
 def test_the_docs_have_commands_to_run():
     """(The blocks were found: a change of the fences would silently drop them.)"""
-    assert len(PARAMS) > 30
-    runnable = [p for p in PARAMS if not is_template(p.values[0][p.values[1]][0])]
-    assert len(runnable) > 15
+    assert len(PARAMS) > 25
+    assert len(RUNNABLE) > 15
 
 
 @pytest.mark.parametrize('listed, index', PARAMS)
@@ -130,17 +150,9 @@ def run_cli(args, status):
     return None
 
 
-def needs_rendering(args):
-    return args[0] == 'render' or '--video' in args or 'video.enabled=true' in args
-
-
-@pytest.mark.parametrize('listed, index', PARAMS)
+@pytest.mark.parametrize('listed, index', RUNNABLE)
 def test_a_documented_command_runs(listed, index, tmp_path):
     args, status = listed[index]
-    if is_template(args):
-        return  # (parsed above: its placeholders name nothing that exists)
-    if args[0] == 'view':
-        return  # (interactive: parsed above)
     if needs_rendering(args):
         from rft_sim_ros.render.gl import RenderingUnavailable, check_offscreen
         pytest.importorskip('av')
@@ -187,3 +199,17 @@ def test_readme_gives_the_commands_ci_runs():
     install, test = (block.strip() for block in blocks[:2])
     ci = (ROOT / '.ci' / 'run').read_text().splitlines()
     assert install in ci and test in ci, (install, test)
+
+
+def broken_links(page, text):
+    """The relative link targets of markdown `text` (a file at `page`) that name no file."""
+    targets = re.findall(r'\]\(([^)#\s]+)(?:#[^)]*)?\)', text)
+    return [target for target in targets if '://' not in target
+            and not (page.parent / target).exists()]
+
+
+def test_every_link_of_readme_and_docs_names_a_file():
+    assert broken_links(ROOT / 'README.md', '[a](docs/none.md) [b](docs/README.md#x)') == [
+        'docs/none.md']
+    assert {page.name: broken_links(page, page.read_text()) for page in PAGES} == {
+        page.name: [] for page in PAGES}
