@@ -96,7 +96,7 @@ def test_report_puts_our_figures_beside_the_papers_and_explains_differences(tmp_
             '| -30 % / -30 % / -30 % | -25 % | -53 % |') in text
     assert "| Carriage progress closed C > flat > open C at every speed (the authors' loop) " \
            '|' in text
-    assert 'the rocking comes with their loop\'s one-step lag' in text  # 0.25 against 0.001
+    assert 'the rocking comes with their loop (its lag' in text  # 0.25 against 0.001
     assert '| Carriage progress closed C > flat > open C at every speed |' in text
     assert '**not held**' in text and '**held**' in text
     assert 'x44' in text  # 2.4 N m against the paper's 0.055 N m

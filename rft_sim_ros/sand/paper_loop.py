@@ -58,6 +58,8 @@ class PaperLoopEngine(SandEngine):
         counts = np.diff(self.plate_start)
         self._plate_body = np.repeat(self.body_ids, counts)  # body id of each plate
         self._plate_slot = np.repeat(np.arange(len(self.body_ids)), counts)
+        self._positions = np.zeros((len(self.areas), 3))
+        self._normals = np.zeros((len(self.areas), 3))
         self.forget_last_step()
 
     def forget_last_step(self):
@@ -86,13 +88,17 @@ class PaperLoopEngine(SandEngine):
         axes, from the poses in mjData (the state the step started from), the plate
         velocities differenced against the last step's, and the EMA."""
         d = self.data
-        rotation = d.xmat[self._plate_body].reshape(-1, 3, 3)
-        positions = d.xpos[self._plate_body] + np.einsum('nij,nj->ni', rotation, self.local_pos)
+        positions, normals_all = self._positions, self._normals
+        for i, body in enumerate(self.body_ids):  # plates of a body are contiguous
+            start, end = self.plate_start[i], self.plate_start[i + 1]
+            rotation = d.xmat[body].reshape(3, 3)
+            positions[start:end] = self.local_pos[start:end] @ rotation.T + d.xpos[body]
+            normals_all[start:end] = self.local_normal[start:end] @ rotation.T
         if self._last_positions is None:
             velocities = np.zeros_like(positions)
         else:
             velocities = (positions - self._last_positions) / self.model.opt.timestep
-        self._last_positions = positions
+        self._last_positions = positions.copy()
         surface = self.surface.height(positions[:, 0], positions[:, 1])
         inside = np.flatnonzero(surface > positions[:, 2])
         wrenches = np.zeros((len(self.body_ids), 6))
@@ -100,7 +106,7 @@ class PaperLoopEngine(SandEngine):
             self._active = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
             return wrenches
         p = positions[inside]
-        normals = np.einsum('nij,nj->ni', rotation[inside], self.local_normal[inside])
+        normals = normals_all[inside]
         factor = (1.0 if self.zeta_map is None
                   else self.zeta_map.factor(p[:, 0], p[:, 1])[:, None])
         raw = factor * plate_forces(p, normals, self.areas[inside], velocities[inside],
@@ -112,10 +118,10 @@ class PaperLoopEngine(SandEngine):
                          self._alpha * raw + (1.0 - self._alpha) * old, raw)
         self._smoothed[inside] = force
         self._has_history[inside] = True
-        slots = self._plate_slot[inside]
+        slots, first = np.unique(self._plate_slot[inside], return_index=True)  # (sorted)
         lever = p - d.xipos[self._plate_body[inside]]
-        np.add.at(wrenches[:, :3], slots, force)
-        np.add.at(wrenches[:, 3:], slots, np.cross(lever, force))
+        wrenches[slots, :3] = np.add.reduceat(force, first)
+        wrenches[slots, 3:] = np.add.reduceat(np.cross(lever, force), first)
         self._active = (p, force, self.areas[inside])
         return wrenches
 

@@ -45,7 +45,7 @@ def rail_displacement_vs_angle(out, rails, speeds):
 def rail_displacement_vs_speed(out, rails, speeds, rails_paper=None):
     """Final carriage displacement against rotation speed, per shape: exact coupling (solid)
     and, where given ({(shape, speed): Case}), the authors' loop (dashed)."""
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(8, 4))
     for shape in RAIL_SHAPES:
         ax.plot(speeds, [100 * rails[shape, v].metrics['carriage_displacement_m'] for v in speeds],
                 'o-', color=_SHAPE_COLOURS[shape], label=shape)
@@ -55,10 +55,11 @@ def rail_displacement_vs_speed(out, rails, speeds, rails_paper=None):
                     label=f"{shape}, the authors' loop")
     ax.set_xlabel('rotation speed (rad/s)')
     ax.set_ylabel('carriage displacement after 180 deg (cm)')
-    ax.set_ylim(0, 1.15 * ax.get_ylim()[1])  # from zero, with room above the top series
+    low, high = ax.get_ylim()  # from zero (or below, where a carriage went backward)
+    ax.set_ylim(min(0.0, low), 1.15 * high)  # with room above the top series
     ax.margins(x=0.08)
     ax.set_title('Rail carriage: progress after one 180 deg turn, per intruder')
-    ax.legend(loc='lower right', fontsize='small')
+    ax.legend(loc='upper left', bbox_to_anchor=(1.02, 1.0), fontsize='small')
     return _save(fig, out, 'rail_displacement_vs_speed.png')
 
 
@@ -114,7 +115,7 @@ def hexapod_sinkage_vs_zeta(out, hexapod, zetas, payloads):
 def hexapod_speed_vs_payload(out, hexapod, zetas, payloads, hexapod_paper=None):
     """Mean walking speed against payload, per zeta: exact coupling (solid) and, where given
     ({(zeta, payload): Case}), the authors' loop (dashed, same colour)."""
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(9, 4))
     for zeta in zetas:
         line, = ax.plot(payloads, [100 * hexapod[zeta, p].metrics['mean_speed_mps']
                                    for p in payloads], 'o-', label=f'zeta {zeta:g} N/cm$^3$')
@@ -125,11 +126,12 @@ def hexapod_speed_vs_payload(out, hexapod, zetas, payloads, hexapod_paper=None):
     ax.plot([0.0], [100 * paper.HEXAPOD_SPEED_EXPERIMENT_MPS], 'k*', markersize=10,
             label='experiment, no payload: derived, not printed\n'
                   '(paper: its low-friction model within 1.2 mm/s = 1.85 %)')
-    ax.set_ylim(0, 1.2 * ax.get_ylim()[1])  # from zero: a 3 % trend looks like 3 %
+    low, high = ax.get_ylim()  # from zero (or below, where a robot walked backward):
+    ax.set_ylim(min(0.0, low), 1.2 * high)  # a 3 % trend looks like 3 %
     ax.set_xlabel('payload (kg)')
     ax.set_ylabel('mean speed over 5 cycles (cm/s)')
     ax.set_title('Hexapod: walking speed against payload')
-    ax.legend(loc='lower left', fontsize='small')
+    ax.legend(loc='upper left', bbox_to_anchor=(1.02, 1.0), fontsize='small')
     return _save(fig, out, 'hexapod_speed_vs_payload.png')
 
 

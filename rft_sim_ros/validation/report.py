@@ -333,7 +333,8 @@ def _differences(r, inc, immersion, open_vs_flat, closed_vs_flat, leg, hexa, sin
         f'{ema["backward_fraction"]:.3f} with only the paper\'s force smoothing (EMA, alpha 0.1), '
         f'{r.hexapod_paper[3.75, 0.0].metrics["backward_fraction"]:.3f} with the authors\' loop '
         f'(speed {r.hexapod_paper[3.75, 0.0].metrics["mean_speed_mps"]:.3f} m/s)'
-        + (': the rocking comes with their loop\'s one-step lag, not with the force law.'
+        + (': the rocking comes with their loop (its lag, moving average and normalisation '
+           'together; not separated here), not with the force law.'
            if r.hexapod_paper[3.75, 0.0].metrics['backward_fraction']
            > 2 * max(hexa.metrics['backward_fraction'], ema['backward_fraction'], 0.01)
            else '.'),
