@@ -3,10 +3,7 @@ spring as stiff as the model says; `robot.base` welds or frees an MJCF root, or 
 with the reason; a missing visual mesh is dropped with a notice, a missing collision mesh
 refused; any keyframe is chosen by name and the default choice is printed; a robot file
 and a scene file naming it start alike."""
-from pathlib import Path
-
 import mujoco
-import numpy as np
 import pytest
 
 from rft_sim_ros.robot.description import DescriptionError, load_description

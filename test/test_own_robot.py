@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from robot_files import HOME_CALF, HOME_THIGH, write_torque_quadruped
+from robot_files import HOME_THIGH, write_torque_quadruped
 from rft_sim_ros.cli import main
 from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
 from rft_sim_ros.sand import geoms

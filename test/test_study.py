@@ -501,7 +501,7 @@ def test_a_studys_runs_read_an_mjcf_models_includes_and_assets(tmp_path):
     Image.fromarray(np.zeros((8, 8, 3), dtype=np.uint8)).save(tmp_path / 'pics' / 'grey.png')
     (tmp_path / 'part.xml').write_text(
         '<mujoco><asset><mesh name="box" file="box.obj"/></asset></mujoco>')
-    (tmp_path / 'robot.xml').write_text(f"""<mujoco>
+    (tmp_path / 'robot.xml').write_text("""<mujoco>
       <compiler meshdir="assets" texturedir="pics"/>
       <include file="part.xml"/>
       <asset><hfield name="bumps" file="bumps.png" size="1 1 0.05 0.01"/>

@@ -25,7 +25,6 @@ become non-colliding group-1 geoms). Before that, `prepare_urdf`:
 import hashlib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 

@@ -10,6 +10,7 @@ scene_overrides are read with the scene (`robot_source.scene_overrides`).
 import math
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 from rft_sim_ros.control.hybrid import gain_patterns
 from rft_sim_ros.units import zeta_problem

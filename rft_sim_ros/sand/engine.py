@@ -19,14 +19,12 @@ import numpy as np
 
 from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, record_cold_start
 from ..rft.coefficients import normalisation as find_normalisation
-from ..rft.force_law import DynamicTerm
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import constraint_rows, explicit, gather, implicit_law, implicit_solve, layout, mujoco_terms
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand, no_bed_arrays
 from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
-from .zeta_map import ZetaMap
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 

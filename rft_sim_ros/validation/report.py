@@ -343,7 +343,7 @@ def _differences(r, inc, immersion, open_vs_flat, closed_vs_flat, leg, hexa, sin
         'was 20 % above experiment, matched at 5.67-5.88). A pointed foot\'s resisting area '
         'grows with depth squared, so a cone carrying a fixed load sinks as zeta^(-1/3): '
         f'{cone:.2f} x over the same range. '
-        + (f'Ours varies less; we think because stance sinkage also depends on how the tripod '
+        + ('Ours varies less; we think because stance sinkage also depends on how the tripod '
            'shares the load and on the mid segments, which reach the sand at the deeper '
            'sinkages. ' if sink_ratio < cone else 'Ours varies at least as much. ')
         + 'The paper prints no absolute sinkage to compare with.',
