@@ -76,7 +76,7 @@ def test_explicit_rft_bounces_where_the_default_treatment_rests():
 
 
 @pytest.mark.parametrize('overrides, message', [
-    ({'rft.bodies': ['plate', 'no_such_body']}, "sand body 'no_such_body' matches no body"),
+    ({'rft.sand_bodies': ['plate', 'no_such_body']}, "sand body 'no_such_body' matches no body"),
     ({'model': 'missing.xml'}, "--set model: file 'missing.xml' not found"),
     ({'zeta': 0.0}, '--set zeta: must be > 0'),
     ({'zeta': float('nan')}, '--set zeta: must be finite'),

@@ -56,7 +56,7 @@ class Scenario(BaseScenario):
 SCENE = """scenario: {file}
 model: plate.xml
 duration: 0.1
-rft: {{bodies: [plate], plates_per_body: 50}}
+rft: {{sand_bodies: [plate], plates_per_body: 50}}
 """
 
 
