@@ -84,5 +84,5 @@ class Scenario(BaseScenario):
             'static_depth_m': float(self.mass * gravity
                                     / (zeta_to_si(self.zetas[-1]) * self.side ** 2)),
             'rebound_m': rebound,
-            'rest_speed_mps': float(speed[-tail:].mean()),
+            'final_speed_mps': float(speed[-tail:].mean()),
         }
