@@ -252,7 +252,7 @@ class Suite:
                 'treatment': label,
                 'drop_1m_depth_error': _metric(drop, 'max_depth_error'),
                 'drop_1m_rebound_m': _metric(drop, 'rebound_m'),
-                'drop_1m_final_speed_mps': _metric(drop, 'final_speed_mps'),
+                'drop_1m_settled_speed_mps': _metric(drop, 'settled_speed_mps'),
                 'blade_hold_rms_speed_mps': _metric(blade, 'hold_rms_speed_mps'),
                 'blade_hold_force_std_N': _metric(blade, 'hold_force_std_N'),
                 'hexapod_forward_distance_m': _metric(walk, 'forward_distance_m'),
@@ -294,15 +294,15 @@ def _markdown(suite, wall):
               f'{"yes" if r.held else "**NO**"} |' for r in suite.rows]
     if getattr(suite, 'comparison', None):
         lines += ['', '## Low-velocity treatments compared', '',
-                  'Plate dropped from 1 m (max depth against the energy balance, rebound, final '
+                  'Plate dropped from 1 m (max depth against the energy balance, rebound, settled '
                   'speed: its mean over the last 0.5 s); blade held mid-stroke (rms speed, force '
                   'fluctuation); hexapod walking (distance).', '',
-                  '| treatment | drop: depth error | drop: rebound (m) | drop: final speed (m/s) '
+                  '| treatment | drop: depth error | drop: rebound (m) | drop: settled speed (m/s) '
                   '| blade hold: rms speed (m/s) | blade hold: force std (N) | hexapod distance (m) '
                   '| hexapod stable |', '|---|---|---|---|---|---|---|---|']
         for c in suite.comparison:
             lines.append('| ' + ' | '.join([c['treatment']] + [_fmt(c[k]) for k in (
-                'drop_1m_depth_error', 'drop_1m_rebound_m', 'drop_1m_final_speed_mps',
+                'drop_1m_depth_error', 'drop_1m_rebound_m', 'drop_1m_settled_speed_mps',
                 'blade_hold_rms_speed_mps', 'blade_hold_force_std_N',
                 'hexapod_forward_distance_m')] + [str(c['hexapod_stable'])]) + ' |')
     return '\n'.join(lines) + '\n'

@@ -84,5 +84,5 @@ class Scenario(BaseScenario):
             'static_depth_m': float(self.mass * gravity
                                     / (zeta_to_si(self.zetas[-1]) * self.side ** 2)),
             'rebound_m': rebound,
-            'final_speed_mps': float(speed[-tail:].mean()),
+            'settled_speed_mps': float(speed[-tail:].mean()),
         }
