@@ -334,8 +334,8 @@ KEYS = (
         'of body surface instead of a count (replaces rft.plates_per_body).', _positive),
     Key('rft.other_bodies_density_per_mm2', 'number > 0 or null', 'plates/mm^2',
         OTHER_BODIES_DENSITY_PER_MM2, 'Plates per mm^2 on every other moving body with '
-        'collision geoms (not chosen by rft.sand_bodies: shins, trunk, head, arms), so that no body '
-        'passes through the sand (a fallen robot lies on it); coarser than the sand bodies '
+        'collision geoms (not chosen by rft.sand_bodies: shins, trunk, head, arms), so that no '
+        'body passes through the sand (a fallen robot lies on it); coarser than the sand bodies '
         "(a mesh as the convex outline MuJoCo collides; a small body its geoms' coarsest "
         'tessellation, said at start-up where that is more), and free while above the sand; '
         'null: only the rft.sand_bodies carry plates, the others '

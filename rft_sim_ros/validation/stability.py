@@ -297,9 +297,10 @@ def _markdown(suite, wall):
                   'Plate dropped from 1 m (max depth against the energy balance, rebound, settled '
                   'speed: its mean over the last 0.5 s); blade held mid-stroke (rms speed, force '
                   'fluctuation); hexapod walking (distance).', '',
-                  '| treatment | drop: depth error | drop: rebound (m) | drop: settled speed (m/s) '
-                  '| blade hold: rms speed (m/s) | blade hold: force std (N) | hexapod distance (m) '
-                  '| hexapod stable |', '|---|---|---|---|---|---|---|---|']
+                  '| treatment | drop: depth error | drop: rebound (m) '
+                  '| drop: settled speed (m/s) | blade hold: rms speed (m/s) '
+                  '| blade hold: force std (N) | hexapod distance (m) | hexapod stable |',
+                  '|---|---|---|---|---|---|---|---|']
         for c in suite.comparison:
             lines.append('| ' + ' | '.join([c['treatment']] + [_fmt(c[k]) for k in (
                 'drop_1m_depth_error', 'drop_1m_rebound_m', 'drop_1m_settled_speed_mps',
