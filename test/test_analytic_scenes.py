@@ -112,10 +112,10 @@ def test_cli_run_writes_summary_timeseries_and_plot(tmp_path, capsys):
     rows = (out / 'timeseries.csv').read_text().splitlines()
     assert len(rows) == 1 + 40  # header + publish_rate (100 Hz) x 0.4 s
     header = rows[0].split(',')
-    assert {'base_roll_rad', 'plate_force_z_N', 'plate_sinkage_m'} <= set(header)
-    sinkage = [float(row.split(',')[header.index('plate_sinkage_m')]) for row in rows[1:]]
+    assert {'base_roll_rad', 'force_z_N_plate', 'sinkage_m_plate'} <= set(header)
+    sinkage = [float(row.split(',')[header.index('sinkage_m_plate')]) for row in rows[1:]]
     assert sinkage[0] == 0 and max(sinkage) == pytest.approx(
-        summary['generic_metrics']['max_depth_m_plate'], rel=1e-6)
+        summary['generic_metrics']['max_sinkage_m_plate'], rel=1e-6)
     page = (out / 'report.html').read_text()
     assert 'src="timeseries.png"' in page and 'href="summary.json"' in page
     printed = json.loads(capsys.readouterr().out)

@@ -222,7 +222,7 @@ def test_rft_sim_run_takes_the_robot_file_with_keyframe_and_spawn(robot, tmp_pat
     generic = summary['generic_metrics']
     assert {leg: bodies[-1] for leg, bodies in summary['legs'].items()} == {
         f'{leg}_hip': f'{leg}_calf' for leg in ('FL', 'FR', 'RL', 'RR')}
-    assert generic['stable'] and 0 < generic['max_depth_m_FL_calf'] < 0.1
+    assert generic['stable'] and 0 < generic['max_sinkage_m_FL_calf'] < 0.1
     assert generic['peak_force_z_N_FL_hip'] > 0
     assert main(['run', str(robot), '--spawn', 'hover', '--out', str(tmp_path / 'x')]) == 2
     assert 'robot.spawn: must be auto, model, rest or drop:HEIGHT' in capsys.readouterr().err

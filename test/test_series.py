@@ -43,8 +43,8 @@ def test_sinkage_per_leg_is_its_deepest_body_and_attitude_stays_level(hexapod_ru
     summary = json.loads((hexapod_run / 'summary.json').read_text())
     depths = summary['generic_metrics']
     for leg in ('L1', 'R3'):
-        deepest = max(depths[f'max_depth_m_{leg}_dactyl'], depths[f'max_depth_m_{leg}_mid'])
-        sinkage = [row[f'{leg}_sinkage_m'] for row in rows]
+        deepest = max(depths[f'max_sinkage_m_{leg}_dactyl'], depths[f'max_sinkage_m_{leg}_mid'])
+        sinkage = [row[f'sinkage_m_{leg}'] for row in rows]
         assert max(sinkage) == pytest.approx(deepest, rel=1e-6) and deepest > 0.005
         assert sinkage[0] == 0.0                          # dropped from above the sand
     for angle in ('roll', 'pitch'):                     # a symmetric drop lands level
