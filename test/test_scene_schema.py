@@ -224,7 +224,7 @@ def test_generic_metrics_of_a_plate_at_rest_in_sand():
     generic, own = summary['generic_metrics'], summary['metrics']
     assert generic['stable'] is True
     # the plate's lowest plate is its bottom face: the same depth the scenario measures
-    assert generic['max_sinkage_m_plate'] == pytest.approx(own['max_depth_m'], rel=1e-3)
+    assert generic['max_sinkage_m_plate'] == pytest.approx(own['max_sinkage_m'], rel=1e-3)
     assert 0 < generic['mean_stance_sinkage_m_plate'] <= generic['max_sinkage_m_plate']
     weight = 1.0 * 9.81
     assert generic['peak_force_z_N_plate'] > 2 * weight  # the impact
