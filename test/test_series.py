@@ -32,8 +32,8 @@ def test_joint_angles_and_torques_are_recorded_per_joint(hexapod_run):
     assert summary['robot_model']['name'] == 'hexapod'
     assert summary['robot_model']['file'].endswith('hexapod.xml')
     for joint in joints:
-        angles = [row[f'{joint}_angle_rad'] for row in rows]
-        torques = [row[f'{joint}_torque_Nm'] for row in rows]
+        angles = [row[f'angle_rad_{joint}'] for row in rows]
+        torques = [row[f'torque_Nm_{joint}'] for row in rows]
         assert all(abs(a) < 3.2 for a in angles)
         assert max(abs(t) for t in torques) > 0         # the servos hold the stance
 

@@ -1,4 +1,5 @@
 """A run's time series: one row per published state, the columns of timeseries.csv.
+A leg's or joint's column is named `<quantity>_<unit>_<leg or joint>`, as the metrics are.
 
 Columns (SI; world frame = odom, z up; REP 103):
   time_s                              sim time
@@ -12,8 +13,8 @@ Columns (SI; world frame = odom, z up; REP 103):
                                       period: state.LegWrench)
   sinkage_m_<leg>                     deepest plate of the leg's sand bodies below the sand
                                       surface over it (0 when out of the sand)
-  <joint>_angle_rad, <joint>_torque_Nm    a hinge joint's position and actuator torque
-  <joint>_position_m, <joint>_force_N     a slide joint's
+  angle_rad_<joint>, torque_Nm_<joint>    a hinge joint's position and actuator torque
+  position_m_<joint>, force_N_<joint>     a slide joint's
 """
 import math
 
@@ -33,8 +34,8 @@ def roll_pitch_yaw(quaternion_wxyz):
 
 def joint_columns(joint, hinge):
     """(position column, effort column) of a joint: hinge (rad, N m) or slide (m, N)."""
-    return ((f'{joint}_angle_rad', f'{joint}_torque_Nm') if hinge else
-            (f'{joint}_position_m', f'{joint}_force_N'))
+    return ((f'angle_rad_{joint}', f'torque_Nm_{joint}') if hinge else
+            (f'position_m_{joint}', f'force_N_{joint}'))
 
 
 def joint_legs(model, joint_ids, legs, base):
