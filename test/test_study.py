@@ -209,7 +209,8 @@ def test_resume_runs_only_what_is_missing(local_study, tmp_path):
     assert (resumed.ran, resumed.resumed) == (2, 3)
     assert resumed.rows == [{**r, 'wall_time_s': n['wall_time_s']}
                             for r, n in zip(result.rows, resumed.rows)]
-    assert read_csv(copy / 'results.csv')[2]['max_sinkage_m'] == repr(result.rows[2]['max_sinkage_m'])
+    assert (read_csv(copy / 'results.csv')[2]['max_sinkage_m']
+            == repr(result.rows[2]['max_sinkage_m']))
     retried = run_study(study, copy, workers=1, progress=False, resume=True, retry_failed=True)
     assert (retried.ran, retried.resumed) == (1, 4)
 

@@ -111,5 +111,5 @@ def _bearing_notice(model, data, engine, zeta, base, sand_count):
             + ('bear the rest on their coarser plates (rft.other_bodies_density_per_mm2)'
                if len(engine.body_ids) > sand_count else
                'pass through its surface, which does not hold them')
-            + "; name more sand bodies (rft.sand_bodies; '*' takes every body) or take their plates "
-            'from their visual geoms (rft.plate_geoms: visual)']
+            + "; name more sand bodies (rft.sand_bodies; '*' takes every body) or take their "
+            'plates from their visual geoms (rft.plate_geoms: visual)']
