@@ -542,7 +542,7 @@ def build_parser():
     run.add_argument('scene', help='bundled scene name, path to a scene YAML, or a robot file '
                                    '(MJCF .xml, URDF .urdf, xacro .xacro/.urdf.xacro)')
     run.add_argument('--sand-bodies', metavar='PATTERN[,PATTERN...]|auto',
-                     help='bodies that touch sand (rft.bodies): names, glob patterns and '
+                     help='bodies that touch sand (rft.sand_bodies): names, glob patterns and '
                           "auto (auto,crate: auto's picks and the crate)")
     run.add_argument('--base', choices=('floating', 'fixed'),
                      help='root body: free or welded to the world (robot.base; default: '

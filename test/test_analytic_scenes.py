@@ -17,29 +17,29 @@ SUMMARY_FIELDS = {'scene', 'zeta', 'timestep_s', 'sim_time_s', 'wall_time_s',
 def test_plate_press_slope_is_zeta_times_area():
     summary = run_scene(load_scene('plate_press', {'speed': 0.02}), duration=1.2, progress=False)
     metrics = summary['metrics']
-    assert metrics['expected_force_per_depth_N_per_m'] == pytest.approx(3.75e6 * 0.01)
-    assert metrics['force_per_depth_N_per_m'] == pytest.approx(
-        metrics['expected_force_per_depth_N_per_m'], rel=0.01)
-    assert metrics['max_depth_m'] > 0.015
+    assert metrics['expected_force_per_sinkage_N_per_m'] == pytest.approx(3.75e6 * 0.01)
+    assert metrics['force_per_sinkage_N_per_m'] == pytest.approx(
+        metrics['expected_force_per_sinkage_N_per_m'], rel=0.01)
+    assert metrics['max_sinkage_m'] > 0.015
     assert metrics['max_lateral_force_N'] < 1e-6 * metrics['max_force_N']
 
 
 def test_plate_press_force_is_the_same_at_1_and_15_cm_per_s():
     slow = run_scene(load_scene('plate_press', {'speed': 0.01}), duration=2.5, progress=False)
     fast = run_scene(load_scene('plate_press', {'speed': 0.15}), duration=0.2, progress=False)
-    assert fast['metrics']['force_per_depth_N_per_m'] == pytest.approx(
-        slow['metrics']['force_per_depth_N_per_m'], rel=1e-3)
+    assert fast['metrics']['force_per_sinkage_N_per_m'] == pytest.approx(
+        slow['metrics']['force_per_sinkage_N_per_m'], rel=1e-3)
 
 
 def test_plate_drop_from_10_cm_stops_at_the_energy_balance_depth_and_rests():
     summary = run_scene(load_scene('plate_drop'), duration=2.0, progress=False)
     metrics = summary['metrics']
     expected = expected_impact_depth(1.0, 0.01, 3.75, 0.1)
-    assert metrics['expected_max_depth_m'] == pytest.approx(expected)
-    assert metrics['max_depth_m'] == pytest.approx(expected, rel=0.03)
-    assert metrics['final_depth_m'] > 0.9 * metrics['max_depth_m']  # stays in the sand
+    assert metrics['expected_max_sinkage_m'] == pytest.approx(expected)
+    assert metrics['max_sinkage_m'] == pytest.approx(expected, rel=0.03)
+    assert metrics['final_sinkage_m'] > 0.9 * metrics['max_sinkage_m']  # stays in the sand
     assert metrics['rebound_m'] < 1e-4
-    assert metrics['rest_speed_mps'] < 1e-3
+    assert metrics['settled_speed_mps'] < 1e-3
     assert summary['stable'] and summary['reason'] is None
     # the implicit treatment settles in about one solve per step, without anti-cycling
     assert 0.5 < summary['implicit_solves_per_step'] < 2.0
@@ -53,13 +53,13 @@ def test_expected_values_use_the_zeta_the_plate_met():
     half = {'sand.zeta_map.regions': [{'x': [-1, 1], 'y': [-1, 1], 'factor': 0.5}]}
     press = run_scene(load_scene('plate_press', {'speed': 0.05, **half}), duration=0.5,
                       progress=False)['metrics']
-    assert press['expected_force_per_depth_N_per_m'] == pytest.approx(0.5 * 3.75e6 * 0.01)
-    assert abs(press['force_per_depth_error']) < 0.01
+    assert press['expected_force_per_sinkage_N_per_m'] == pytest.approx(0.5 * 3.75e6 * 0.01)
+    assert abs(press['force_per_sinkage_error']) < 0.01
     changed = run_scene(load_scene('plate_drop'), duration=1.0, progress=False,
                         schedule=[(0.6, SettingChange('zeta', 1.0))])['metrics']
-    assert changed['expected_max_depth_m'] == pytest.approx(
+    assert changed['expected_max_sinkage_m'] == pytest.approx(
         expected_impact_depth(1.0, 0.01, 3.75, 0.1))
-    assert changed['static_depth_m'] == pytest.approx(1.0 * 9.81 / (1e6 * 0.01))
+    assert changed['static_sinkage_m'] == pytest.approx(1.0 * 9.81 / (1e6 * 0.01))
 
 
 def test_expected_impact_depth_solves_the_energy_balance():
@@ -76,7 +76,7 @@ def test_explicit_rft_bounces_where_the_default_treatment_rests():
 
 
 @pytest.mark.parametrize('overrides, message', [
-    ({'rft.bodies': ['plate', 'no_such_body']}, "sand body 'no_such_body' matches no body"),
+    ({'rft.sand_bodies': ['plate', 'no_such_body']}, "sand body 'no_such_body' matches no body"),
     ({'model': 'missing.xml'}, "--set model: file 'missing.xml' not found"),
     ({'zeta': 0.0}, '--set zeta: must be > 0'),
     ({'zeta': float('nan')}, '--set zeta: must be finite'),
@@ -112,14 +112,14 @@ def test_cli_run_writes_summary_timeseries_and_plot(tmp_path, capsys):
     rows = (out / 'timeseries.csv').read_text().splitlines()
     assert len(rows) == 1 + 40  # header + publish_rate (100 Hz) x 0.4 s
     header = rows[0].split(',')
-    assert {'base_roll_rad', 'plate_force_z_N', 'plate_sinkage_m'} <= set(header)
-    sinkage = [float(row.split(',')[header.index('plate_sinkage_m')]) for row in rows[1:]]
+    assert {'base_roll_rad', 'force_z_N_plate', 'sinkage_m_plate'} <= set(header)
+    sinkage = [float(row.split(',')[header.index('sinkage_m_plate')]) for row in rows[1:]]
     assert sinkage[0] == 0 and max(sinkage) == pytest.approx(
-        summary['generic_metrics']['max_depth_m_plate'], rel=1e-6)
+        summary['generic_metrics']['max_sinkage_m_plate'], rel=1e-6)
     page = (out / 'report.html').read_text()
     assert 'src="timeseries.png"' in page and 'href="summary.json"' in page
     printed = json.loads(capsys.readouterr().out)
-    assert printed['metrics']['max_depth_m'] > 0
+    assert printed['metrics']['max_sinkage_m'] > 0
 
 
 def test_cli_lists_the_bundled_scenes(capsys):

@@ -20,7 +20,7 @@ ROBOT_OPTIONS = ['--package-path', f'sandbot_description={PACKAGE}', '--sand-bod
 
 
 def test_robot_file_scene_defaults():
-    scene = load_scene(XACRO, {'rft.bodies': ['fl_foot']})
+    scene = load_scene(XACRO, {'rft.sand_bodies': ['fl_foot']})
     assert scene.name == 'sandbot' and scene.scenario == 'external'
     assert scene.model_path == XACRO.resolve()
     assert (scene.timestep, scene.zeta) == (0.001, 3.75)
@@ -64,7 +64,7 @@ def test_bad_robot_input_is_one_line_and_exit_2(arguments, message, capsys, monk
 
 
 def test_fixed_base_option_welds_the_robot():
-    scene = load_scene(XACRO, {'robot.base': 'fixed', 'rft.bodies': ['fl_foot']})
+    scene = load_scene(XACRO, {'robot.base': 'fixed', 'rft.sand_bodies': ['fl_foot']})
     assert scene.robot['base'] == 'fixed'
     with pytest.raises(SceneError, match='robot.xacro_args: must be a mapping'):
-        load_scene(XACRO, {'robot.xacro_args': 'hip_effort=3', 'rft.bodies': ['fl_foot']})
+        load_scene(XACRO, {'robot.xacro_args': 'hip_effort=3', 'rft.sand_bodies': ['fl_foot']})

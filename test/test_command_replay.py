@@ -131,7 +131,7 @@ def test_bags_that_ros2_bag_record_recorded_of_a_real_controller_replay(quadrupe
 
 
 def test_forward_effort_commands_from_a_bag_on_a_robot_file(tmp_path):
-    scene = load_scene(RIG_MODEL, overrides={'rft.bodies': ['foot']})
+    scene = load_scene(RIG_MODEL, overrides={'rft.sand_bodies': ['foot']})
     write_bag(tmp_path / 'bag', [('/effort_controller/commands', topics.FLOAT64_ARRAY_TYPE,
                                   0.1, array([0.0, 0.5]))])
     assert load_commands(tmp_path / 'bag').commands[0].kind == 'effort'

@@ -40,7 +40,7 @@ ARM = f"""<mujoco><compiler angle="radian"/>
 def arm_scene(tmp_path, **overrides):
     (tmp_path / 'arm.xml').write_text(ARM)
     return load_scene(tmp_path / 'arm.xml', {'duration': 0.5, 'sand.surface_height': -1.0,
-                                             'rft.bodies': ['forearm'],
+                                             'rft.sand_bodies': ['forearm'],
                                              'rft.plates_per_body': 50, **overrides})
 
 
@@ -69,7 +69,7 @@ def test_a_joint_without_an_actuator_stays_a_passive_spring_as_stiff_as_written(
 def test_a_model_without_actuators_gets_interfaces_on_every_joint(tmp_path):
     (tmp_path / 'bare.xml').write_text(ARM.split('<actuator>')[0] + '</mujoco>')
     sim = Simulation(load_scene(tmp_path / 'bare.xml', {'duration': 0.1,
-                                                        'rft.bodies': ['forearm'],
+                                                        'rft.sand_bodies': ['forearm'],
                                                         'rft.plates_per_body': 50}))
     assert sim.servo_joint_names == ('shoulder', 'elbow') and sim.passive_joint_names == ()
 
@@ -230,7 +230,7 @@ LOOP = """<mujoco><compiler angle="radian"/>
 def test_a_closed_loop_is_kept_and_its_unactuated_joints_follow_it(tmp_path):
     (tmp_path / 'loop.xml').write_text(LOOP)
     sim = Simulation(load_scene(tmp_path / 'loop.xml', {
-        'rft.bodies': ['coupler'], 'rft.plates_per_body': 50, 'sand.surface_height': -1.0}))
+        'rft.sand_bodies': ['coupler'], 'rft.plates_per_body': 50, 'sand.surface_height': -1.0}))
     assert sim.model.neq == 1 and sim.model.eq_active0[0]
     assert sim.servo_joint_names == ('crank',)
     assert set(sim.passive_joint_names) == {'coupler_hinge', 'rocker'}

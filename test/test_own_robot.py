@@ -73,18 +73,18 @@ def test_the_models_home_keyframe_is_the_initial_pose_unless_the_scene_names_one
 
 
 def test_globs_choose_bodies_and_legs_follow_the_tree(tmp_path, robot):
-    sim = Simulation(scene(tmp_path, robot, rft="{bodies: ['*_thigh', '*_calf'], "
+    sim = Simulation(scene(tmp_path, robot, rft="{sand_bodies: ['*_thigh', '*_calf'], "
                                                 "plates_per_body: 100}"))
     assert set(sim.sand_bodies) == {f'{leg}_{part}' for leg in ('FL', 'FR', 'RL', 'RR')
                                     for part in ('thigh', 'calf')}
     # base outwards: calf = foot point
     assert [b for b in sim.legs['FL_hip'] if b in sim.sand_bodies] == ['FL_thigh', 'FL_calf']
-    with pytest.raises(SceneError, match=r"rft.bodies: sand body '\*foot\*' matches no body"):
-        Simulation(scene(tmp_path, robot, rft="{bodies: '*foot*'}"))
+    with pytest.raises(SceneError, match=r"rft.sand_bodies: sand body '\*foot\*' matches no body"):
+        Simulation(scene(tmp_path, robot, rft="{sand_bodies: '*foot*'}"))
 
 
 def test_plates_come_from_collision_geoms_in_the_count_asked(tmp_path, robot):
-    sim = Simulation(scene(tmp_path, robot, rft="{bodies: [trunk, '*_calf'], "
+    sim = Simulation(scene(tmp_path, robot, rft="{sand_bodies: [trunk, '*_calf'], "
                                                 "plates_per_body: 300}"))
     counts = np.diff(sim.engine.plate_start)[:len(sim.sand_bodies)]
     assert np.all(np.abs(counts - 300) <= 6), counts  # +-2 %
@@ -105,7 +105,7 @@ def test_a_body_with_only_a_dense_visual_mesh_is_simplified_to_the_count(tmp_pat
         '<geom type="mesh" mesh="pebble" contype="0" conaffinity="0" mass="0.2"/>'
         '</body></worldbody></mujoco>')
     (tmp_path / 'scene.yaml').write_text(
-        'model: pebble.xml\nrft: {bodies: [pebble], plates_per_body: 500}\n')
+        'model: pebble.xml\nrft: {sand_bodies: [pebble], plates_per_body: 500}\n')
     sim = Simulation(load_scene(tmp_path / 'scene.yaml'))
     assert abs(sim.engine.plates_total - 500) <= 10
     assert sim.engine.areas.sum() == pytest.approx(shell.area, rel=0.03)
@@ -222,7 +222,7 @@ def test_rft_sim_run_takes_the_robot_file_with_keyframe_and_spawn(robot, tmp_pat
     generic = summary['generic_metrics']
     assert {leg: bodies[-1] for leg, bodies in summary['legs'].items()} == {
         f'{leg}_hip': f'{leg}_calf' for leg in ('FL', 'FR', 'RL', 'RR')}
-    assert generic['stable'] and 0 < generic['max_depth_m_FL_calf'] < 0.1
+    assert generic['stable'] and 0 < generic['max_sinkage_m_FL_calf'] < 0.1
     assert generic['peak_force_z_N_FL_hip'] > 0
     assert main(['run', str(robot), '--spawn', 'hover', '--out', str(tmp_path / 'x')]) == 2
     assert 'robot.spawn: must be auto, model, rest or drop:HEIGHT' in capsys.readouterr().err

@@ -99,7 +99,7 @@ def test_more_plates_than_asked_are_said(biped):
 
 @pytest.mark.parametrize('bodies', ['auto', '*_foot'])
 def test_visual_plate_geoms_give_the_feet_their_drawn_soles(biped, bodies):
-    sim = _sim(biped, **{'rft.plate_geoms': 'visual', 'rft.bodies': bodies})
+    sim = _sim(biped, **{'rft.plate_geoms': 'visual', 'rft.sand_bodies': bodies})
     assert sim.sand_bodies == ('left_foot', 'right_foot')
     box = 8 * (SOLE[0] * SOLE[1] + SOLE[0] * SOLE[2] + SOLE[1] * SOLE[2])
     assert _plate_area(sim) == pytest.approx(2 * box, rel=1e-9)  # the spheres: inside it
@@ -113,7 +113,7 @@ def test_visual_plate_geoms_give_the_feet_their_drawn_soles(biped, bodies):
 
 
 def test_a_robot_on_sand_bodies_that_reach_deep_enough_gets_no_notice(biped):
-    sim = _sim(biped, **{'rft.bodies': ['*_leg', '*_foot']})  # shins carry it
+    sim = _sim(biped, **{'rft.sand_bodies': ['*_leg', '*_foot']})  # shins carry it
     assert not [n for n in sim.notices if 'bear' in n]
 
 

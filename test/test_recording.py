@@ -206,7 +206,7 @@ def test_the_bag_starts_with_what_the_node_publishes_at_sim_time_0(tmp_path):
 
 
 def test_recorders_are_closed_when_the_scene_cannot_be_built(tmp_path):
-    scene = load_scene(SERVO_RIG, {'rft.bodies': ['foot', 'no_such_body'],
+    scene = load_scene(SERVO_RIG, {'rft.sand_bodies': ['foot', 'no_such_body'],
                                    'legs': {'leg': ['foot']}})
     recorder = BagRecorder(tmp_path / 'bag', scene)
     with pytest.raises(ValueError, match='no_such_body'):

@@ -61,7 +61,7 @@ def _summary(**changes):
         'real_time_factor': 0.3, 'stable': True, 'interrupted': False, 'reason': None,
         'notices': [f'leg {HOSTILE} has no plates'],
         'metrics': {'forward_distance_m': 0.35},
-        'generic_metrics': {'max_depth_m_L1_dactyl': 0.07, 'stable': True},
+        'generic_metrics': {'max_sinkage_m_L1_dactyl': 0.07, 'stable': True},
         'scene_values': {'zeta': 3.75, 'params.payload': 0.0, 'name': HOSTILE},
         'surface': {'type': 'plane', 'height_m': 0.0},
         'robot_model': {'name': 'hexapod', 'file': '/pkg/models/hexapod.xml'},

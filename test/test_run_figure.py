@@ -43,8 +43,8 @@ def _series(summary, seconds=3.0, rate=100):
                'base_speed_mps': 0.05, 'plates_active': 100}
         for i, leg in enumerate(LEGS):
             gait = GAIT_N * max(0.0, math.sin(2 * math.pi * t + i * math.pi / 3))
-            row[f'{leg}_force_z_N'] = LANDING_N if 0.10 <= t < 0.13 else gait
-            row[f'{leg}_sinkage_m'] = 0.004 * max(0.0, math.sin(2 * math.pi * t))
+            row[f'force_z_N_{leg}'] = LANDING_N if 0.10 <= t < 0.13 else gait
+            row[f'sinkage_m_{leg}'] = 0.004 * max(0.0, math.sin(2 * math.pi * t))
         for joint, leg in summary['joint_legs'].items():
             angle, torque = joint_columns(joint, True)
             row[angle], row[torque] = 0.3 * math.sin(2 * math.pi * t), 0.5
@@ -148,7 +148,7 @@ def test_forces_without_a_spike_show_their_whole_range(figure):
     series = _series(summary)
     for row in series:
         for leg in LEGS:
-            row[f'{leg}_force_z_N'] = min(row[f'{leg}_force_z_N'], GAIT_N)
+            row[f'force_z_N_{leg}'] = min(row[f'force_z_N_{leg}'], GAIT_N)
     force = _panel(figure(summary, series), 'vertical sand force per foot')
     assert force.get_ylim()[1] >= GAIT_N and 'peak' not in force.get_title()
 

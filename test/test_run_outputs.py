@@ -56,7 +56,7 @@ class Scenario(BaseScenario):
 SCENE = """scenario: {file}
 model: plate.xml
 duration: 0.1
-rft: {{bodies: [plate], plates_per_body: 50}}
+rft: {{sand_bodies: [plate], plates_per_body: 50}}
 """
 
 
@@ -100,7 +100,7 @@ def test_the_cli_prints_a_short_summary_or_the_json_asked_for(tmp_path, capsys):
     assert 2 <= len(lines) <= 6
     assert lines[0].startswith('plate_drop: stable, 0.05 s of sim time')
     assert lines[1].startswith('  outcome: upright')  # the summary's outcome words
-    assert 'max_depth_m' in lines[2] and lines[-1].startswith(f'  wrote {tmp_path / "a"}/')
+    assert 'max_sinkage_m' in lines[2] and lines[-1].startswith(f'  wrote {tmp_path / "a"}/')
     assert main([*SHORT, '--out', str(tmp_path / 'b'), '--no-bag', '--json', '--quiet']) == 0
     printed = json.loads(capsys.readouterr().out)
-    assert printed['stable'] is True and printed['metrics']['max_depth_m'] > 0
+    assert printed['stable'] is True and printed['metrics']['max_sinkage_m'] > 0

@@ -135,13 +135,13 @@ def test_a_glob_takes_the_bodies_with_geoms_not_the_world_nor_empty_frames(tmp_p
     path = tmp_path / 'robot.xml'
     path.write_text(f'<mujoco><worldbody><geom name="floor" type="plane" size="5 5 0.1"/>'
                     f'{robot}</worldbody></mujoco>')
-    sim = Simulation(load_scene(path, {'rft.plates_per_body': 20, 'rft.bodies': ['*']}))
+    sim = Simulation(load_scene(path, {'rft.plates_per_body': 20, 'rft.sand_bodies': ['*']}))
     shaped = [sim.model.body(b).name for b in range(1, sim.model.nbody)
               if sim.model.body_geomnum[b] > 0]
     assert list(sim.sand_bodies) == shaped and 'imu_frame' not in shaped
     with pytest.raises(SceneError, match="body 'imu_frame' has no geoms"):
         Simulation(load_scene(path, {'rft.plates_per_body': 20,
-                                     'rft.bodies': ['foot_*', 'imu_frame']}))
+                                     'rft.sand_bodies': ['foot_*', 'imu_frame']}))
 
 
 def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
@@ -162,11 +162,11 @@ def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
     [notice] = [n for n in sim.notices if 'free bodies' in n]
     assert 'hold: crate;' in notice and '[auto, crate]' in notice
     both = Simulation(load_scene(path, {'rft.plates_per_body': 50,
-                                        'rft.bodies': ['foot_*', 'crate']}))
+                                        'rft.sand_bodies': ['foot_*', 'crate']}))
     assert not [n for n in both.notices if 'free bodies' in n]
     # auto beside a name: auto's picks for the robot, then the crate, a leg of its own
     beside = Simulation(load_scene(path, {'rft.plates_per_body': 50,
-                                          'rft.bodies': ['auto', 'crate'],
+                                          'rft.sand_bodies': ['auto', 'crate'],
                                           'rft.other_bodies_density_per_mm2': None}))
     assert list(beside.sand_bodies) == [*sim.sand_bodies, 'crate']
     assert beside.legs == {**sim.legs, 'crate': ('crate',)}
@@ -175,7 +175,7 @@ def test_free_bodies_the_sand_does_not_hold_are_named_at_start_up(tmp_path):
     crate_z = beside.data.xpos[beside.model.body('crate').id, 2]
     assert 0.05 < crate_z < 0.1
     assert list(Simulation(load_scene(path, {
-        'rft.plates_per_body': 50, 'rft.bodies': 'crate, auto'})).sand_bodies) == \
+        'rft.plates_per_body': 50, 'rft.sand_bodies': 'crate, auto'})).sand_bodies) == \
         list(beside.sand_bodies)                                # auto's picks come first
     kept = Simulation(load_scene(path, {'rft.plates_per_body': 50, 'sand.keep_floor': True}))
     assert not [n for n in kept.notices if 'free bodies' in n]

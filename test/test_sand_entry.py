@@ -22,7 +22,7 @@ def _run(tmp_path, reach, bodies):
     path = tmp_path / 'robot.xml'
     path.write_text(ROBOT.format(z=-0.01 - reach + 0.02))
     lines = []
-    summary = run_scene(load_scene(path, {'rft.bodies': bodies, 'robot.spawn': 'model',
+    summary = run_scene(load_scene(path, {'rft.sand_bodies': bodies, 'robot.spawn': 'model',
                                           'rft.plates_per_body': 100,
                                           'rft.other_bodies_density_per_mm2': None}),
                         duration=0.05, progress=False, plots=False, log=lines.append)
@@ -35,7 +35,7 @@ def test_a_body_without_plates_in_the_sand_is_said_once(tmp_path, reach):
     assert len(said) == 1 and 'body probe reached' in said[0]
     depth_cm = float(said[0].split('reached ')[1].split(' cm')[0])
     assert depth_cm == pytest.approx(100 * reach, abs=0.5)  # (the plate sinks a little)
-    assert said[0].endswith("name it a sand body (rft.bodies; '*' takes every body) or give "
+    assert said[0].endswith("name it a sand body (rft.sand_bodies; '*' takes every body) or give "
                             'the other bodies plates (rft.other_bodies_density_per_mm2)')
     assert said[0][len('warning: '):] in summary['notices']
     assert summary['outcome']['max_uncovered_penetration_m'] == pytest.approx(reach, abs=0.005)

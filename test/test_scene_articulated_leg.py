@@ -58,7 +58,7 @@ def test_one_step_pulls_the_carriage_most_of_the_stroke_and_loose_sand_does_not(
         sim.step(int(round(2.2 / sim.timestep)))
         m = sim.scenario.metrics(sim)
         assert m['steps_completed'] == 1
-        assert m['max_foot_depth_m'] == pytest.approx(0.03, abs=0.003)
+        assert m['max_foot_sinkage_m'] == pytest.approx(0.03, abs=0.003)
         assert np.isfinite(sim.data.qpos).all()
         travel[zeta] = m['carriage_displacement_per_step_m']
     assert 0.7 * 0.15 < travel[3.75] < 0.15

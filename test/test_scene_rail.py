@@ -54,7 +54,7 @@ def test_fixed_base_torque_increase_is_the_rft_torque_and_speed_independent():
     m = {speed: sim.scenario.metrics(sim) for speed, sim in runs.items()}
     for metrics in m.values():
         assert metrics['rotation_deg'] == pytest.approx(180.0, abs=0.5)
-        assert metrics['max_depth_m'] == pytest.approx(0.055, abs=5e-4)
+        assert metrics['max_sinkage_m'] == pytest.approx(0.055, abs=5e-4)
         # servo-in-sand minus servo-in-air is the sand's torque on the axle
         assert metrics['peak_torque_increase_Nm'] == pytest.approx(
             metrics['peak_sand_torque_Nm'], rel=0.02)

@@ -18,7 +18,7 @@ MINIMAL = """\
 name: mini
 model: plate.xml
 rft:
-  bodies: [plate]
+  sand_bodies: [plate]
   plates_per_body: 50
 legs:
   plate: [plate]
@@ -54,6 +54,25 @@ def test_defaults_fill_a_minimal_scene(tmp_path):
     assert scene.values['rft.plates_per_body'] == 50
 
 
+def test_a_renamed_key_still_loads_under_its_old_name_with_a_notice(tmp_path):
+    """rft.bodies (the old name of rft.sand_bodies, schema.RENAMED_KEYS) in a file or an
+    override loads as the new key; the run's notices say where and the new name; a scene
+    that gives both names is refused."""
+    old = write(tmp_path, MINIMAL.replace('sand_bodies:', 'bodies:'))
+    scene = load_scene(old)
+    assert scene.sand_bodies == ('plate',) and 'rft.bodies' not in scene.values
+    assert scene.notices == (f'{old}:4: rft.bodies is deprecated, now called rft.sand_bodies '
+                             '(the old name is accepted for this release)',)
+    assert Simulation(scene).notices[0] == scene.notices[0]
+    overridden = load_scene(write(tmp_path, MINIMAL, 'new.yaml'), {'rft.bodies': ['plate']})
+    assert overridden.sand_bodies == ('plate',)
+    assert overridden.notices == ('--set rft.bodies is deprecated, now called rft.sand_bodies '
+                                  '(the old name is accepted for this release)',)
+    with pytest.raises(SceneError, match=r'scene.yaml:4: rft.bodies is the old name of '
+                                         r'rft.sand_bodies, which the scene also gives'):
+        load_scene(write(tmp_path, MINIMAL.replace('rft:\n', 'rft:\n  bodies: [plate]\n')))
+
+
 @pytest.mark.parametrize('edit, line, key, words', [
     (('  plates_per_body: 50', '  plates_per_bdy: 50'), 5, 'rft.plates_per_bdy',
      'did you mean rft.plates_per_body'),
@@ -62,7 +81,7 @@ def test_defaults_fill_a_minimal_scene(tmp_path):
     (('name: mini', 'name: mini\ntimestep: fast'), 2, 'timestep', 'finite number'),
     (('name: mini', 'name: mini\nzeta: 0'), 2, 'zeta', '> 0'),
     (('  plate: [plate]', '  plate: [plat]'), 7, 'legs.plate', "'plat' is not a sand body"),
-    (('  bodies: [plate]', '  bodies: [plate, "*foot*"]'), 4, 'rft.bodies',
+    (('  sand_bodies: [plate]', '  sand_bodies: [plate, "*foot*"]'), 4, 'rft.sand_bodies',
      "sand body '*foot*' matches no body"),
     (('model: plate.xml', 'model: plate.xml\nrobot:\n  keyframe: home'), 4, 'robot.keyframe',
      "keyframe 'home' is not in the model"),
@@ -151,7 +170,7 @@ def test_numbers_in_exponent_form_are_numbers_everywhere(tmp_path):
     assert scene.values['sand.zeta_map.regions'] == [{'x': [-1.0, 1], 'y': [0, 0.2],
                                                        'factor': 0.5}]
     assert parse_assignment('sand.surface.center=[1e-1,0]') == ('sand.surface.center', [0.1, 0])
-    assert parse_assignment('rft.bodies=[e5, 1e]') == ('rft.bodies', ['e5', '1e'])
+    assert parse_assignment('rft.sand_bodies=[e5, 1e]') == ('rft.sand_bodies', ['e5', '1e'])
     assert parse_assignment('x=1_000')[1] == 1000 and parse_assignment('x=.5')[1] == 0.5
 
 
@@ -205,8 +224,8 @@ def test_generic_metrics_of_a_plate_at_rest_in_sand():
     generic, own = summary['generic_metrics'], summary['metrics']
     assert generic['stable'] is True
     # the plate's lowest plate is its bottom face: the same depth the scenario measures
-    assert generic['max_depth_m_plate'] == pytest.approx(own['max_depth_m'], rel=1e-3)
-    assert 0 < generic['mean_stance_depth_m_plate'] <= generic['max_depth_m_plate']
+    assert generic['max_sinkage_m_plate'] == pytest.approx(own['max_sinkage_m'], rel=1e-3)
+    assert 0 < generic['mean_stance_sinkage_m_plate'] <= generic['max_sinkage_m_plate']
     weight = 1.0 * 9.81
     assert generic['peak_force_z_N_plate'] > 2 * weight  # the impact
     assert generic['final_speed_mps'] < 1e-3

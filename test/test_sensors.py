@@ -148,7 +148,7 @@ def test_mjcf_sensors_are_published_and_recorded_by_kind_named_after_each(tmp_pa
     path = tmp_path / 'sensor_box.xml'
     path.write_text(SENSOR_BOX)
     sim = Simulation(load_scene(str(path), overrides={
-        'rft.bodies': ['box'], 'rft.plates_per_body': 100, 'sensors.model_sensors': True,
+        'rft.sand_bodies': ['box'], 'rft.plates_per_body': 100, 'sensors.model_sensors': True,
         'sensors.imu': True}))
     model = sim.model
     assert imu_frame(model, sim.model.body('box').id)[2] == 'imu'  # the imu sensors' site

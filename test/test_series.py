@@ -32,8 +32,8 @@ def test_joint_angles_and_torques_are_recorded_per_joint(hexapod_run):
     assert summary['robot_model']['name'] == 'hexapod'
     assert summary['robot_model']['file'].endswith('hexapod.xml')
     for joint in joints:
-        angles = [row[f'{joint}_angle_rad'] for row in rows]
-        torques = [row[f'{joint}_torque_Nm'] for row in rows]
+        angles = [row[f'angle_rad_{joint}'] for row in rows]
+        torques = [row[f'torque_Nm_{joint}'] for row in rows]
         assert all(abs(a) < 3.2 for a in angles)
         assert max(abs(t) for t in torques) > 0         # the servos hold the stance
 
@@ -43,8 +43,8 @@ def test_sinkage_per_leg_is_its_deepest_body_and_attitude_stays_level(hexapod_ru
     summary = json.loads((hexapod_run / 'summary.json').read_text())
     depths = summary['generic_metrics']
     for leg in ('L1', 'R3'):
-        deepest = max(depths[f'max_depth_m_{leg}_dactyl'], depths[f'max_depth_m_{leg}_mid'])
-        sinkage = [row[f'{leg}_sinkage_m'] for row in rows]
+        deepest = max(depths[f'max_sinkage_m_{leg}_dactyl'], depths[f'max_sinkage_m_{leg}_mid'])
+        sinkage = [row[f'sinkage_m_{leg}'] for row in rows]
         assert max(sinkage) == pytest.approx(deepest, rel=1e-6) and deepest > 0.005
         assert sinkage[0] == 0.0                          # dropped from above the sand
     for angle in ('roll', 'pitch'):                     # a symmetric drop lands level

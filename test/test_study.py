@@ -28,7 +28,7 @@ from rft_sim_ros.study.table import read_csv, row
 
 #: A short plate drop: the plate hits the sand after ~0.14 s and is at rest by 0.4 s.
 DROP = {'scene': 'plate_drop', 'duration': 0.4, 'set': {'rft.plates_per_body': 100},
-        'metrics': ['max_depth_m', 'final_depth_m']}
+        'metrics': ['max_sinkage_m', 'final_sinkage_m']}
 
 
 def _study(**changes):
@@ -137,16 +137,16 @@ def test_a_metric_is_the_scenarios_else_every_scenes_else_the_summarys_own():
     """A study of one's own robot file (no scenario metrics) tabulates the generic metrics
     and the summary's numbers; a scenario's metric wins a shared name; a list of numbers is
     a metric by its components (name[i]), not whole; text is none."""
-    study = _study(metrics=['max_depth_m', 'base_displacement_m', 'real_time_factor',
+    study = _study(metrics=['max_sinkage_m', 'base_displacement_m', 'real_time_factor',
                             'base_displacement_xyz_m', 'scene', 'base_displacement_xyz_m[0]',
                             'base_displacement_xyz_m[2]'], vary={'zeta': [1.0]})
     record = {'summary': {'scene': 'plate_drop', 'stable': True, 'real_time_factor': 12.5,
-                          'generic_metrics': {'base_displacement_m': 0.25, 'max_depth_m': 9.0,
+                          'generic_metrics': {'base_displacement_m': 0.25, 'max_sinkage_m': 9.0,
                                               'base_displacement_xyz_m': [0.25, 0.0, 0.0]},
-                          'metrics': {'max_depth_m': 0.02}},
+                          'metrics': {'max_sinkage_m': 0.02}},
               'wall_time_s': 1.0, 'stable': True, 'reason': None}
     cells = row(study, study.runs[0], record)
-    assert cells['max_depth_m'] == 0.02 and cells['base_displacement_m'] == 0.25
+    assert cells['max_sinkage_m'] == 0.02 and cells['base_displacement_m'] == 0.25
     assert cells['real_time_factor'] == 12.5
     assert cells['base_displacement_xyz_m'] is None and cells['scene'] is None
     assert (cells['base_displacement_xyz_m[0]'], cells['base_displacement_xyz_m[2]']) == (0.25,
@@ -165,22 +165,22 @@ def local_study(tmp_path_factory):
 def test_local_study_writes_table_summaries_and_plots(local_study):
     study, out, result = local_study
     rows = read_csv(out / 'results.csv')
-    assert list(rows[0]) == ['run_id', 'repeat', 'zeta', 'mass', 'max_depth_m',
-                             'final_depth_m', 'wall_time_s', 'stable', 'reason']
+    assert list(rows[0]) == ['run_id', 'repeat', 'zeta', 'mass', 'max_sinkage_m',
+                             'final_sinkage_m', 'wall_time_s', 'stable', 'reason']
     assert [r['run_id'] for r in rows] == ['0', '1', '2', '3', '4']
     assert [r['stable'] for r in rows] == ['True'] * 4 + ['False']
-    assert rows[4]['reason'].startswith('error: ') and rows[4]['max_depth_m'] == ''
+    assert rows[4]['reason'].startswith('error: ') and rows[4]['max_sinkage_m'] == ''
     assert result.failed == 1 and result.ran == 5
     # physics through the table: heavier plates and looser sand sink deeper
-    depth = {(float(r['zeta']), float(r['mass'])): float(r['max_depth_m']) for r in rows[:4]}
+    depth = {(float(r['zeta']), float(r['mass'])): float(r['max_sinkage_m']) for r in rows[:4]}
     assert depth[1.0, 2.0] > depth[1.0, 0.5] > depth[3.75, 0.5] > 0
     assert depth[1.0, 2.0] > depth[3.75, 2.0] > depth[3.75, 0.5]
     columns = np.load(out / 'results.npz')
-    assert columns['max_depth_m'].dtype == float and math.isnan(columns['max_depth_m'][4])
+    assert columns['max_sinkage_m'].dtype == float and math.isnan(columns['max_sinkage_m'][4])
     assert columns['stable'].dtype == bool and list(columns['stable']) == [True] * 4 + [False]
     saved = json.loads((out / 'runs' / '0' / 'summary.json').read_text())
     assert saved['study_run']['overrides'] == study.runs[0].overrides
-    assert saved['summary']['metrics']['max_depth_m'] == float(rows[0]['max_depth_m'])
+    assert saved['summary']['metrics']['max_sinkage_m'] == float(rows[0]['max_sinkage_m'])
     assert sorted(p.name for p in (out / 'plots').iterdir()) == sorted(
         f'{m}_vs_{k}.png' for m in study.metrics for k in study.keys)
     page = (out / 'report.html').read_text()                # the study's page, each run's
@@ -194,7 +194,7 @@ def test_local_study_matches_serial_runs_bit_for_bit(local_study):
         serial = execute(RunTask(run.run_id, study.scene, run.overrides, study.duration))
         assert serial['summary']['metrics'] == json.loads(
             (out / 'runs' / run.run_id / 'summary.json').read_text())['summary']['metrics']
-        assert row['max_depth_m'] == serial['summary']['metrics']['max_depth_m']
+        assert row['max_sinkage_m'] == serial['summary']['metrics']['max_sinkage_m']
 
 
 def test_resume_runs_only_what_is_missing(local_study, tmp_path):
@@ -209,7 +209,8 @@ def test_resume_runs_only_what_is_missing(local_study, tmp_path):
     assert (resumed.ran, resumed.resumed) == (2, 3)
     assert resumed.rows == [{**r, 'wall_time_s': n['wall_time_s']}
                             for r, n in zip(result.rows, resumed.rows)]
-    assert read_csv(copy / 'results.csv')[2]['max_depth_m'] == repr(result.rows[2]['max_depth_m'])
+    assert (read_csv(copy / 'results.csv')[2]['max_sinkage_m']
+            == repr(result.rows[2]['max_sinkage_m']))
     retried = run_study(study, copy, workers=1, progress=False, resume=True, retry_failed=True)
     assert (retried.ran, retried.resumed) == (1, 4)
 
@@ -228,7 +229,7 @@ def test_resume_redoes_a_run_whose_files_changed(tmp_path):
     study = study_from_mapping({
         'scene': str(scenes / 'drop.yaml'), 'duration': 0.05,
         'vary': [{'zeta': 2.0}, {'sand.surface': {'type': 'slope'}}],
-        'metrics': ['max_depth_m']}, base=tmp_path)
+        'metrics': ['max_sinkage_m']}, base=tmp_path)
     out = tmp_path / 'out'
     run_study(study, out, workers=1, progress=False)
     saved = json.loads((out / 'runs' / '0' / 'summary.json').read_text())['study_run']

@@ -884,11 +884,11 @@ def test_plate_press_on_a_raised_grid_and_on_a_slope_feels_zeta_a_per_depth(tmp_
                     'sand.surface.size': [2.0, 2.0]})
     assert raised == pytest.approx(plane, rel=1e-12, abs=1e-12)  # (the slide offset rounds)
     slope = press({'sand.surface.type': 'slope', 'sand.surface.angle_deg': 10.0})
-    assert abs(slope['force_per_depth_error']) < 1e-9
-    assert slope['max_depth_m'] == pytest.approx(plane['max_depth_m'], rel=1e-3)
+    assert abs(slope['force_per_sinkage_error']) < 1e-9
+    assert slope['max_sinkage_m'] == pytest.approx(plane['max_sinkage_m'], rel=1e-3)
     steep = {'sand.surface.type': 'slope', 'sand.surface.angle_deg': 30.0}
-    assert press(steep)['force_per_depth_error'] is None  # (2.5 cm deep: not wholly in)
-    assert abs(press({**steep, 'duration': 6.0})['force_per_depth_error']) < 1e-9
+    assert press(steep)['force_per_sinkage_error'] is None  # (2.5 cm deep: not wholly in)
+    assert abs(press({**steep, 'duration': 6.0})['force_per_sinkage_error']) < 1e-9
 
 
 def test_plate_drop_on_a_slope_has_no_energy_balance_to_hold():
@@ -900,8 +900,8 @@ def test_plate_drop_on_a_slope_has_no_energy_balance_to_hold():
                                                'duration': 0.3}))
     sim.step(int(round(sim.scene.duration / sim.timestep)))
     metrics = sim.scenario.metrics(sim)
-    assert metrics['expected_max_depth_m'] is None and metrics['max_depth_error'] is None
-    assert metrics['static_depth_m'] == pytest.approx(1.0 * 9.81 / (3.75e6 * 0.01), rel=1e-3)
+    assert metrics['expected_max_sinkage_m'] is None and metrics['max_sinkage_error'] is None
+    assert metrics['static_sinkage_m'] == pytest.approx(1.0 * 9.81 / (3.75e6 * 0.01), rel=1e-3)
 
 
 @pytest.mark.parametrize('angle', [10.0, 20.0])
@@ -955,7 +955,7 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
         str(here / 'raised.npy')
     study = study_from_mapping({'scene': 'plate_drop', 'set': grid,
                                 'vary': {'sand.surface.file': ['lowered.npy']},
-                                'metrics': ['max_depth_m']}, base=there)
+                                'metrics': ['max_sinkage_m']}, base=there)
     assert study.runs[0].overrides['sand.surface.file'] == str(there / 'lowered.npy')
     assert study.runs[0].varied == {'sand.surface.file': 'lowered.npy'}  # as the user wrote it
     sim = Simulation(load_scene('plate_drop', study.runs[0].overrides))
@@ -971,7 +971,7 @@ def test_files_named_on_the_command_line_in_a_study_or_a_node_parameter_are_read
                                                             'size': [1.0, 1.0]}],
                                           'sand': [{'zeta_map': {'file': 'factors.npy',
                                                                  'size': [1.0, 1.0]}}]},
-                                 'metrics': ['max_depth_m']}, base=there)
+                                 'metrics': ['max_sinkage_m']}, base=there)
     assert nested.runs[0].overrides['sand.surface']['file'] == str(there / 'lowered.npy')
     assert nested.runs[0].overrides['sand']['zeta_map']['file'] == str(there / 'factors.npy')
     with pytest.raises(SceneError, match=r"sand.surface.file: 'lowered.npy' not found: no file "
@@ -1000,7 +1000,7 @@ def test_a_surface_made_in_python_is_the_sand_and_the_summary_records_it(tmp_pat
                       progress=False, plots=False, surface=flat)
     plane = run_scene(load_scene('plate_drop', {'duration': 0.3, 'sand.surface_height': 0.03}),
                       progress=False, plots=False)
-    assert given['metrics'] == plane['metrics'] and given['metrics']['max_depth_m'] > 0.005
+    assert given['metrics'] == plane['metrics'] and given['metrics']['max_sinkage_m'] > 0.005
     assert plane['surface'] == {'type': 'plane', 'height_m': 0.03}
     saved = json.loads((tmp_path / 'given' / 'summary.json').read_text())['surface']
     assert saved == {'type': 'grid', **flat.placement(), 'given_in_python': True,

@@ -81,7 +81,7 @@ def test_the_bundled_quadruped_trots_forward_in_sand(tmp_path):
     # (half speed on average): 0.35 m; sand slip keeps it below that, the trot must still
     # carry it more than half way
     assert 0.17 < forward < 0.35
-    assert all(0.003 < metrics[f'mean_stance_depth_m_{leg}_foot'] < 0.05
+    assert all(0.003 < metrics[f'mean_stance_sinkage_m_{leg}_foot'] < 0.05
                for leg in ('fl', 'fr', 'rl', 'rr'))
 
 

@@ -21,7 +21,7 @@ def synthetic(rail=None, torque_fast=2.4, speed_peak_kg=1.0, sink_exponent=1 / 3
     paper_rail = paper_rail or {'flat': 0.10, 'open_c': 0.07, 'closed_c': 0.13}
     torque = {v: Case('rotating_intruder', {}, metrics={
         'peak_torque_increase_Nm': 2.4 if v < 2 else torque_fast, 'peak_sand_torque_Nm': 2.4,
-        'angle_at_peak_deg': 55.0, 'max_depth_m': 0.055}) for v in SETTINGS.speeds}
+        'angle_at_peak_deg': 55.0, 'max_sinkage_m': 0.055}) for v in SETTINGS.speeds}
     depths = {d: Case('rotating_intruder', {}, metrics={'peak_torque_increase_Nm': t})
               for d, t in ((0.005, 0.03), (0.0075, 0.06), (0.01, 0.1))}
     rails = {(s, v): Case(f'rail_{s}', {}, metrics={'carriage_displacement_m': rail[s]})
@@ -29,7 +29,7 @@ def synthetic(rail=None, torque_fast=2.4, speed_peak_kg=1.0, sink_exponent=1 / 3
     legs = {3.75: Case('articulated_leg', {}, metrics={
         'carriage_displacement_per_step_m': 0.13, 'carriage_displacement_step_1_m': 0.13,
         'carriage_displacement_step_2_m': 0.13, 'carriage_displacement_step_3_m': 0.13,
-        'stroke_m': 0.15, 'max_foot_depth_m': 0.03, 'peak_servo_torque_Nm': 3.0})}
+        'stroke_m': 0.15, 'max_foot_sinkage_m': 0.03, 'peak_servo_torque_Nm': 3.0})}
     hexapod = {}
     for z in (0.1, 0.5, 3.75, 5.0):
         for p in (0.0, 1.0, 2.277):

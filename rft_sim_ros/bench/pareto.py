@@ -22,9 +22,9 @@ class Sweep:
 
 
 SWEEPS = {
-    'plate_press': Sweep('force_per_depth_N_per_m', (50, 100, 400, 1600),
+    'plate_press': Sweep('force_per_sinkage_N_per_m', (50, 100, 400, 1600),
                          (0.002, 0.001, 0.0005), (3200, 0.00025)),
-    'plate_drop': Sweep('max_depth_m', (50, 100, 400, 1600), (0.002, 0.001, 0.0005),
+    'plate_drop': Sweep('max_sinkage_m', (50, 100, 400, 1600), (0.002, 0.001, 0.0005),
                         (3200, 0.00025)),
     'rotating_intruder': Sweep('peak_torque_increase_Nm', (250, 500, 1000, 2000),
                                (0.002, 0.001, 0.0005), (8000, 0.00025)),
@@ -41,7 +41,7 @@ SWEEPS = {
 }
 
 QUICK_SWEEPS = {
-    'plate_drop': Sweep('max_depth_m', (50, 400), (0.002, 0.001), (1600, 0.0005)),
+    'plate_drop': Sweep('max_sinkage_m', (50, 400), (0.002, 0.001), (1600, 0.0005)),
     'rail_flat': Sweep('carriage_displacement_m', (250, 1000), (0.001, 0.0005),
                        (2000, 0.00025)),
 }

@@ -55,7 +55,7 @@ def idle_plates_cost(extra_plates=(500, 1000), chunks=7, chunk_steps=500, settle
     sims = []
     for count in extra_plates:
         scene = load_scene('hexapod')
-        overrides = {'rft.bodies': list(scene.sand_bodies) + idle,
+        overrides = {'rft.sand_bodies': list(scene.sand_bodies) + idle,
                      'rft.plates': {body: count for body in idle}}
         sim = Simulation(load_scene('hexapod', overrides))
         sim.step(settle_steps)

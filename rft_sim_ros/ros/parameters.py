@@ -51,7 +51,7 @@ PARAMETERS = (
     ParameterSpec(ROBOT_DESCRIPTION, 'the robot as an XML string (URDF or MJCF), as '
                                      'robot_state_publisher takes it; unset with scene and model '
                                      'unset too: read from /robot_description', False),
-    ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.bodies): 'A,B*' names or glob "
+    ParameterSpec(SAND_BODIES, "bodies that touch sand (rft.sand_bodies): 'A,B*' names or glob "
                                "patterns, 'auto', or auto beside them ('auto,crate')", False),
     ParameterSpec(KEYFRAME, "initial pose: the model's keyframe of this name (robot.keyframe), "
                             'held until commands arrive (unset: the first of home, stand, '

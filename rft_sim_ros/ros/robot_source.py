@@ -9,7 +9,7 @@ publishes it). Rules:
 - none of the three set (`parameters.needs_topic`): the description comes from the
   /robot_description topic (`topics.ROBOT_DESCRIPTION`, std_msgs/String, transient local),
   then as `robot_description`.
-`sand_bodies` ('A,B*' or 'auto') sets rft.bodies; `scene_overrides` reads the parameter of
+`sand_bodies` ('A,B*' or 'auto') sets rft.sand_bodies; `scene_overrides` reads the parameter of
 that name. A description string is stored as a file
 (`description_file`, content-addressed) so the scene can name it; package:// and file://
 URIs and absolute paths in it resolve as usual, relative paths have no folder to resolve

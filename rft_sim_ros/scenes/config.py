@@ -19,7 +19,8 @@ import yaml
 
 from .. import resources
 from ..robot.description import is_robot_file
-from .schema import BY_PATH, Locator, SceneError, check_scene, load_with_lines, load_yaml
+from .schema import (BY_PATH, Locator, SceneError, check_scene, load_with_lines, load_yaml,
+                     renamed_keys)
 
 
 #: Settings that replace each other: overriding one removes the other.
@@ -30,8 +31,9 @@ _ALTERNATIVES = {'rft.plates_per_body': 'rft.plate_density_per_mm2',
 @dataclass(frozen=True)
 class SceneConfig:
     """A validated scene. `raw` keeps the whole (overridden) YAML content. sand_bodies: the
-    names, glob patterns or ('auto',) of rft.bodies; legs: {leg: bodies} or 'auto' (both
-    resolved on the model by the Simulation)."""
+    names, glob patterns or ('auto',) of rft.sand_bodies; legs: {leg: bodies} or 'auto' (both
+    resolved on the model by the Simulation). notices: one-line remarks on the scene as
+    given (a deprecated key's new name, schema.renamed_keys), for the run's notices."""
     name: str
     description: str
     scenario: str
@@ -68,6 +70,7 @@ class SceneConfig:
     spawn: str  # 'model', 'rest' or 'drop:H' (robot/pose.py)
     locator: Locator  # where each key came from, for errors found later (e.g. body names)
     robot: dict = None  # robot.base, robot.package_paths (absolute), robot.xacro_args
+    notices: tuple = ()
 
 
 def bundled_scenes():
@@ -101,8 +104,10 @@ def load_scene(name_or_path, overrides=None, given_by='--set'):
     if is_robot_file(path):
         if not path.is_file():
             raise SceneError(f'robot file {path} not found')
-        raw = apply_overrides(robot_scene(path), overrides)
-        return _validate(raw, path, Locator(path, {}, overrides, given_by))
+        raw, overrides, notices = renamed_keys(robot_scene(path), overrides, path, {},
+                                               given_by)
+        raw = apply_overrides(raw, overrides)
+        return _validate(raw, path, Locator(path, {}, overrides, given_by), notices)
     if path.suffix in ('.yaml', '.yml') or len(path.parts) > 1:
         if not path.is_file():
             raise SceneError(f'scene file {path} not found')
@@ -120,8 +125,9 @@ def load_scene(name_or_path, overrides=None, given_by='--set'):
     if not isinstance(raw, dict):
         raise SceneError(f'{path}: a scene file must hold a mapping')
     _refuse_glued_keys(raw, str(path))
+    raw, overrides, notices = renamed_keys(raw, overrides, path, lines, given_by)
     raw = apply_overrides(raw, overrides)
-    return _validate(raw, path, Locator(path, lines, overrides, given_by))
+    return _validate(raw, path, Locator(path, lines, overrides, given_by), notices)
 
 
 def robot_scene(model_path):
@@ -131,7 +137,7 @@ def robot_scene(model_path):
     pose and takes commands), paper sand (zeta 3.75 N/cm^3), 1 ms steps, the default plates
     per sand body, the base as the description says (`robot.base`), spawn auto (rest: lowered
     onto the sand and settled; a base fixed to the world starts where the model puts it),
-    sand bodies and legs auto unless `rft.bodies` (`rft-sim run --sand-bodies`) names
+    sand bodies and legs auto unless `rft.sand_bodies` (`rft-sim run --sand-bodies`) names
     them."""
     return {'name': Path(model_path).name.split('.')[0],
             'description': f'{Path(model_path).name} in sand (external commands)',
@@ -170,13 +176,13 @@ def _refuse_glued_keys(value, where):
 
 
 def robot_overrides(sand_bodies=None, package_paths=(), xacro_args=()):
-    """Scene overrides of the robot options: sand_bodies 'A,B*' or 'auto' -> rft.bodies,
+    """Scene overrides of the robot options: sand_bodies 'A,B*' or 'auto' -> rft.sand_bodies,
     ['NAME=DIR'] -> robot.package_paths (folders made absolute), ['K=V'] ->
     robot.xacro_args. Raises SceneError on a malformed item."""
     overrides = {}
     if sand_bodies:
         names = [name.strip() for name in sand_bodies.split(',') if name.strip()]
-        overrides['rft.bodies'] = 'auto' if names == ['auto'] else names
+        overrides['rft.sand_bodies'] = 'auto' if names == ['auto'] else names
     for key, items, option in (('robot.package_paths', package_paths, '--package-path'),
                                ('robot.xacro_args', xacro_args, '--xacro-arg')):
         if not items:
@@ -273,9 +279,10 @@ def _unknown_setting(key, params):
                       f'docs/scene-reference.md and by `rft-sim scenes NAME`){values}')
 
 
-def _validate(raw, path, locator):
+def _validate(raw, path, locator, notices=()):
     """SceneConfig from the overridden scene mapping `raw` of file `path`: the schema's
-    checks (schema.check_scene) and those between keys."""
+    checks (schema.check_scene) and those between keys; notices: the scene's own
+    (SceneConfig.notices)."""
     values = check_scene(raw, locator)
     model_path = Path(values['model'])
     if not model_path.is_absolute():
@@ -307,7 +314,7 @@ def _validate(raw, path, locator):
         surface=_subsection(values, 'sand.surface', path, locator),
         zeta_map=_subsection(values, 'sand.zeta_map', path, locator) or None,
         deformable=_subsection(values, 'sand.deformable', path, locator),
-        sand_bodies=tuple(values['rft.bodies']),
+        sand_bodies=tuple(values['rft.sand_bodies']),
         plate_geoms=values['rft.plate_geoms'],
         plates_per_body=None if density is not None else values['rft.plates_per_body'],
         plate_density_per_mm2=density,
@@ -336,6 +343,7 @@ def _validate(raw, path, locator):
                'package_paths': {name: str(path.parent / Path(folder).expanduser())
                                  for name, folder in values['robot.package_paths'].items()},
                'xacro_args': values['robot.xacro_args']},
+        notices=tuple(notices),
     )
 
 

@@ -316,7 +316,7 @@ KEYS = (
         lambda v: None if v is None else _pair(v)),
     Key('rft', 'mapping', '', {}, 'Which bodies feel sand and how they are discretised.',
         _section),
-    Key('rft.bodies', "'auto', a name or glob, or a list of them", '', 'auto', 'The bodies '
+    Key('rft.sand_bodies', "'auto', a name or glob, or a list of them", '', 'auto', 'The bodies '
         "that touch sand: MuJoCo body names, glob patterns ('*_calf', '*foot*') or auto (one "
         'per kinematic branch: the body with its lowest collision geometry in the initial pose, '
         'and every body touching the ground; '
@@ -334,11 +334,11 @@ KEYS = (
         'of body surface instead of a count (replaces rft.plates_per_body).', _positive),
     Key('rft.other_bodies_density_per_mm2', 'number > 0 or null', 'plates/mm^2',
         OTHER_BODIES_DENSITY_PER_MM2, 'Plates per mm^2 on every other moving body with '
-        'collision geoms (not chosen by rft.bodies: shins, trunk, head, arms), so that no body '
-        'passes through the sand (a fallen robot lies on it); coarser than the sand bodies '
+        'collision geoms (not chosen by rft.sand_bodies: shins, trunk, head, arms), so that no '
+        'body passes through the sand (a fallen robot lies on it); coarser than the sand bodies '
         "(a mesh as the convex outline MuJoCo collides; a small body its geoms' coarsest "
         'tessellation, said at start-up where that is more), and free while above the sand; '
-        'null: only the rft.bodies carry plates, the others '
+        'null: only the rft.sand_bodies carry plates, the others '
         'pass through the sand (rft_sim_ros/robot/sand_bodies.py).',
         lambda v: None if v is None else _positive(v)),
     Key('rft.plates', 'mapping body -> integer', 'plates', {}, 'Per-body plate counts that '
@@ -556,6 +556,45 @@ VARIANTS = {
 }
 
 
+#: Scene keys given a new name, {old dotted path: new dotted path}. A scene file or an
+#: override that gives the old name still loads, for one release after the rename, with a
+#: notice that says the new name (`renamed_keys`); the reference lists them.
+RENAMED_KEYS = {'rft.bodies': 'rft.sand_bodies'}
+
+
+def renamed_keys(raw, overrides, source, lines, given_by='--set'):
+    """The scene mapping `raw` and the overrides {key: value} with every old key name of
+    RENAMED_KEYS given the new name -> (raw, overrides, notices): one notice a renamed key,
+    naming where it was given and its new name. `lines` ({dotted key: line}, load_with_lines)
+    gets the new names' lines, so that errors point at the line as written. Raises
+    SceneError where a scene gives a key by both names; given_by: how the overrides were
+    given, as the notices name them (`Locator`)."""
+    raw, overrides, notices = dict(raw), dict(overrides), []
+    for old, new in RENAMED_KEYS.items():
+        section, _, old_leaf = old.rpartition('.')
+        new_leaf = new.rpartition('.')[2]
+        mapping = raw.get(section) if section else raw
+        if isinstance(mapping, dict) and old_leaf in mapping:
+            where = f'{source}:{lines[old]}' if old in lines else str(source)
+            if new_leaf in mapping:
+                raise SceneError(f'{where}: {old} is the old name of {new}, which the scene '
+                                 f'also gives: keep {new} only')
+            mapping = {new_leaf if k == old_leaf else k: v for k, v in mapping.items()}
+            raw = {**raw, section: mapping} if section else mapping
+            if old in lines:
+                lines[new] = lines[old]
+            notices.append(f'{where}: {old} is deprecated, now called {new} (the old name is '
+                           'accepted for this release)')
+        if old in overrides:
+            if new in overrides:
+                raise SceneError(f'{given_by} {old} and {new} name the same key ({old} is its '
+                                 f'old name): give {new} only')
+            overrides = {new if k == old else k: v for k, v in overrides.items()}
+            notices.append(f'{given_by} {old} is deprecated, now called {new} (the old name is '
+                           'accepted for this release)')
+    return raw, overrides, notices
+
+
 def check_scene(raw, locator):
     """Validate the scene mapping `raw` against the schema -> {dotted path: value} for every
     leaf key (defaults filled in; sections whose value is null have no leaves). Raises
@@ -640,6 +679,9 @@ def reference_table():
             default = ''
         rows.append(f'| `{key.path}` | {key.type} | {key.unit} | {default} | '
                     f'{"yes" if key.required else "no"} | {key.description} |')
+    rows += ['', 'Renamed keys, still accepted with a notice for one release:', '',
+             '| old key | new key |', '|---|---|']
+    rows += [f'| `{old}` | `{new}` |' for old, new in RENAMED_KEYS.items()]
     return '\n'.join(rows) + '\n'
 
 

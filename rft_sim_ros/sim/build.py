@@ -284,7 +284,7 @@ def choose_sand_bodies(scene, model, data, patterns, base, notices):
     try:
         sand_bodies = tuple(resolve_sand_bodies(model, data, patterns, base))
     except ValueError as error:
-        raise scene.locator.error('rft.bodies', str(error)) from None
+        raise scene.locator.error('rft.sand_bodies', str(error)) from None
     if list(scene.sand_bodies) != list(sand_bodies):
         notices.append(f'sand bodies ({", ".join(scene.sand_bodies)}): '
                        f'{", ".join(sand_bodies)}')
@@ -312,7 +312,7 @@ def plates_of(scene, model, sand_bodies, others, notices):
                 model, model.body(body).id, count=count,
                 density_per_mm2=None if count is not None else scene.plate_density_per_mm2)
         except ValueError as error:
-            raise scene.locator.error('rft.bodies', str(error)) from None
+            raise scene.locator.error('rft.sand_bodies', str(error)) from None
         if count is not None and len(plates[body].areas) > count:
             over.append(f'{body} {len(plates[body].areas)}')
     if over:

@@ -31,7 +31,7 @@ def caveats(model, data, engine, scene, base, sand_count):
         if unheld:
             notices.append(f'free bodies without a sand body, which the sand does not hold: '
                            f'{first_few(unheld)}; they fall through its surface unless other rigid ground '
-                           'holds them (name their bodies in rft.bodies; beside auto: '
+                           'holds them (name their bodies in rft.sand_bodies; beside auto: '
                            f'[auto, {unheld[0]}])')
     if engine.deformable:
         notices += (_coarse_bed_notice(engine, sand_count)
@@ -111,5 +111,5 @@ def _bearing_notice(model, data, engine, zeta, base, sand_count):
             + ('bear the rest on their coarser plates (rft.other_bodies_density_per_mm2)'
                if len(engine.body_ids) > sand_count else
                'pass through its surface, which does not hold them')
-            + "; name more sand bodies (rft.bodies; '*' takes every body) or take their plates "
-            'from their visual geoms (rft.plate_geoms: visual)']
+            + "; name more sand bodies (rft.sand_bodies; '*' takes every body) or take their "
+            'plates from their visual geoms (rft.plate_geoms: visual)']

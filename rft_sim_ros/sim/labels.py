@@ -51,8 +51,8 @@ def _words(text):
 
 def label(key):
     """The readable name of `key` with its unit in brackets (module docstring), e.g.
-    'forward_distance_m' -> 'forward distance (m)', 'max_depth_m_L1_dactyl' ->
-    'max depth (m): L1_dactyl', 'base_displacement_xyz_m[0]' -> 'base displacement x (m)'."""
+    'forward_distance_m' -> 'forward distance (m)', 'max_sinkage_m_L1_dactyl' ->
+    'max sinkage (m): L1_dactyl', 'base_displacement_xyz_m[0]' -> 'base displacement x (m)'."""
     key = str(key)
     if key in KNOWN:
         return KNOWN[key]

@@ -11,10 +11,10 @@ Simulation they came from; `result()` gives (SI units, world frame = odom, z up)
   base_mean_speed_mps          path length of the base positions sampled from the initial
                                state on, / elapsed time;
   final_speed_mps              |base linear velocity| at the last sample;
-  max_depth_m_<body>           deepest point of the sand body's plates below the sand
+  max_sinkage_m_<body>         deepest point of the sand body's plates below the sand
                                surface over it (sand bodies only: the other bodies'
                                depths are in the summary's `outcome`, sim/outcome.py);
-  mean_stance_depth_m_<body>   that depth averaged over the samples where it is > 0 (the
+  mean_stance_sinkage_m_<body> that sinkage averaged over the samples where it is > 0 (the
                                body in the sand; 0 if it never was);
   mean_force_z_N_<leg>, peak_force_z_N_<leg>
                                vertical sand force on the leg (its sand bodies and the
@@ -103,8 +103,8 @@ class GenericMetrics:
         depth = np.array(self._depth)
         for i, body in enumerate(self._bodies):
             touching = depth[:, i] > 0
-            metrics[f'max_depth_m_{body}'] = float(depth[:, i].max())
-            metrics[f'mean_stance_depth_m_{body}'] = (
+            metrics[f'max_sinkage_m_{body}'] = float(depth[:, i].max())
+            metrics[f'mean_stance_sinkage_m_{body}'] = (
                 float(depth[touching, i].mean()) if touching.any() else 0.0)
         force_z = np.array(self._force_z).reshape(len(self._times), -1)
         for i, leg in enumerate(self._legs):

@@ -161,11 +161,11 @@ def plot_run(path, series, summary):
     _at_least(attitude, LEAST_ANGLE_DEG)
     forces = []
     for leg in legs:
-        values = _column(series, f'{leg}_force_z_N')
+        values = _column(series, f'force_z_N_{leg}')
         forces.append(values)
         force.plot(time, values, color=colours[leg], linewidth=1.0)
-        if f'{leg}_sinkage_m' in series[0]:
-            sinkage.plot(time, 1000.0 * _column(series, f'{leg}_sinkage_m'),
+        if f'sinkage_m_{leg}' in series[0]:
+            sinkage.plot(time, 1000.0 * _column(series, f'sinkage_m_{leg}'),
                          color=colours[leg], linewidth=1.0, label=leg)
     force.set(title='vertical sand force per foot', ylabel='force (N)')
     limits = force_axis(np.concatenate(forces)) if forces else None

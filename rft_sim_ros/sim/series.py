@@ -1,4 +1,5 @@
 """A run's time series: one row per published state, the columns of timeseries.csv.
+A leg's or joint's column is named `<quantity>_<unit>_<leg or joint>`, as the metrics are.
 
 Columns (SI; world frame = odom, z up; REP 103):
   time_s                              sim time
@@ -8,12 +9,12 @@ Columns (SI; world frame = odom, z up; REP 103):
                                       z (fixed axes x-y-z; `roll_pitch_yaw`)
   base_speed_mps                      |base linear velocity|
   plates_active                       plates in the sand and leading
-  <leg>_force_z_N                     vertical sand force on the leg (mean over the publish
+  force_z_N_<leg>                     vertical sand force on the leg (mean over the publish
                                       period: state.LegWrench)
-  <leg>_sinkage_m                     deepest plate of the leg's sand bodies below the sand
+  sinkage_m_<leg>                     deepest plate of the leg's sand bodies below the sand
                                       surface over it (0 when out of the sand)
-  <joint>_angle_rad, <joint>_torque_Nm    a hinge joint's position and actuator torque
-  <joint>_position_m, <joint>_force_N     a slide joint's
+  angle_rad_<joint>, torque_Nm_<joint>    a hinge joint's position and actuator torque
+  position_m_<joint>, force_N_<joint>     a slide joint's
 """
 import math
 
@@ -33,8 +34,8 @@ def roll_pitch_yaw(quaternion_wxyz):
 
 def joint_columns(joint, hinge):
     """(position column, effort column) of a joint: hinge (rad, N m) or slide (m, N)."""
-    return ((f'{joint}_angle_rad', f'{joint}_torque_Nm') if hinge else
-            (f'{joint}_position_m', f'{joint}_force_N'))
+    return ((f'angle_rad_{joint}', f'torque_Nm_{joint}') if hinge else
+            (f'position_m_{joint}', f'force_N_{joint}'))
 
 
 def joint_legs(model, joint_ids, legs, base):
@@ -71,7 +72,7 @@ class SeriesRows:
         # a leg's sinkage: its sand bodies' (the depths' rows); the other bodies of its
         # branch (a shin, sim/outcome.py watches them) are not its feet
         index = {name: i for i, name in enumerate(sim.sand_bodies)}
-        self._legs = [(f'{leg}_sinkage_m', [index[b] for b in bodies if b in index])
+        self._legs = [(f'sinkage_m_{leg}', [index[b] for b in bodies if b in index])
                       for leg, bodies in sim.legs.items()]
         hinge = [int(sim.model.jnt_type[sim.model.joint(name).id]) == mujoco.mjtJoint.mjJNT_HINGE
                  for name in sim.joint_names]
@@ -87,7 +88,7 @@ class SeriesRows:
                'base_roll_rad': roll, 'base_pitch_rad': pitch, 'base_yaw_rad': yaw,
                'base_speed_mps': state.base_speed,
                'plates_active': state.plates_active}
-        row.update({f'{leg.name}_force_z_N': leg.force[2] for leg in state.legs})
+        row.update({f'force_z_N_{leg.name}': leg.force[2] for leg in state.legs})
         row.update({column: float(np.max(depths[bodies])) for column, bodies in self._legs})
         for (position, effort), q, tau in zip(self._joints, state.joint_positions,
                                              state.joint_efforts):

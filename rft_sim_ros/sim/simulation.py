@@ -119,7 +119,7 @@ class Simulation:
 
     def __init__(self, scene, surface=None):
         self.scene = scene
-        self.notices = notices = []  # what start-up decided for the user (e.g. sand bodies)
+        self.notices = notices = list(scene.notices)  # the scene's, then what start-up decided
         self.scenario = load_scenario(scene)
         # the robot: its description, then its model
         self.description, self._initial_positions = read_description(scene, notices)
@@ -483,7 +483,7 @@ class Simulation:
         body, depth = found
         return (f'by t = {self.time:.2f} s body {body} reached {depth * 100:.3g} cm into the '
                 'sand: it carries no plates, so the sand does not act on it and it passes '
-                "through; name it a sand body (rft.bodies; '*' takes every body) or give the "
+                "through; name it a sand body (rft.sand_bodies; '*' takes every body) or give the "
                 'other bodies plates (rft.other_bodies_density_per_mm2)')
 
     def leg_wrenches(self):

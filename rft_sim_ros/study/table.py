@@ -33,7 +33,7 @@ def _number(value):
 def summary_values(summary):
     """{name: value} of a run's summary.json that metrics are named from: the summary's own
     (real_time_factor, implicit_solves_per_step, plates_active_mean, ...), then every
-    scene's (`generic_metrics`: base_displacement_m, max_depth_m_<body>, ...), then the
+    scene's (`generic_metrics`: base_displacement_m, max_sinkage_m_<body>, ...), then the
     scenario's (`metrics`), a later one winning a name."""
     summary = summary or {}
     return {**summary, **(summary.get('generic_metrics') or {}),

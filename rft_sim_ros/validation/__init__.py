@@ -95,7 +95,7 @@ def _as_json(r):
         'trends': [{'name': t.name, 'held': t.held, 'paper': t.paper, 'evidence': t.evidence}
                    for t in r.trends],
         'rotating_intruder': cases(r.torque, ('speed_radps',)),
-        'rotating_intruder_depth': cases(r.depths, ('max_depth_m',)),
+        'rotating_intruder_depth': cases(r.depths, ('max_sinkage_m',)),
         'rail': cases(r.rails, ('shape', 'speed_radps')),
         'articulated_leg': cases(r.legs, ('zeta',)),
         'hexapod': cases(r.hexapod, ('zeta', 'payload_kg')),

@@ -158,7 +158,7 @@ def write(path, r):
                 'rotation at peak (deg)', 'max tip depth (cm)', 'wall (s)'],
                [[f'{v:g}', f'{c.metrics["peak_torque_increase_Nm"]:.4f}',
                  f'{c.metrics["peak_sand_torque_Nm"]:.4f}', f'{c.metrics["angle_at_peak_deg"]:.0f}',
-                 f'{100 * c.metrics["max_depth_m"]:.2f}', f'{c.wall_s:.1f}']
+                 f'{100 * c.metrics["max_sinkage_m"]:.2f}', f'{c.wall_s:.1f}']
                 for v, c in sorted(r.torque.items())]),
         '',
         'Shallower immersion, 2 rad/s:',
@@ -190,7 +190,7 @@ def write(path, r):
                [[f'{z:g}', f'{c.metrics["carriage_displacement_per_step_m"]:.4f}',
                  ' / '.join(f'{c.metrics.get(f"carriage_displacement_step_{k}_m", np.nan):.4f}'
                             for k in (1, 2, 3)),
-                 f'{100 * c.metrics["max_foot_depth_m"]:.2f}',
+                 f'{100 * c.metrics["max_foot_sinkage_m"]:.2f}',
                  f'{c.metrics["peak_servo_torque_Nm"]:.2f}']
                 for z, c in sorted(r.legs.items())]),
         '',

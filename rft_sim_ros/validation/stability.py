@@ -202,7 +202,7 @@ class Suite:
     def timestep_case(self):
         timesteps = (0.00025, 0.001, 0.002) if self.quick else (0.00025, 0.0005, 0.001, 0.002)
         for scene, overrides, keys in (
-                ('plate_drop', {}, ('max_depth_m',)),
+                ('plate_drop', {}, ('max_sinkage_m',)),
                 ('hexapod', {}, ('forward_distance_m', 'mean_sinkage_m'))):
             results = {dt: _scene_metrics(scene, {**overrides, 'timestep': dt},
                                           duration=3.0 if (self.quick and scene == 'hexapod')
@@ -226,9 +226,9 @@ class Suite:
                                                                  'density': density}},
                                  duration=0.04)
         case = 'plate driven in at 1 m/s'
-        self.add(case, 'force per depth / (zeta A)', plain['force_per_depth_error'] + 1,
+        self.add(case, 'force per depth / (zeta A)', plain['force_per_sinkage_error'] + 1,
                  '1 +- 0.01 (finite, linear in depth)', lambda v: abs(v - 1) <= 0.01)
-        area = plain['expected_force_per_depth_N_per_m'] / zeta_to_si(3.75)
+        area = plain['expected_force_per_sinkage_N_per_m'] / zeta_to_si(3.75)
         added = (dynamic['max_force_N'] - plain['max_force_N']) / area
         expected = lam * density * speed ** 2
         self.add(case + ', dynamic term on', 'added stress / (lambda rho v^2)',
@@ -250,9 +250,9 @@ class Suite:
             walk = _scene_summary('hexapod', overrides, duration=2.5 if self.quick else None)
             self.comparison.append({
                 'treatment': label,
-                'drop_1m_depth_error': _metric(drop, 'max_depth_error'),
+                'drop_1m_sinkage_error': _metric(drop, 'max_sinkage_error'),
                 'drop_1m_rebound_m': _metric(drop, 'rebound_m'),
-                'drop_1m_rest_speed_mps': _metric(drop, 'rest_speed_mps'),
+                'drop_1m_settled_speed_mps': _metric(drop, 'settled_speed_mps'),
                 'blade_hold_rms_speed_mps': _metric(blade, 'hold_rms_speed_mps'),
                 'blade_hold_force_std_N': _metric(blade, 'hold_force_std_N'),
                 'hexapod_forward_distance_m': _metric(walk, 'forward_distance_m'),
@@ -294,15 +294,16 @@ def _markdown(suite, wall):
               f'{"yes" if r.held else "**NO**"} |' for r in suite.rows]
     if getattr(suite, 'comparison', None):
         lines += ['', '## Low-velocity treatments compared', '',
-                  'Plate dropped from 1 m (max depth against the energy balance, rebound, rest '
-                  'speed over the last 0.5 s); blade held mid-stroke (rms speed, force '
+                  'Plate dropped from 1 m (max depth against the energy balance, rebound, settled '
+                  'speed: its mean over the last 0.5 s); blade held mid-stroke (rms speed, force '
                   'fluctuation); hexapod walking (distance).', '',
-                  '| treatment | drop: depth error | drop: rebound (m) | drop: rest speed (m/s) '
-                  '| blade hold: rms speed (m/s) | blade hold: force std (N) | hexapod distance (m) '
-                  '| hexapod stable |', '|---|---|---|---|---|---|---|---|']
+                  '| treatment | drop: depth error | drop: rebound (m) '
+                  '| drop: settled speed (m/s) | blade hold: rms speed (m/s) '
+                  '| blade hold: force std (N) | hexapod distance (m) | hexapod stable |',
+                  '|---|---|---|---|---|---|---|---|']
         for c in suite.comparison:
             lines.append('| ' + ' | '.join([c['treatment']] + [_fmt(c[k]) for k in (
-                'drop_1m_depth_error', 'drop_1m_rebound_m', 'drop_1m_rest_speed_mps',
+                'drop_1m_sinkage_error', 'drop_1m_rebound_m', 'drop_1m_settled_speed_mps',
                 'blade_hold_rms_speed_mps', 'blade_hold_force_std_N',
                 'hexapod_forward_distance_m')] + [str(c['hexapod_stable'])]) + ' |')
     return '\n'.join(lines) + '\n'

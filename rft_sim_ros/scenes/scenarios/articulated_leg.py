@@ -15,7 +15,7 @@ Metrics (SI; x along the rail, +x = forward):
   carriage_displacement_m           total carriage travel over the run;
   carriage_displacement_step_<k>_m  travel during step k (k = 1..steps);
   stroke_m                          the commanded foot stroke (the no-slip travel per step);
-  max_foot_depth_m                  deepest foot point below the sand surface;
+  max_foot_sinkage_m                deepest foot point below the sand surface;
   peak_servo_torque_Nm              largest |servo torque| of the three servos.
 `series()` has the time course (time, carriage x, foot depth).
 """
@@ -133,10 +133,10 @@ class Scenario(BaseScenario):
                            np.abs(d.actuator_force[self._actuators]).max()))
 
     def series(self):
-        """{'time_s', 'carriage_x_m', 'foot_depth_m', 'servo_torque_Nm'}: (n,) arrays."""
+        """{'time_s', 'carriage_x_m', 'foot_sinkage_m', 'servo_torque_Nm'}: (n,) arrays."""
         rows = np.array(self._rows) if self._rows else np.zeros((0, 4))
         return {name: rows[:, i] for i, name in enumerate(
-            ('time_s', 'carriage_x_m', 'foot_depth_m', 'servo_torque_Nm'))}
+            ('time_s', 'carriage_x_m', 'foot_sinkage_m', 'servo_torque_Nm'))}
 
     def metrics(self, sim):
         s = self.series()
@@ -153,7 +153,7 @@ class Scenario(BaseScenario):
         metrics.update({
             'steps_completed': done,
             'stroke_m': self.stroke,
-            'max_foot_depth_m': float(s['foot_depth_m'].max()),
+            'max_foot_sinkage_m': float(s['foot_sinkage_m'].max()),
             'peak_servo_torque_Nm': float(s['servo_torque_Nm'].max()),
         })
         return metrics

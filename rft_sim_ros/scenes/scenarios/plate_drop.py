@@ -9,7 +9,7 @@ sand's crater starts there too), and its depth is measured from that surface. Th
 depths use the zeta the plate met (`SandEngine.zeta_at` under its centre: a zeta map's
 factor included): where the impact stops it for the impact, at the end for the static
 depth. The impact's energy balance holds only where the surface under the plate is level
-(a slope meets one edge first): elsewhere expected_max_depth_m and max_depth_error are None.
+(a slope meets one edge first): elsewhere expected_max_sinkage_m and max_sinkage_error are None.
 The static depth m g / (zeta A) holds wherever the surface under the plate is planar.
 """
 import numpy as np
@@ -77,12 +77,12 @@ class Scenario(BaseScenario):
                                           self.drop_height, gravity) if self.level else None)
         tail = max(1, int(round(0.5 / sim.timestep)))
         return {
-            'max_depth_m': float(depth.max()),
-            'expected_max_depth_m': expected,
-            'max_depth_error': None if expected is None else float(depth.max() / expected - 1.0),
-            'final_depth_m': float(depth[-1]),
-            'static_depth_m': float(self.mass * gravity
+            'max_sinkage_m': float(depth.max()),
+            'expected_max_sinkage_m': expected,
+            'max_sinkage_error': None if expected is None else float(depth.max() / expected - 1.0),
+            'final_sinkage_m': float(depth[-1]),
+            'static_sinkage_m': float(self.mass * gravity
                                     / (zeta_to_si(self.zetas[-1]) * self.side ** 2)),
             'rebound_m': rebound,
-            'rest_speed_mps': float(speed[-tail:].mean()),
+            'settled_speed_mps': float(speed[-tail:].mean()),
         }

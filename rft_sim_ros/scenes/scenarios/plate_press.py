@@ -61,10 +61,10 @@ class Scenario(BaseScenario):
         zeta = np.mean(np.asarray(self.zetas)[inside]) if inside.any() else self.zetas[-1]
         expected = zeta_to_si(zeta) * self.side ** 2
         return {
-            'force_per_depth_N_per_m': slope,
-            'expected_force_per_depth_N_per_m': float(expected),
-            'force_per_depth_error': None if slope is None else slope / expected - 1.0,
-            'max_depth_m': float(depth.max()),
+            'force_per_sinkage_N_per_m': slope,
+            'expected_force_per_sinkage_N_per_m': float(expected),
+            'force_per_sinkage_error': None if slope is None else slope / expected - 1.0,
+            'max_sinkage_m': float(depth.max()),
             'max_force_N': float(force.max()),
             'max_lateral_force_N': float(max(self.lateral)),
         }

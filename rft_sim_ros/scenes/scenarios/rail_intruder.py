@@ -26,7 +26,7 @@ Metrics (world frame, x along the rail; SI):
   rotation_deg                       servo rotation achieved;
   peak_thrust_N                      largest sand force on the intruder along the drive;
   peak_sand_torque_Nm                largest sand torque about the axle against the motion;
-  max_depth_m                        deepest point of the intruder tip below the surface.
+  max_sinkage_m                      deepest point of the intruder tip below the surface.
 The time course (sampled every `observe_interval` steps) is `series()`; the runner also
 writes the carriage (base_body) position to timeseries.csv at the publish rate.
 """
@@ -47,7 +47,7 @@ class Scenario(BaseScenario):
     observe_interval = 5
     #: What `series()` holds, one value per observed step.
     columns = ('time_s', 'angle_rad', 'carriage_x_m', 'servo_torque_Nm', 'sand_torque_Nm',
-               'thrust_N', 'tip_depth_m')
+               'thrust_N', 'tip_sinkage_m')
 
     #: s after the rotation for the carriage to come to rest (duration: auto)
     coast_time = 0.5
@@ -156,5 +156,5 @@ class Scenario(BaseScenario):
             'rotation_deg': float(np.degrees(swept[-1])),
             'peak_thrust_N': float(s['thrust_N'].max()),
             'peak_sand_torque_Nm': float(s['sand_torque_Nm'].max()),
-            'max_depth_m': float(s['tip_depth_m'].max()),
+            'max_sinkage_m': float(s['tip_sinkage_m'].max()),
         }

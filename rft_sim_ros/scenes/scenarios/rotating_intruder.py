@@ -13,7 +13,7 @@ Metrics (SI; torques about the axle, positive against the motion):
                            quantity measured from the sand side, a consistency check;
   peak_servo_torque_Nm, peak_servo_torque_air_Nm  the two servo torques' maxima;
   angle_at_peak_deg        rotation (from the start) at the peak torque increase;
-  max_depth_m, rotation_deg  as in rail_intruder.
+  max_sinkage_m, rotation_deg  as in rail_intruder.
 """
 import mujoco
 import numpy as np
@@ -56,6 +56,6 @@ class Scenario(rail_intruder.Scenario):
             'peak_servo_torque_Nm': float(s['servo_torque_Nm'].max()),
             'peak_servo_torque_air_Nm': float(s['air_torque_Nm'].max()),
             'angle_at_peak_deg': float(np.degrees(swept[peak])),
-            'max_depth_m': float(s['tip_depth_m'].max()),
+            'max_sinkage_m': float(s['tip_sinkage_m'].max()),
             'rotation_deg': float(np.degrees(swept[-1])),
         }
