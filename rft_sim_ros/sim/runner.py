@@ -264,8 +264,8 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
             if details is None:
                 reason, details = f'scenario failed {failure} (in its metrics)', failure.details
         metrics.update(sim.terrain_metrics())
-    if reason is None and coarse:
-        reason = coarse
+    if coarse:  # (a divergence at such a timestep: its likely cause, said beside it)
+        reason = coarse if reason is None else f'{reason}; {coarse}'
     stable = reason is None  # neither diverged nor too coarse a timestep
     if interrupted:
         reason = '; '.join(filter(None, (
