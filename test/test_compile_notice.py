@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from rft_sim_ros.kernel_cache import (KERNEL_MODULES, PACKAGE, forget_stale, is_cached,
                                       kernel_sources, sources_fingerprint)
 from rft_sim_ros.scenes.config import load_scene
@@ -74,6 +76,7 @@ print(json.dumps({"cached": {name: is_cached(getattr(gather, name)) for name in 
 '''
 
 
+@pytest.mark.slow  # (a whole cold compile of the implicit step in a fresh cache: minutes)
 def test_a_scene_compiles_the_gather_kernel_of_its_own_surface_only(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     done = subprocess.run([sys.executable, '-c', _OWN_SURFACE_PROBE], env=env,

@@ -374,6 +374,7 @@ def test_cli_sweep(tmp_path, capsys):
     assert main(['sweep', str(path), '--workers', '0']) == 2
 
 
+@pytest.mark.slow  # (starting a local Ray cluster: about a minute of CPU)
 def test_ray_backend_on_a_local_cluster(local_study, tmp_path):
     """A real single-machine Ray cluster on loopback, dashboard off: the study's rows equal
     the local backend's bit for bit, and a task whose worker is killed is retried once."""
