@@ -45,8 +45,8 @@ def test_the_biped_stands_from_its_keyframe_on_the_sand(name):
     assert outcome['max_tilt_deg'] < 5.0 and outcome['final_tilt_deg'] < 5.0
     deepest = outcome['deepest']
     assert deepest['body'].endswith(('_foot', '_toe')) and deepest['has_plates']
-    assert 0.0005 < deepest['depth_m'] < 0.01
-    assert outcome['max_uncovered_penetration_m'] is None  # every collision body has plates
+    assert 0.0005 < deepest['sinkage_m'] < 0.01
+    assert outcome['max_uncovered_sinkage_m'] is None  # every collision body has plates
     assert outcome['words'].startswith('upright: base turned at most ')
     assert set(sim.sand_bodies) >= {'left_foot', 'right_foot'}
     assert {'trunk', 'left_shin', 'right_thigh'} <= set(sim.other_bodies)
@@ -64,7 +64,7 @@ def test_a_biped_pushed_over_lands_on_its_side_and_lies_on_the_sand():
     assert outcome['final_tilt_deg'] > 60.0 > TILT_LIMIT_DEG  # on its side
     lowest = sim._outcome.depths(sim.data, sim.engine.surface).max()
     assert -0.03 < lowest < 0.03
-    assert outcome['deepest']['depth_m'] < 0.03 and outcome['deepest']['has_plates']
+    assert outcome['deepest']['sinkage_m'] < 0.03 and outcome['deepest']['has_plates']
     base = sim.model.body('trunk').id
     speeds = []  # of each body's origin, m/s
     for body in range(1, sim.model.nbody):
@@ -86,7 +86,7 @@ def test_without_plates_on_its_other_bodies_a_fallen_biped_sinks_and_says_so():
                                     'rft.other_bodies_density_per_mm2': None})
     outcome = sim.outcome()
     assert sim.other_bodies == () and outcome['fell']
-    assert outcome['max_uncovered_penetration_m'] > 0.05
+    assert outcome['max_uncovered_sinkage_m'] > 0.05
     assert not outcome['deepest']['has_plates']
     assert '(no plates: it passed through)' in outcome['words']
 
@@ -105,9 +105,9 @@ def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
     outcome = summary['outcome']
     assert set(outcome) == {'fell', 'fell_at_s', 'tilt_limit_deg', 'max_tilt_deg',
                             'final_tilt_deg', 'deepest', 'unsettled_step_share',
-                            'rows_handed_back_step_share', 'max_uncovered_penetration_m',
+                            'rows_handed_back_step_share', 'max_uncovered_sinkage_m',
                             'words'}
-    assert set(outcome['deepest']) == {'body', 'depth_m', 'time_s', 'has_plates'}
+    assert set(outcome['deepest']) == {'body', 'sinkage_m', 'time_s', 'has_plates'}
     assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
     assert summary['other_bodies'] and 'trunk' in summary['plates_per_body']
 
@@ -130,4 +130,4 @@ def test_the_walking_scenario_walks_the_biped_upright():
     assert sim.data.xpos[sim.model.body('trunk').id, 0] - start[0] > 0.15  # ~0.12 m/s
     assert (highest - lowest > 0.015).all()  # each foot lifted
     assert outcome['deepest']['body'].endswith('_foot')
-    assert outcome['deepest']['depth_m'] < 0.02  # (one sole bearing 13 kg, pushing off)
+    assert outcome['deepest']['sinkage_m'] < 0.02  # (one sole bearing 13 kg, pushing off)

@@ -58,8 +58,8 @@ def test_a_watch_records_the_tilt_the_fall_and_the_deepest_point():
     # at 60 deg, 3 cm down: the box's lowest corner, 0.1 sin 60 + 0.05 cos 60 below its centre
     deepest = outcome['deepest']
     assert deepest['body'] == 'base' and deepest['has_plates'] and deepest['time_s'] == 1.2
-    assert deepest['depth_m'] == pytest.approx(0.03 + 0.1 * np.sin(np.pi / 3) + 0.025)
-    assert outcome['max_uncovered_penetration_m'] == pytest.approx(0.03 + 0.02)  # the arm
+    assert deepest['sinkage_m'] == pytest.approx(0.03 + 0.1 * np.sin(np.pi / 3) + 0.025)
+    assert outcome['max_uncovered_sinkage_m'] == pytest.approx(0.03 + 0.02)  # the arm
     assert outcome['unsettled_step_share'] == 0.25
     assert outcome['rows_handed_back_step_share'] == 0.05
     assert outcome['words'].startswith('fell at t = 1.20 s: base turned 90 deg; lying on the')
@@ -70,9 +70,9 @@ def test_a_watch_records_the_tilt_the_fall_and_the_deepest_point():
 
 def test_the_words_say_a_body_left_under_the_sand():
     outcome = {'fell': True, 'fell_at_s': 0.8, 'max_tilt_deg': 95.0, 'unsettled_step_share': 0,
-               'deepest': {'body': 'pelvis', 'depth_m': 1.2, 'time_s': 1.5,
+               'deepest': {'body': 'pelvis', 'sinkage_m': 1.2, 'time_s': 1.5,
                            'has_plates': False},
-               'max_uncovered_penetration_m': 1.2}
+               'max_uncovered_sinkage_m': 1.2}
     assert words(outcome, 0.9, 'pelvis') == (
         'fell at t = 0.80 s: base turned 95 deg; pelvis ends 90 cm below the sand surface; '
         'deepest: pelvis 120 cm below the surface at t = 1.50 s (no plates: it passed through)')
@@ -89,9 +89,9 @@ def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
                      base_linear_velocity=np.zeros(3), base_angular_velocity=np.zeros(3),
                      legs=(), zeta=3.75, plates_active=0)
     fallen = {'fell': True, 'fell_at_s': 0.8, 'tilt_limit_deg': 45.0, 'max_tilt_deg': 95.0,
-              'final_tilt_deg': 90.0, 'deepest': {'body': 'trunk', 'depth_m': 0.02,
+              'final_tilt_deg': 90.0, 'deepest': {'body': 'trunk', 'sinkage_m': 0.02,
                                                   'time_s': 0.9, 'has_plates': True},
-              'unsettled_step_share': 0.0, 'max_uncovered_penetration_m': None,
+              'unsettled_step_share': 0.0, 'max_uncovered_sinkage_m': None,
               'words': 'fell at t = 0.80 s: base turned 95 deg; lying on the sand'}
     fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0,
                                                 outcome=fallen))
@@ -99,7 +99,7 @@ def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
     assert fields.level == 1 and fields.message == 'running'
     assert values['outcome'] == fallen['words'] and values['fell'] == 'true'
     assert float(values['fell_at_s']) == 0.8 and values['deepest_body'] == 'trunk'
-    assert values['max_uncovered_penetration_m'] == 'nan'
+    assert values['max_uncovered_sinkage_m'] == 'nan'
     standing = {**fallen, 'fell': False, 'fell_at_s': None, 'deepest': None, 'words': 'upright'}
     fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0,
                                                 outcome=standing))

@@ -123,7 +123,7 @@ def test_a_fall_is_the_first_thing_the_page_says(tmp_path):
     folder = _run_folder(tmp_path / 'run')
     summary = _summary(outcome={'fell': True, 'fell_at_s': 0.8, 'words': words,
                                 'max_tilt_deg': 95.0, 'deepest': {
-                                    'body': 'base_link', 'depth_m': 0.05, 'time_s': 1.0,
+                                    'body': 'base_link', 'sinkage_m': 0.05, 'time_s': 1.0,
                                     'has_plates': False}})
     parsed = Page(write_run_page(folder, summary).read_text())
     outcome = parsed.words.split('Key metrics')[0]

@@ -38,13 +38,13 @@ def test_a_body_without_plates_in_the_sand_is_said_once(tmp_path, reach):
     assert said[0].endswith("name it a sand body (rft.sand_bodies; '*' takes every body) or give "
                             'the other bodies plates (rft.other_bodies_density_per_mm2)')
     assert said[0][len('warning: '):] in summary['notices']
-    assert summary['outcome']['max_uncovered_penetration_m'] == pytest.approx(reach, abs=0.005)
+    assert summary['outcome']['max_uncovered_sinkage_m'] == pytest.approx(reach, abs=0.005)
 
 
 def test_nothing_is_said_of_a_body_within_the_margin_or_with_plates(tmp_path):
     assert _run(tmp_path, ENTRY_DEPTH / 2, ['plate'])[0] == []
     said, summary = _run(tmp_path, 0.1, ['plate', 'probe'])
-    assert said == [] and summary['outcome']['max_uncovered_penetration_m'] is None
+    assert said == [] and summary['outcome']['max_uncovered_sinkage_m'] is None
 
 
 def test_the_sand_is_read_under_a_bodys_lowest_corner_not_its_centre():

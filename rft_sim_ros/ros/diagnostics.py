@@ -19,21 +19,21 @@ def status_key(zeta, stable, paused, fell=False):
 def outcome_values(outcome):
     """[(key, value)] of /diagnostics for a run's `outcome` (summary.json's, sim/outcome.py;
     None: none yet): outcome (its words), fell, fell_at_s (nan: it did not fall),
-    max_tilt_deg, deepest_body ('' where no geom went below the surface), deepest_depth_m,
-    deepest_has_plates, unsettled_step_share and max_uncovered_penetration_m (nan: every
+    max_tilt_deg, deepest_body ('' where no geom went below the surface), deepest_sinkage_m,
+    deepest_has_plates, unsettled_step_share and max_uncovered_sinkage_m (nan: every
     collision body carries plates)."""
     if outcome is None:
         return []
-    deepest = outcome['deepest'] or {'body': '', 'depth_m': 0.0, 'has_plates': True}
+    deepest = outcome['deepest'] or {'body': '', 'sinkage_m': 0.0, 'has_plates': True}
     nan = float('nan')
-    uncovered = outcome['max_uncovered_penetration_m']
+    uncovered = outcome['max_uncovered_sinkage_m']
     return [('outcome', outcome['words']), ('fell', bool(outcome['fell'])),
             ('fell_at_s', nan if outcome['fell_at_s'] is None else float(outcome['fell_at_s'])),
             ('max_tilt_deg', float(outcome['max_tilt_deg'])),
-            ('deepest_body', deepest['body']), ('deepest_depth_m', float(deepest['depth_m'])),
+            ('deepest_body', deepest['body']), ('deepest_sinkage_m', float(deepest['sinkage_m'])),
             ('deepest_has_plates', bool(deepest['has_plates'])),
             ('unsettled_step_share', float(outcome['unsettled_step_share'])),
-            ('max_uncovered_penetration_m', nan if uncovered is None else float(uncovered))]
+            ('max_uncovered_sinkage_m', nan if uncovered is None else float(uncovered))]
 
 
 class DiagnosticsSchedule:

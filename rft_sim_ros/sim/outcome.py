@@ -22,7 +22,7 @@ The summary's `outcome` (summary.json, /diagnostics):
   tilt_limit_deg              TILT_LIMIT_DEG;
   max_tilt_deg, final_tilt_deg
                               the base's largest tilt, and its tilt at the end;
-  deepest                     {body, depth_m, time_s, has_plates}: the deepest point below
+  deepest                     {body, sinkage_m, time_s, has_plates}: the deepest point below
                               the sand surface of any collision geom (null: no geom ever
                               went below it);
   unsettled_step_share        steps in which the implicit solve froze a plate or its sets
@@ -38,7 +38,7 @@ The summary's `outcome` (summary.json, /diagnostics):
   rows_handed_back_step_share steps whose constraint rows (contacts, limits, closed loops)
                               MuJoCo's own solver took because the implicit solve could
                               not settle them, over the run's steps;
-  max_uncovered_penetration_m deepest point below the surface of a body without plates
+  max_uncovered_sinkage_m deepest point below the surface of a body without plates
                               (null: every collision body carries plates);
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
                               lying on the sand".
@@ -198,7 +198,7 @@ class OutcomeWatch:
         deepest = None
         if self.deepest is not None:
             depth, g, time = self.deepest
-            deepest = {'body': self._body(g), 'depth_m': depth, 'time_s': time,
+            deepest = {'body': self._body(g), 'sinkage_m': depth, 'time_s': time,
                        'has_plates': bool(self._has_plates[g])}
         outcome = {
             'fell': self.fell_at is not None, 'fell_at_s': self.fell_at,
@@ -206,7 +206,7 @@ class OutcomeWatch:
             'final_tilt_deg': final, 'deepest': deepest,
             'unsettled_step_share': unsettled / steps if steps else 0.0,
             'rows_handed_back_step_share': handed_back / steps if steps else 0.0,
-            'max_uncovered_penetration_m': self.uncovered,
+            'max_uncovered_sinkage_m': self.uncovered,
         }
         now = self.depths(data, surface) if self._lowest.geoms.size else np.zeros(1)
         lowest = int(np.argmax(now))
@@ -226,11 +226,11 @@ def words(outcome, final_depth, final_body):
     else:
         parts = [f"upright: base turned at most {outcome['max_tilt_deg']:.0f} deg"]
     deepest = outcome['deepest']
-    if deepest is not None and deepest['depth_m'] > DEEP_M:
-        parts.append(f"deepest: {deepest['body']} {deepest['depth_m'] * 100:.3g} cm below the "
+    if deepest is not None and deepest['sinkage_m'] > DEEP_M:
+        parts.append(f"deepest: {deepest['body']} {deepest['sinkage_m'] * 100:.3g} cm below the "
                      f"surface at t = {deepest['time_s']:.2f} s"
                      + ('' if deepest['has_plates'] else ' (no plates: it passed through)'))
-    uncovered = outcome['max_uncovered_penetration_m']
+    uncovered = outcome['max_uncovered_sinkage_m']
     if uncovered is not None and uncovered > DEEP_M and (deepest or {}).get('has_plates'):
         parts.append(f'a body without plates reached {uncovered * 100:.3g} cm into the sand')
     share = outcome['unsettled_step_share']

@@ -138,12 +138,12 @@ def _outcome(summary):
                           ('tilt_limit_deg', 'tilt counted as a fall (deg)'),
                           ('unsettled_step_share', 'share of steps whose sand sets did '
                                                    'not settle'),
-                          ('max_uncovered_penetration_m', 'deepest body without plates (m)')):
+                          ('max_uncovered_sinkage_m', 'deepest body without plates (m)')):
             if key in outcome:
                 rows.append([name, outcome[key]])
         deepest = outcome.get('deepest')
         if deepest:
-            rows.append(['deepest body', f'{deepest.get("body")}: {number(deepest.get("depth_m"))}'
+            rows.append(['deepest body', f'{deepest.get("body")}: {number(deepest.get("sinkage_m"))}'
                          f' m at {number(deepest.get("time_s"))} s'
                          + ('' if deepest.get('has_plates', True) else ' (no plates)')])
     if rows:
