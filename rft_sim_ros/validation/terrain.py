@@ -23,8 +23,11 @@ SLOPES_DEG = (0.0, 5.0, 10.0, 15.0)
 #: Deformable bed of the studies: 1 cm cells over 2 m x 2 m.
 BED = {'sand.deformable.enabled': True, 'sand.deformable.cell': 0.01,
        'sand.deformable.size': [2.0, 2.0]}
-#: A patch of loose sand (zeta 1 of the scene's 3.75) from x = 0.15 m on.
-LOOSE_PATCH = {'sand.zeta_map.regions': [{'x': [0.15, 3.0], 'y': [-1.5, 1.5],
+#: The hexapod's walking direction, degrees from world +x towards +y: the paper's crab
+#: hexapod walks sideways, along +y (its metrics' "forward"; scenes/scenarios/hexapod.py).
+WALK_HEADING_DEG = 90.0
+#: A patch of loose sand (zeta 1 of the scene's 3.75) from y = 0.15 m on, across the walk.
+LOOSE_PATCH = {'sand.zeta_map.regions': [{'x': [-1.5, 1.5], 'y': [0.15, 3.0],
                                           'factor': 1.0 / 3.75}]}
 RAILS = ('closed_c', 'flat', 'open_c')
 
@@ -46,10 +49,12 @@ def _walk(overrides, plates):
 
 
 def slope_study(plates):
-    """{(direction, angle deg): walk metrics}; direction 'up' walks +x up the slope."""
+    """{(direction, angle deg): walk metrics}; direction 'up' walks up the slope (its
+    downhill heading opposite the walking direction, `WALK_HEADING_DEG`)."""
     rows = {}
     for angle in SLOPES_DEG:
-        for direction, heading in (('up', 180.0), ('down', 0.0)):
+        for direction, heading in (('up', WALK_HEADING_DEG + 180.0),
+                                   ('down', WALK_HEADING_DEG)):
             if angle == 0 and direction == 'down':
                 continue
             rows[(direction, angle)], _ = _walk({
@@ -119,19 +124,19 @@ def plate_redrop(duration=1.0):
 
 
 def zeta_crossing(plates):
-    """Hexapod on zeta 3.75, on zeta 1, and from 3.75 onto 1 at x = 0.15 m: walk metrics and
-    the speed before and after the base crosses x = 0.15 m."""
+    """Hexapod on zeta 3.75, on zeta 1, and from 3.75 onto 1 at y = 0.15 m (`LOOSE_PATCH`):
+    walk metrics and the speed before and after the base crosses y = 0.15 m."""
     rows = {}
     for label, overrides in (('zeta 3.75', {}), ('zeta 1', {'zeta': 1.0}),
-                             ('3.75 -> 1 at x = 0.15 m', LOOSE_PATCH)):
+                             ('3.75 -> 1 at y = 0.15 m', LOOSE_PATCH)):
         row, sim = _walk(overrides, plates)
         s = sim.scenario.series()
-        t, x = s['time_s'], s['x_m']
-        cross = np.flatnonzero(x >= 0.15)
+        t, y = s['time_s'], s['y_m']
+        cross = np.flatnonzero(y >= 0.15)
         if cross.size and 0 < cross[0] < len(t) - 1:
             c = cross[0]
-            row['speed_before_mps'] = float((x[c] - x[0]) / (t[c] - t[0]))
-            row['speed_after_mps'] = float((x[-1] - x[c]) / (t[-1] - t[c]))
+            row['speed_before_mps'] = float((y[c] - y[0]) / (t[c] - t[0]))
+            row['speed_after_mps'] = float((y[-1] - y[c]) / (t[-1] - t[c]))
         rows[label] = row
     return rows
 
@@ -286,7 +291,7 @@ def _report(r, slopes, rails):
               'so the plate\'s rim meets sand higher than the floor and stops it sooner); '
               'on rigid sand both drops are the same.', '',
               '## Packed to loose sand', '',
-              '| hexapod | forward (m) | speed (cm/s) | before x = 0.15 m | after | sinkage (cm) |',
+              '| hexapod | forward (m) | speed (cm/s) | before y = 0.15 m | after | sinkage (cm) |',
               '|---|---|---|---|---|---|']
     for label, row in r['zeta_crossing'].items():
         before = row.get('speed_before_mps')
