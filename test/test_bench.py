@@ -67,18 +67,25 @@ def test_hexapod_step_cost_runs_both_loops():
         result['sand_engine_step_s'] / result['rigid_step_s'])
 
 
+@pytest.mark.slow  # (compiles the deformable kernels in a worker process: a benchmark's cost)
 def test_engine_step_worker_times_one_gait_cycle_of_the_walk(tmp_path):
-    """The terrain-cost worker: the code it imported, the cycle's steps, a CPU time per step."""
-    from rft_sim_ros.bench.terrain_cost import CODE, Worker, cases
-    bed = dict((label, overrides) for label, overrides, _ in cases(tmp_path))[
+    """The terrain-cost worker: the code it imported, the cycle's steps, a CPU time per step,
+    and where the sand bodies went on both axes: the crab hexapod, x -0.35 .. 0.35 m across
+    its walk, walked along +y, staying on the bed laid along that walk."""
+    from rft_sim_ros.bench.terrain_cost import (CODE, START_EXTENT, WALK_SPEED_BOUND, Worker,
+                                                cases, check_on_surface, laid_along_walk)
+    bed = dict((label, overrides) for label, overrides, _ in cases(tmp_path, rounds=1))[
         'deformable 2 m x 2 m, 1 cm']
     worker = Worker(CODE, {'rft.plates_per_body': 50, **bed}, tmp_path)
     try:
         assert Path(worker.info['package']).resolve() == CODE / 'rft_sim_ros' / '__init__.py'
         assert worker.info['cycle_steps'] == 1250  # 1 Hz gait at 0.8 ms
         assert 0.0 < worker.chunk() < 0.01
-        low, high = worker.x_extent  # (the walk starts about the origin, heading +x)
-        assert -0.3 < low < 0.0 < high < 0.5
+        (x_low, x_high), (y_low, y_high) = worker.extent
+        assert -0.4 < x_low < -0.3 and 0.3 < x_high < 0.4
+        assert START_EXTENT[0] <= y_low and START_EXTENT[1] < y_high
+        assert y_high < START_EXTENT[1] + 2.0 * WALK_SPEED_BOUND  # two 1 s cycles walked
+        check_on_surface('bed', worker.extent, *laid_along_walk(1))
     finally:
         worker.close()
     assert worker.process.returncode == 0
@@ -95,18 +102,24 @@ def test_terrain_cost_names_the_code_by_its_commit(tmp_path):
 
 
 def test_terrain_cost_lays_its_surfaces_along_the_whole_walk():
-    """Grids and beds cover the stretch walked in the rounds at the speed bound, 2 m long or
-    longer; a case whose bodies leave them stops the benchmark."""
-    from rft_sim_ros.bench.terrain_cost import (START_EXTENT, WALK_SPEED_BOUND,
+    """Grids and beds cover the stretch walked along +y in the rounds at the speed bound, 2 m
+    long or longer, and are 2 m wide across it (x), centred on the robot; a case whose
+    bodies leave them on either axis stops the benchmark."""
+    from rft_sim_ros.bench.terrain_cost import (START_EXTENT, WALK_AXIS, WALK_SPEED_BOUND,
                                                 check_on_surface, laid_along_walk)
-    for rounds, side in ((1, 2.0), (7, 2.0), (20, None)):
-        centre, length = laid_along_walk(rounds)
-        low, high = centre - 0.5 * length, centre + 0.5 * length
+    assert WALK_AXIS == 1  # the crab hexapod walks sideways, along world +y
+    for rounds, side in ((1, 2.0), (3, 2.0), (20, None)):
+        centre, size = laid_along_walk(rounds)
+        assert centre[0] == 0.0 and size[0] == 2.0
+        low, high = centre[1] - 0.5 * size[1], centre[1] + 0.5 * size[1]
         assert low < START_EXTENT[0] and high > START_EXTENT[1] + 2.0 * rounds * WALK_SPEED_BOUND
-        assert length == (side or pytest.approx(high - low)) and length >= 2.0
-        check_on_surface('case', [low + 0.001, high - 0.001], centre, length)
-        with pytest.raises(RuntimeError, match='case: the hexapod walked beyond'):
-            check_on_surface('case', [low + 0.001, high + 0.001], centre, length)
+        assert size[1] == (side or pytest.approx(high - low)) and size[1] >= 2.0
+        inside = [[-0.999, 0.999], [low + 0.001, high - 0.001]]
+        check_on_surface('case', inside, centre, size)
+        with pytest.raises(RuntimeError, match='case: the hexapod walked beyond .* at y'):
+            check_on_surface('case', [inside[0], [low + 0.001, high + 0.001]], centre, size)
+        with pytest.raises(RuntimeError, match='case: the hexapod walked beyond .* at x'):
+            check_on_surface('case', [[-1.001, 0.999], inside[1]], centre, size)
 
 
 @pytest.mark.slow

@@ -8,7 +8,8 @@ checkout of this package (the code before the terrain work names its scene loade
 walk made long enough for any run), steps it to `WALKING_S` into the walk, prints one JSON
 line (the package it imported, plate count, steps per gait cycle), then answers each input
 line `chunk` with one JSON line: the CPU time per engine step (s) of one gait cycle, and the
-x extent (m) the sand bodies' bounding spheres reached in the two cycles.
+world x and y extents (m) the sand bodies' bounding spheres reached in all the worker's
+cycles so far.
 
 A chunk first runs the cycle as the scene does (`Simulation.step`, untimed), recording the
 servo targets each engine step met, then replays those targets through the engine alone
@@ -45,12 +46,12 @@ def main(overrides):
     step = engine.step
     recorded = [0]
     radii = getattr(engine, 'radii', 0.0)  # (the code before the terrain work: origins)
-    extent = [np.inf, -np.inf]
+    extent = np.array([[np.inf, -np.inf], [np.inf, -np.inf]])  # world [x, y] x [low, high]
 
     def note_extent():
-        x = sim.data.xpos[engine.body_ids, 0]
-        extent[:] = min(extent[0], float(np.min(x - radii))), max(extent[1],
-                                                                  float(np.max(x + radii)))
+        xy = sim.data.xpos[engine.body_ids, :2].T
+        extent[:, 0] = np.minimum(extent[:, 0], np.min(xy - radii, axis=1))
+        extent[:, 1] = np.maximum(extent[:, 1], np.max(xy + radii, axis=1))
 
     def recording_step():
         targets[recorded[0]] = ctrl
@@ -73,7 +74,8 @@ def main(overrides):
             step()
         step_s = (time.process_time() - started) / cycle
         note_extent()  # (the timed cycle's end; its course is the next chunk's first cycle's)
-        print(json.dumps({'step_s': step_s, 'x_extent': extent}), file=answers, flush=True)
+        print(json.dumps({'step_s': step_s, 'extent_m': extent.tolist()}), file=answers,
+              flush=True)
 
 
 if __name__ == '__main__':

@@ -34,45 +34,55 @@ WORKER = Path(__file__).with_name('engine_step_worker.py')
 #: The package root of the code under test.
 CODE = Path(__file__).resolve().parents[2]
 BASELINE = 'plane, baseline code'
-#: Upper bound of the hexapod's walking speed (m/s; it walks 7-7.5 cm/s along +x on every
-#: surface measured), and of the x extent of its sand bodies' spheres when measuring starts
-#: (m, `engine_step_worker.WALKING_S`: body origins -0.14 .. 0.16, radii up to 0.08).
+#: The world axis the hexapod walks along, toward + (0: x, 1: y): the crab hexapod walks
+#: sideways along +y, its body long along x.
+WALK_AXIS = 1
+#: Upper bound of the hexapod's walking speed along `WALK_AXIS` (m/s; it walks 7.1 cm/s on
+#: the plane at 500 plates per leg segment), and the extent along `WALK_AXIS` of its sand
+#: bodies' spheres when measuring starts (m, `engine_step_worker.WALKING_S`: y -0.479 ..
+#: 0.491; across the walk, x -0.350 .. 0.350, centred on x = 0).
 WALK_SPEED_BOUND = 0.1
-START_EXTENT = (-0.23, 0.25)
+START_EXTENT = (-0.49, 0.50)
 #: Side of the surfaces measured (m): grids 2 m x 2 m at 1 cm; the target's deformable bed
-#: of 1 cm cells over 2 m x 2 m (longer along x where a run walks further).
+#: of 1 cm cells over 2 m x 2 m (longer along the walk where a run walks further).
 SIDE = 2.0
 CELL = 0.01
 
 
 def laid_along_walk(rounds):
-    """(centre x, length along x) of the surfaces measured (m), laid along the stretch the
-    hexapod walks in `rounds` rounds (two gait cycles of 1 s each per round: one run, one
-    timed), with a cell to spare at each end: `SIDE` long, or longer for a longer walk. The
-    workers report where the bodies went (`check_on_surface`)."""
+    """Centre and size (m, world [x, y]) of the rectangle the surfaces measured cover: `SIDE`
+    wide across the walk, centred on it (the sand bodies start centred across it), and along
+    `WALK_AXIS` over the stretch the hexapod walks in `rounds` rounds (two gait cycles of 1 s
+    each per round: one run, one timed), with a cell to spare at each end: `SIDE` long, or
+    longer for a longer walk. The workers report where the bodies went
+    (`check_on_surface`)."""
     low = START_EXTENT[0] - CELL
     high = START_EXTENT[1] + WALK_SPEED_BOUND * 2.0 * rounds + CELL
-    length = max(SIDE, CELL * np.ceil((high - low) / CELL))
-    return 0.5 * (low + high), length
+    centre, size = [0.0, 0.0], [SIDE, SIDE]
+    centre[WALK_AXIS] = 0.5 * (low + high)
+    size[WALK_AXIS] = max(SIDE, CELL * float(np.ceil((high - low) / CELL)))
+    return centre, size
 
 
-def check_on_surface(label, extent, centre_x, length):
-    """Raise where a case's sand bodies (their spheres' x extent, m, over all its timed
-    cycles) left the surface laid along the walk (`laid_along_walk`): the step cost measured
-    would be partly that of the ground beyond it."""
-    if extent[0] < centre_x - 0.5 * length or extent[1] > centre_x + 0.5 * length:
-        raise RuntimeError(f'{label}: the hexapod walked beyond the surface measured '
-                           f'(bodies at x {extent[0]:.2f} .. {extent[1]:.2f} m, surface '
-                           f'{centre_x - 0.5 * length:.2f} .. {centre_x + 0.5 * length:.2f} m): '
-                           'raise WALK_SPEED_BOUND')
+def check_on_surface(label, extent, centre, size):
+    """Raise where a case's sand bodies (their spheres' extent, m, world [[x low, x high],
+    [y low, y high]], over all its timed cycles) left the surface laid along the walk
+    (centre and size from `laid_along_walk`): the step cost measured would be partly that
+    of the ground beyond it."""
+    for axis, name in enumerate('xy'):
+        low, high = centre[axis] - 0.5 * size[axis], centre[axis] + 0.5 * size[axis]
+        if extent[axis][0] < low or extent[axis][1] > high:
+            raise RuntimeError(f'{label}: the hexapod walked beyond the surface measured '
+                               f'(bodies at {name} {extent[axis][0]:.2f} .. '
+                               f'{extent[axis][1]:.2f} m, surface {low:.2f} .. {high:.2f} m): '
+                               'raise WALK_SPEED_BOUND or START_EXTENT')
 
 
-def _nodes(centre_x, length):
-    """World x and y (m) of the grids' nodes: `length` x `SIDE` at `CELL`, centred on
-    (centre_x, 0)."""
-    x = centre_x + np.linspace(-0.5 * length, 0.5 * length, int(round(length / CELL)) + 1)
-    y = np.linspace(-0.5 * SIDE, 0.5 * SIDE, int(round(SIDE / CELL)) + 1)
-    return x, y
+def _nodes(centre, size):
+    """World x and y (m) of the grids' nodes: `size` (m, [x, y]) at `CELL`, centred on
+    `centre` (m, world [x, y])."""
+    return tuple(c + np.linspace(-0.5 * s, 0.5 * s, int(round(s / CELL)) + 1)
+                 for c, s in zip(centre, size))
 
 
 def rippled_heights(x, y):
@@ -80,12 +90,12 @@ def rippled_heights(x, y):
     return 0.01 * np.sin(2 * np.pi * x / 0.25)[None, :] * np.cos(2 * np.pi * y / 0.25)[:, None]
 
 
-def grid_files(folder, centre_x=0.0, length=SIDE):
-    """Three height grids (.npy, m) of `length` x `SIDE` at 1 cm centred on (centre_x, 0) in
-    `folder`: flat at 0 (the plane's physics on the grid path), rippled (`rippled_heights`),
-    and the 10 deg slope of the slope case sampled at the nodes (the slope's physics on the
-    grid path: bilinear interpolation of a plane is that plane)."""
-    x, y = _nodes(centre_x, length)
+def grid_files(folder, centre=(0.0, 0.0), size=(SIDE, SIDE)):
+    """Three height grids (.npy, m) of `size` (m, [x, y]) at 1 cm centred on `centre` (m,
+    world [x, y]) in `folder`: flat at 0 (the plane's physics on the grid path), rippled
+    (`rippled_heights`), and the 10 deg slope of the slope case sampled at the nodes (the
+    slope's physics on the grid path: bilinear interpolation of a plane is that plane)."""
+    x, y = _nodes(centre, size)
     flat, rippled = Path(folder) / 'flat_grid.npy', Path(folder) / 'rippled_grid.npy'
     sloped = Path(folder) / 'sloped_grid.npy'
     np.save(flat, np.zeros((y.size, x.size)))
@@ -94,22 +104,24 @@ def grid_files(folder, centre_x=0.0, length=SIDE):
     return flat, rippled, sloped
 
 
-def hfield_model(folder, centre_x=0.0, length=SIDE):
+def hfield_model(folder, centre=(0.0, 0.0), size=(SIDE, SIDE)):
     """The hexapod's MJCF with an <hfield> geom 'terrain' in its world body holding the
-    rippled grid of `grid_files` (heights -1 .. +1 cm), written to `folder`; returns its
-    path. (The hexapod model itself has no hfield.)"""
+    rippled grid of `grid_files` (heights -1 .. +1 cm; `size`, m, [x, y], centred on
+    `centre`, m, world [x, y]), written to `folder`; returns its path. (The hexapod model
+    itself has no hfield.)"""
     models = resources.models_dir()
-    heights = rippled_heights(*_nodes(centre_x, length))
+    heights = rippled_heights(*_nodes(centre, size))
     low, high = heights.min(), heights.max()
     elevation = ' '.join(f'{value:.6f}' for value in ((heights - low) / (high - low)).ravel())
     xml = (models / 'hexapod.xml').read_text()
     xml = xml.replace('meshdir="assets"', f'meshdir="{models / "assets"}"', 1)
     xml = xml.replace('<asset>', f'<asset><hfield name="ripples" nrow="{heights.shape[0]}" '
-                                 f'ncol="{heights.shape[1]}" size="{0.5 * length} '
-                                 f'{0.5 * SIDE} {high - low} 0.01" '
+                                 f'ncol="{heights.shape[1]}" size="{0.5 * size[0]} '
+                                 f'{0.5 * size[1]} {high - low} 0.01" '
                                  f'elevation="{elevation}"/>', 1)
     xml = xml.replace('<worldbody>', '<worldbody><geom name="terrain" type="hfield" '
-                                     f'hfield="ripples" pos="{centre_x} 0 {low}"/>', 1)
+                                     f'hfield="ripples" pos="{centre[0]} {centre[1]} {low}"/>',
+                      1)
     path = Path(folder) / 'hexapod_hfield.xml'
     path.write_text(xml)
     return path
@@ -119,13 +131,13 @@ def cases(folder, rounds=5):
     """(label, scene overrides, laid along the walk) of the surfaces measured, their grids
     and beds laid along the walk of `rounds` rounds (`laid_along_walk`); 'plane' is the
     reference."""
-    centre_x, length = laid_along_walk(rounds)
-    flat, rippled, sloped = grid_files(folder, centre_x, length)
-    size = f'{length:g} m x {SIDE:g} m'
-    grid = {'sand.surface.type': 'grid', 'sand.surface.size': [length, SIDE],
-            'sand.surface.center': [centre_x, 0.0]}
+    centre, extent = laid_along_walk(rounds)
+    flat, rippled, sloped = grid_files(folder, centre, extent)
+    size = f'{extent[0]:g} m x {extent[1]:g} m'
+    grid = {'sand.surface.type': 'grid', 'sand.surface.size': extent,
+            'sand.surface.center': centre}
     bed = {'sand.deformable.enabled': True, 'sand.deformable.cell': CELL,
-           'sand.deformable.size': [length, SIDE], 'sand.deformable.center': [centre_x, 0.0]}
+           'sand.deformable.size': extent, 'sand.deformable.center': centre}
     return (
         ('plane', {}, False),
         ('slope 0 deg (slope path, the plane\'s physics)', {'sand.surface.type': 'slope'}, False),
@@ -137,7 +149,7 @@ def cases(folder, rounds=5):
         (f'height grid {size} at 1 cm, rippled +-1 cm',
          {**grid, 'sand.surface.file': str(rippled)}, True),
         ('the model\'s own hfield, the same ripples', {
-            'model': str(hfield_model(folder, centre_x, length)), 'sand.surface.type': 'hfield',
+            'model': str(hfield_model(folder, centre, extent)), 'sand.surface.type': 'hfield',
             'sand.surface.geom': 'terrain'}, True),
         (f'deformable {size}, 1 cm', bed, True),
         ('deformable 8 m x 8 m, 1 cm', {**bed, 'sand.deformable.size': [8.0, 8.0]}, True),
@@ -167,12 +179,13 @@ class Worker:
         return json.loads(line)
 
     def chunk(self):
-        """CPU time per engine step (s) over one gait cycle; `x_extent` becomes the x extent
-        (m) of the sand bodies' spheres in all the worker's cycles so far."""
+        """CPU time per engine step (s) over one gait cycle; `extent` becomes the extent (m,
+        world [[x low, x high], [y low, y high]]) of the sand bodies' spheres in all the
+        worker's cycles so far."""
         self.process.stdin.write('chunk\n')
         self.process.stdin.flush()
         answer = self._answer()
-        self.x_extent = answer['x_extent']
+        self.extent = answer['extent_m']
         return answer['step_s']
 
     def close(self):
@@ -186,7 +199,7 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
     `processes` > 1 each case runs in that many worker processes and a round's sample of a
     case is their mean: the same code reads up to about 2 % apart in two processes, for the
     life of each (where its compiled code and arrays landed), and the mean evens that out."""
-    centre_x, length = laid_along_walk(rounds)
+    centre, size = laid_along_walk(rounds)
     with tempfile.TemporaryDirectory() as folder:
         measured = cases(folder, rounds)
         plan = [(label, CODE, overrides) for label, overrides, _ in measured]
@@ -207,7 +220,7 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
                     samples[label].append(float(np.mean([w.chunk() for w in group])))
                     if label in laid:
                         for worker in group:
-                            check_on_surface(label, worker.x_extent, centre_x, length)
+                            check_on_surface(label, worker.extent, centre, size)
         finally:
             for group in workers.values():
                 for worker in group:
@@ -219,8 +232,9 @@ def surface_costs(rounds=5, baseline=None, processes=1, log=print):
         result[label] = {'step_s': float(np.median(values)),
                          'ratio_to_plane': float(np.median(values / plane)),
                          'samples_s': values.tolist(),
-                         'bodies_x_m': [min(w.x_extent[0] for w in workers[label]),
-                                        max(w.x_extent[1] for w in workers[label])]}
+                         'bodies_m': {name: [min(w.extent[axis][0] for w in workers[label]),
+                                             max(w.extent[axis][1] for w in workers[label])]
+                                      for axis, name in enumerate('xy')}}
     return result
 
 
@@ -241,7 +255,7 @@ def commit(code):
 
 def markdown(results):
     machine = results['machine']
-    low, high = results['surfaces_x_m']
+    surface = results['surface_m']
     lines = ['# Step cost of the sand surfaces', '',
              f'Machine: {machine["cpu"]}, {machine["cores"]} cores (shared); Python '
              f'{machine["python"]}, MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. '
@@ -250,14 +264,16 @@ def markdown(results):
              'round\'s sample: their mean), the cases taking turns one gait '
              f'cycle each over {results["rounds"]} rounds; medians, and ratios to the plane as '
              'the median of per-round ratios. Produced by `python -m '
-             'rft_sim_ros.bench.terrain_cost`. Grids and beds are laid along the walk, '
-             f'x {low:.2f} .. {high:.2f} m; the last '
-             "column gives the x range the sand bodies' spheres covered.", '',
-             '| surface | us/step | vs plane | bodies at x (m) |', '|---|---|---|---|']
+             'rft_sim_ros.bench.terrain_cost`. Grids and beds are laid along the walk '
+             f'(+{"xy"[WALK_AXIS]}), x {surface["x"][0]:.2f} .. {surface["x"][1]:.2f} m, '
+             f'y {surface["y"][0]:.2f} .. {surface["y"][1]:.2f} m; the last columns give '
+             "the ranges the sand bodies' spheres covered.", '',
+             '| surface | us/step | vs plane | bodies at x (m) | bodies at y (m) |',
+             '|---|---|---|---|---|']
     for label, row in results['cases'].items():
-        left, right = row['bodies_x_m']
+        (x_low, x_high), (y_low, y_high) = row['bodies_m']['x'], row['bodies_m']['y']
         lines.append(f'| {label} | {row["step_s"] * 1e6:.1f} | {row["ratio_to_plane"]:.3f} '
-                     f'| {left:.2f} .. {right:.2f} |')
+                     f'| {x_low:.2f} .. {x_high:.2f} | {y_low:.2f} .. {y_high:.2f} |')
     if results.get('code'):
         lines += ['', f'Code measured: {results["code"]}.']
     if results.get('baseline'):
@@ -277,11 +293,12 @@ def main(argv=None):
     parser.add_argument('--baseline-label', default='', help='what the baseline is (report)')
     args = parser.parse_args(argv)
     log = lambda line: print(f'terrain_cost: {line}', file=sys.stderr)  # noqa: E731
-    centre_x, length = laid_along_walk(args.rounds)
+    centre, size = laid_along_walk(args.rounds)
     results = {'machine': machine_info(), 'rounds': args.rounds,
                'load_before': os.getloadavg()[0],
                'processes': args.processes,
-               'surfaces_x_m': [centre_x - 0.5 * length, centre_x + 0.5 * length],
+               'surface_m': {name: [c - 0.5 * s, c + 0.5 * s]
+                             for name, c, s in zip('xy', centre, size)},
                'cases': surface_costs(args.rounds, args.baseline, args.processes, log),
                'load_after': os.getloadavg()[0],
                'code': commit(CODE),
