@@ -1,5 +1,6 @@
 """Test configuration: reproducible property tests, a plate cache of the tests' own, and
-SIGINT as a terminal's foreground job has it (`ctrl_c_raises`).
+SIGINT as a terminal's foreground job has it (`ctrl_c_raises`), and the rclpy tests' ROS
+session (`ros`: test_node_rclpy.Ros, only where rclpy is installed).
 
 Hypothesis draws the same examples on every run (derandomize), so CI is deterministic; set
 HYPOTHESIS_PROFILE=explore for a long randomised search when changing the force law.
@@ -35,3 +36,13 @@ def mujoco_log_of_the_test_run(tmp_path_factory):
     from rft_sim_ros.sim.runner import mujoco_log
     with mujoco_log(tmp_path_factory.mktemp('mujoco') / 'mujoco.log'):
         yield
+
+
+@pytest.fixture
+def ros():
+    """A ROS session of the rclpy tests (`test_node_rclpy.Ros`: rclpy on this test's DDS
+    domain, a probe node and an executor), closed after the test."""
+    from test_node_rclpy import Ros
+    session = Ros()
+    yield session
+    session.close()

@@ -31,7 +31,7 @@ from rft_sim_ros.ros import follow_messages, topics  # noqa: E402
 from rft_sim_ros.ros.factory import RclpyFactory, RosbagsFactory  # noqa: E402
 from rft_sim_ros.ros.node import SimNode  # noqa: E402
 from ros_test_support import SERVO_RIG, control_msgs_typestore, messages_equal  # noqa: E402
-from test_node_rclpy import Ros, hip, start_sim  # noqa: E402
+from test_node_rclpy import hip, start_sim  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -40,13 +40,6 @@ Result = FollowJointTrajectory.Result
 #: test publishes (on a busy machine the test's side lags the simulator, in the same executor,
 #: by hundreds of messages, and a shallower queue dropped the one a test waited for).
 KEEP_EVERY = 10_000
-
-
-@pytest.fixture
-def ros():
-    session = Ros()
-    yield session
-    session.close()
 
 
 def goal(positions, after_s, names=('hip',), **fields):

@@ -145,13 +145,6 @@ class Ros:
         rclpy.try_shutdown(context=self.context)
 
 
-@pytest.fixture
-def ros():
-    session = Ros()
-    yield session
-    session.close()
-
-
 def start_sim(ros, **parameters):
     overrides = {'scene': SERVO_RIG, 'real_time_factor': 2.0, **parameters}
     return ros.add(SimNode(context=ros.context, parameter_overrides=[

@@ -15,16 +15,9 @@ pytest.importorskip('simulation_interfaces.srv',
 from rclpy.action import ActionClient  # noqa: E402
 from simulation_interfaces import action, msg, srv  # noqa: E402
 
-from test_node_rclpy import Ros, start_sim  # noqa: E402
+from test_node_rclpy import start_sim  # noqa: E402
 
 pytestmark = pytest.mark.ros
-
-
-@pytest.fixture
-def ros():
-    session = Ros()
-    yield session
-    session.close()
 
 
 def test_services_and_the_simulate_steps_action_answer_with_the_package_codes(ros):

@@ -20,19 +20,11 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 from rft_sim_ros.ros import topics  # noqa: E402
 from rft_sim_ros.ros.node import SimNode  # noqa: E402
 from ros_test_support import SERVO_RIG  # noqa: E402
-from test_node_rclpy import Ros  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 #: A 0.5 m x 0.5 m deformable bed of 1 cm cells (51 x 51 nodes) under the dropped plate.
 BED = ['sand.deformable.enabled=true', 'sand.deformable.size=[0.5, 0.5]']
-
-
-@pytest.fixture
-def ros():
-    session = Ros()
-    yield session
-    session.close()
 
 
 def _bed_node(ros, *parameters):

@@ -19,16 +19,9 @@ from rcl_interfaces.srv import SetParameters  # noqa: E402
 from sensor_msgs.msg import Imu, JointState  # noqa: E402
 
 from rft_sim_ros.ros import topics  # noqa: E402
-from test_node_rclpy import Ros, start_sim  # noqa: E402
+from test_node_rclpy import start_sim  # noqa: E402
 
 pytestmark = pytest.mark.ros
-
-
-@pytest.fixture
-def ros():
-    session = Ros()
-    yield session
-    session.close()
 
 
 def test_joint_state_commands_drive_and_the_state_goes_back_on_the_hardware_topic(ros):

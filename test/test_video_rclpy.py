@@ -5,7 +5,6 @@ Runs the node's executable where ROS 2 Jazzy is sourced (rclpy) and frames can b
 skipped with the reason everywhere else. A plate dropped on sand in small frames.
 """
 import os
-import select
 import signal
 import subprocess
 import sys
@@ -18,6 +17,7 @@ rclpy = pytest.importorskip('rclpy', reason='ROS 2 Jazzy (rclpy) is not installe
 av = pytest.importorskip('av')
 
 from rft_sim_ros.render.gl import RenderingUnavailable, check_offscreen  # noqa: E402
+from test_node_rclpy import _wait_for_output  # noqa: E402
 
 try:
     check_offscreen()
@@ -45,29 +45,13 @@ def _node(*parameters):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _wait_for_output(process, words, timeout=300.0):
-    """Read the process's stderr (rclpy logs there) until a line holds `words`."""
-    deadline = time.monotonic() + timeout
-    lines = []
-    while time.monotonic() < deadline:
-        ready, _, _ = select.select([process.stderr], [], [], 0.5)
-        if ready:
-            line = process.stderr.readline()
-            if not line:
-                break
-            lines.append(line)
-            if words in line:
-                return lines
-    raise AssertionError(f'{words!r} not logged; output so far: {"".join(lines)}')
-
-
 def test_the_node_records_its_video_and_finishes_it_when_stopped_with_ctrl_c(tmp_path):
     video = tmp_path / 'node.mp4'
     overrides = '[' + ', '.join(f"'{value}'" for value in SMALL) + ']'
     node = _node('scene:=plate_drop', f'video_path:={video}', 'real_time_factor:=0.0',
                  f'scene_overrides:={overrides}')
     try:
-        logged = _wait_for_output(node, 'publishing every')
+        logged = _wait_for_output(node, 'publishing every', timeout=300.0)
         time.sleep(4.0)  # simulating and recording as fast as it can
         node.send_signal(signal.SIGINT)
         _, stderr = node.communicate(timeout=120)
