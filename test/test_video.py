@@ -14,17 +14,13 @@ import time
 import numpy as np
 import pytest
 
-from rft_sim_ros.render.gl import RenderingUnavailable, check_offscreen
+from rft_sim_ros.render.gl import offscreen_problem
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.runner import run_scene
 
 av = pytest.importorskip('av')
 
-try:
-    check_offscreen()
-    OFFSCREEN = None
-except RenderingUnavailable as error:
-    OFFSCREEN = str(error)
+OFFSCREEN = offscreen_problem()
 needs_rendering = pytest.mark.skipif(OFFSCREEN is not None, reason=OFFSCREEN or '')
 
 WIDTH, HEIGHT, FPS = 160, 120, 20

@@ -16,14 +16,10 @@ import pytest
 rclpy = pytest.importorskip('rclpy', reason='ROS 2 Jazzy (rclpy) is not installed here')
 av = pytest.importorskip('av')
 
-from rft_sim_ros.render.gl import RenderingUnavailable, check_offscreen  # noqa: E402
+from rft_sim_ros.render.gl import offscreen_problem  # noqa: E402
 from test_node_rclpy import _wait_for_output  # noqa: E402
 
-try:
-    check_offscreen()
-    OFFSCREEN = None
-except RenderingUnavailable as error:
-    OFFSCREEN = str(error)
+OFFSCREEN = offscreen_problem()
 
 pytestmark = [pytest.mark.ros,
               pytest.mark.skipif(OFFSCREEN is not None, reason=OFFSCREEN or '')]

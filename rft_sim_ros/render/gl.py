@@ -92,3 +92,13 @@ def check_offscreen():
     """Raise RenderingUnavailable (one line) unless an offscreen context can be made here;
     a run asked to record a video checks this before it starts."""
     offscreen_context(16, 16).free()
+
+
+def offscreen_problem():
+    """Why offscreen rendering cannot be done here (RenderingUnavailable's one line), or
+    None where it can (`check_offscreen`)."""
+    try:
+        check_offscreen()
+    except RenderingUnavailable as error:
+        return str(error)
+    return None
