@@ -12,7 +12,7 @@ import numpy as np
 
 from .kernel_cache import KERNEL_MODULES, BackgroundCompile, is_cached, module_kernels
 from .rft.kernel import plate_forces_compiled
-from .sand import gather
+from .sand import gather, implicit_solve
 from .sand.array_table import TABLE_SIGNATURE
 from .scenes.config import load_scene
 from .sim.simulation import Simulation
@@ -35,18 +35,21 @@ def uncached():
 
 def warm_up(log=print):
     """Compile (or load) every kernel: short runs of the scenes and settings that use them,
-    with the gather kernels of the other surfaces compiled meanwhile in a second process.
+    with the gather kernels of the other surfaces and the implicit step with elliptic cones
+    compiled meanwhile in a second process.
     Returns the qualified names still not cached (none, unless a kernel went unused)."""
     others = [(kernel, TABLE_SIGNATURE) for kernel in (
         gather.gather_slope, gather.gather_grid, gather.gather_deformable)]
+    others.append((implicit_solve.implicit_step_cones, implicit_solve.STEP_SIGNATURE))
 
     def run(scene, overrides):
         log(f'warmup: {scene} {overrides or ""}'.rstrip())
         Simulation(load_scene(scene, overrides)).step(2)
 
     with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling:
-        run('hexapod', {})                      # implicit engine step (plane), tripod gait
+        run('hexapod', {})                      # implicit step with rows (plane), tripod gait
         run('articulated_leg', {})              # leg inverse kinematics
+        run('plate_drop', {})                   # the implicit step without rows
         run('plate_drop', {'rft.low_velocity.method': 'ema'})  # the explicit path
         compiling.wait()  # (a kernel it did not cache compiles in its run below)
         level = Path(folder) / 'level.npy'  # a height grid (of the plane's height)

@@ -33,10 +33,9 @@ from rft_sim_ros.kernel_cache import record_cold_start
 from rft_sim_ros.sand import implicit_solve
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import compile_notice
-every = ("gather_plane implicit_plate_forces implicit_step report_constraint_forces "
-         "return_constraint_rows take_constraint_rows")
-record_cold_start(implicit_solve.implicit_step, every, 41.7, 80.2)
-record_cold_start(implicit_solve.implicit_step, "gather_plane", 3.2, 3.1)
+every = "gather_plane implicit_plate_forces implicit_step_plain"
+record_cold_start(implicit_solve.implicit_step_plain, every, 41.7, 80.2)
+record_cold_start(implicit_solve.implicit_step_plain, "gather_plane", 3.2, 3.1)
 print(compile_notice(load_scene("plate_drop")))
 '''
 
@@ -67,12 +66,11 @@ from rft_sim_ros.sim.simulation import Simulation, compile_notice
 slope = load_scene("plate_drop", {"sand.surface.type": "slope"})
 Simulation(slope)
 kernels = ("gather_plane", "gather_slope", "gather_grid", "gather_deformable")
-every = ("gather_slope implicit_plate_forces implicit_step report_constraint_forces "
-         "return_constraint_rows take_constraint_rows")
+every = "gather_slope implicit_plate_forces implicit_step_plain"
 print(json.dumps({"cached": {name: is_cached(getattr(gather, name)) for name in kernels},
                   "slope": compile_notice(slope),
                   "plane": compile_notice(load_scene("plate_drop")),
-                  "recorded": last_cold_start(implicit_solve.implicit_step, every)}))
+                  "recorded": last_cold_start(implicit_solve.implicit_step_plain, every)}))
 '''
 
 
@@ -216,3 +214,34 @@ def test_every_kernel_module_records_the_sources_of_its_cached_kernels():
                       if qualified.rpartition('.')[0] == name)
         marker = Path(kernel._cache._cache_path) / f'{name}.sources'
         assert marker.read_text() == sources_fingerprint(), name
+
+
+_SHARE_PROBE = '''
+import json, sys
+from rft_sim_ros.kernel_cache import BackgroundCompile
+from rft_sim_ros.sand import implicit_solve
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation
+scene, parts = sys.argv[1], sys.argv[2]
+share = implicit_solve.background_kernels(parts)
+done, why = BackgroundCompile(share).wait()
+Simulation(load_scene(scene))
+print(json.dumps({"done": done, "why": why, "stats": {
+    kernel.py_func.__name__: [sum(kernel.stats.cache_hits.values()),
+                              sum(kernel.stats.cache_misses.values())]
+    for kernel, _ in share}}))
+'''
+
+
+@pytest.mark.slow  # (a whole cold compile of the implicit step in a fresh cache)
+@pytest.mark.parametrize('scene, parts', [('plate_drop', 'plain'), ('hexapod', 'rows')])
+def test_the_step_loads_the_share_a_second_process_compiled(tmp_path, scene, parts):
+    """The argument types `implicit_solve.background_kernels` names are those the step calls
+    its kernels with: compiled by a second process first, each is loaded, none compiled
+    again."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    done = subprocess.run([sys.executable, '-c', _SHARE_PROBE, scene, parts], env=env,
+                          capture_output=True, text=True, check=True, timeout=900)
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result['done'], result['why']
+    assert all(stats == [1, 0] for stats in result['stats'].values()), result['stats']

@@ -33,22 +33,55 @@ LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 CONSTRAINT_ROOM = 16
 
 
-def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False):
+def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
     """The compiled kernels an engine with low-velocity `method` ('implicit'; any other: the
-    explicit methods' kernels) on a surface of `surface_kind` (deformable or not) runs."""
+    explicit methods' kernels) on a surface of `surface_kind` (deformable or not) runs; with
+    the implicit method, its step solving `parts` (`implicit_solve.STEP_PARTS`,
+    `step_parts`)."""
     gathering = gather.gather_kernel(surface_kind, deformable)
-    if method == 'implicit':
-        return (gathering, implicit_solve.implicit_step, implicit_law.implicit_plate_forces,
-                constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
-                constraint_rows.return_constraint_rows)
-    return (gathering, explicit.smoothed_wrenches, mujoco_terms.scatter_wrenches)
+    if method != 'implicit':
+        return (gathering, explicit.smoothed_wrenches, mujoco_terms.scatter_wrenches)
+    rows = () if parts == 'plain' else (
+        constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
+        constraint_rows.return_constraint_rows)
+    return (gathering, implicit_solve.STEP_KERNELS[parts], implicit_law.implicit_plate_forces,
+            *rows)
 
 
-def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False):
+def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
     """Whether numba's on-disk cache holds current compiled code of the `engine_kernels` of
     these arguments, so that building such an engine compiles nothing (otherwise it compiles
     them: a first run after install, or after an upgrade)."""
-    return all(is_cached(kernel) for kernel in engine_kernels(method, surface_kind, deformable))
+    return all(is_cached(kernel)
+               for kernel in engine_kernels(method, surface_kind, deformable, parts))
+
+
+def step_parts(model, rows_expected=False):
+    """Which compiled implicit step (`implicit_solve.STEP_PARTS`) an engine of MuJoCo
+    `model` loads: 'plain' where the model cannot make a constraint row (no equality, no
+    limited joint or tendon, no explicit contact pair, no two geoms of different bodies
+    whose contype and conaffinity let them collide) and rows are not `rows_expected`;
+    'cones' where it can and its contacts use elliptic cones; 'rows' otherwise. (A step that
+    takes rows the loaded step does not solve loads the one that does: `_take_constraint_rows`.)"""
+    limited = model.jnt_limited.any() or (model.ntendon and model.tendon_limited.any())
+    rows = bool(rows_expected or model.neq or model.npair or limited or _may_collide(model))
+    if not rows:
+        return 'plain'
+    return 'cones' if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC else 'rows'
+
+
+def _may_collide(model):
+    """Whether two geoms of different bodies of `model` have contype and conaffinity bits
+    that let MuJoCo collide them (parent-child filtering and distance left out: a
+    conservative answer)."""
+    contype, conaffinity = model.geom_contype, model.geom_conaffinity
+    live = np.flatnonzero((contype != 0) | (conaffinity != 0))
+    if len(live) < 2:
+        return False
+    kinds, affinities, bodies = contype[live], conaffinity[live], model.geom_bodyid[live]
+    pairs = ((kinds[:, None] & affinities[None, :]) != 0) | (
+        (affinities[:, None] & kinds[None, :]) != 0)
+    return bool((pairs & (bodies[:, None] != bodies[None, :])).any())
 
 
 def _uncached_key(kernels):
@@ -58,13 +91,13 @@ def _uncached_key(kernels):
                            if not is_cached(kernel)))
 
 
-def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False):
+def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
     """Wall seconds the last start that compiled what the cache now lacks of the
     `engine_kernels` of these arguments took with this cache (measured on this machine by
     `SandEngine._load_kernels`, kept by `kernel_cache.record_cold_start`); None when no start
     compiled just those here (e.g. a first run after install) or none are missing."""
-    key = _uncached_key(engine_kernels(method, surface_kind, deformable))
-    record = last_cold_start(implicit_solve.implicit_step, key) if key else None
+    key = _uncached_key(engine_kernels(method, surface_kind, deformable, parts))
+    record = last_cold_start(implicit_solve.implicit_step_plain, key) if key else None
     return None if record is None else record['wall_s']
 
 
@@ -135,7 +168,7 @@ class SandEngine:
 
     def __init__(self, model, data, body_plates, zeta, surface_height=0.0,
                  normalisation='treers', dynamic=None, low_velocity=LowVelocity(),
-                 surface=None, zeta_map=None):
+                 surface=None, zeta_map=None, rows_expected=False):
         if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
             raise ValueError('the RFT engine needs the Euler, implicit or implicitfast '
                              'integrator (RK4 cannot be split into mj_step1/mj_step2)')
@@ -186,6 +219,8 @@ class SandEngine:
         self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._take_friction(model)
         self._take_constraints(model)
+        self._parts = step_parts(model, rows_expected)
+        self._implicit_step = implicit_solve.STEP_KERNELS[self._parts]
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -377,7 +412,19 @@ class SandEngine:
                 self._implicit_arrays = self._implicit_table()
         self._counters[layout.CONSTRAINT_ROWS] = taken
         self._rows_taken = taken > 0
+        if taken > 0 and self._parts != 'cones':
+            self._solve_at_least('rows' if contacts is self._no_contacts else 'cones')
         return taken
+
+    def _solve_at_least(self, parts):
+        """Step with the compiled implicit step that solves `parts` (`implicit_solve.STEP_PARTS`)
+        from now on, where the one loaded solves less: the model made rows that `step_parts`
+        did not foresee (its options changed at run time). It loads, or compiles, at its first
+        call."""
+        order = implicit_solve.STEP_PARTS
+        if order.index(parts) > order.index(self._parts):
+            self._parts = parts
+            self._implicit_step = implicit_solve.STEP_KERNELS[parts]
 
     def _views(self):
         """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
@@ -548,7 +595,7 @@ class SandEngine:
         self._gather(self._gather_arrays.table)
         # (most steps of most robots have no rows: one attribute read, ~0.1 us, for them)
         taken = self._take_constraint_rows() if self.data.nefc or self._rows_taken else 0
-        implicit_solve.implicit_step(self._options.timestep, self._implicit_arrays.table)
+        self._implicit_step(self._options.timestep, self._implicit_arrays.table)
         if taken:
             d, counters = self.data, self._counters
             if counters[layout.HANDED_BACK_AT] == counters[layout.STEPS]:  # MuJoCo's
@@ -568,27 +615,34 @@ class SandEngine:
         the cache (`kernel_cache.record_cold_start`): the next notice that they compile
         quotes it (`cold_start_estimate`)."""
         cold = _uncached_key(engine_kernels(self.low_velocity.method, self.surface.data.kind,
-                                            self.deformable))
+                                            self.deformable, self._parts))
         wall, cpu = time.perf_counter(), _cpu_seconds()
         self._compile_kernels()
+        #: (names of the kernels this engine compiled, wall s it took); ('', 0.0): all cached
+        self.compiled = (cold, time.perf_counter() - wall if cold else 0.0)
         if cold:
-            record_cold_start(implicit_solve.implicit_step, cold, time.perf_counter() - wall,
+            record_cold_start(implicit_solve.implicit_step_plain, cold, self.compiled[1],
                               _cpu_seconds() - cpu)
         self._counters[:] = 0
         self._wrench_sum[:] = 0.0
 
     def _compile_kernels(self):
         """`_load_kernels`' loads: with a cold cache (a first run) and the implicit method,
-        the gather kernel compiles in a second process (`BackgroundCompile`) while this one
-        compiles the implicit step, the larger share: on two cores the start-up is that
-        share, not the sum."""
+        the gather kernel and a share of the kernels the implicit step calls
+        (`implicit_solve.background_kernels`) compile in a second process
+        (`BackgroundCompile`) while this one compiles the step (which then loads that share
+        from the cache): on two cores the start-up is about the longer of the two."""
         if self._implicit_method:
-            background = [(self._gather, TABLE_SIGNATURE)]
-            with (BackgroundCompile(background) if not is_cached(self._gather)
+            background = [] if is_cached(self._implicit_step) else (
+                implicit_solve.background_kernels(self._parts))
+            if not is_cached(self._gather):
+                background.append((self._gather, TABLE_SIGNATURE))
+            with (BackgroundCompile(background) if background
                   else contextlib.nullcontext()) as compiling:
-                implicit_solve.implicit_step(self._options.timestep, self._implicit_arrays.table)
+                self._implicit_step(self._options.timestep, self._implicit_arrays.table)
                 self._implicit_plate_forces(0)
-                self._compile_constraint_rows()
+                if self._parts != 'plain':
+                    self._compile_constraint_rows()
                 if compiling is not None:
                     compiling.wait()  # (a kernel it did not cache compiles below)
         else:

@@ -4,6 +4,13 @@ constraint rows (`constraint_rows`, `elliptic_cones`) together for the end-of-st
 velocities (`implicit_wrenches`), and the one call the engine makes per step
 (`implicit_step`), from the arrays the gather kernel left.
 
+Both are templates compiled three times (`STEP_KERNELS`): without MuJoCo's rows
+(`implicit_step_plain`: a body with no joint limits, equalities or contacts of its own),
+with them (`implicit_step_rows`) and with elliptic cones' rows too (`implicit_step_cones`).
+Each compiles only the kernels it calls (the others' branches are pruned on the constants
+it binds), so that a first run compiles what its model needs: the engine picks one
+(`engine.step_parts`).
+
 Joint friction (MJCF frictionloss F, N m or N) is solved in the same iteration, as the
 regularised Coulomb law with the same v_reg: a joint whose end speed is below v_reg sticks
 (a damper F / v_reg: at most F), otherwise it slips (F against its motion). The engine takes
@@ -17,6 +24,8 @@ Conventions: as `gather` and `mujoco_terms`: world frame, z up, SI; slot s's six
 rows are rows 6s..6s+5 of `jac` (twists [linear; angular] at its body's centre of mass);
 the system is nv x nv, solved on MuJoCo's tree (`tree_solve`).
 """
+import types
+
 import numpy as np
 from numba import njit
 
@@ -41,6 +50,16 @@ from .tree_solve import checked_solve, copy_into, translational_inverse_masses
 
 #: Solves per step at most (the active set settles in one or two almost always).
 MAX_ITERATIONS = 16
+
+#: Globals each compiled step binds (`_step_kernels`): ROWS, whether it solves MuJoCo's
+#: constraint rows with the sand; CONES, the rows of elliptic cones too; WRENCHES, the
+#: compiled `_implicit_wrenches` its `_implicit_step` calls. None here: the templates are
+#: never run themselves.
+ROWS = CONES = WRENCHES = None
+#: The compiled steps, by the parts they solve (`STEP_KERNELS`): 'plain' (the sand and joint
+#: friction), 'rows' (and MuJoCo's equality, limit and pyramidal contact rows), 'cones' (and
+#: elliptic cones' rows).
+STEP_PARTS = ('plain', 'rows', 'cones')
 
 @njit(cache=True, inline='always', fastmath=True)
 def _slot_terms(block, w_moving, slot_jac, dofs, work, product, force_terms):
@@ -88,8 +107,7 @@ def _add_slot(product, force_terms, dofs, timestep, system, rhs):
             row[dofs[p]] -= timestep * terms[p]
 
 
-@njit(cache=True, error_model='numpy', fastmath=True)
-def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
+def _implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac, space, mass_h,
                       dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench,
                       friction, constraints, point):
     """Sand wrenches over the coming step by the implicit law (`implicit_law`).
@@ -166,10 +184,11 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
         momentum[r] = acc
     constrained = constraints[5] > 0
     two_sided = cones = 0
-    if constrained:
+    if ROWS and constrained:
         two_sided = constraint_start(constraints, qvel, timestep, space.constraint_matrix,
                                      momentum)
-        cones = cone_start(constraints, timestep)
+        if CONES:
+            cones = cone_start(constraints, timestep)
     for i in range(nv if cones else 0):
         point[i] = qvel[i]
     cone_steps = cones_off = 0  # the cones' Newton steps; cones off MuJoCo's at the last solve
@@ -243,18 +262,18 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
                       timestep, system, rhs)
         if frictional:
             friction_terms(friction, qvel, v_reg, timestep, system, rhs)
-        if two_sided:
+        if ROWS and two_sided:
             add_matrix(space.constraint_matrix, system)
-        if constrained:
+        if ROWS and constrained:
             constraint_terms(constraints, system, rhs)
-        if cones:
+        if CONES and cones:
             cone_terms(constraints, system, rhs)
         checked_solve(system, rhs, dof_parentid, factored, solution)
         for j in range(k):
             solved[j] = states[j]
         # the cones' Newton step first, the others keeping their sets; then the sets
         cone_pass = False
-        if cones:
+        if CONES and cones:
             cones_off = cone_errors(constraints, qvel, solution, timestep)
             cone_pass = cones_off > 0 and cone_steps < CONE_ITERATIONS
             if cone_pass:
@@ -269,7 +288,7 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
             changed, cycles = friction_sets(friction, solution, v_reg)
             frozen += cycles
             converged = changed == 0
-        if constrained and not cone_pass:
+        if ROWS and constrained and not cone_pass:
             changed, cycles = constraint_sets(constraints, qvel, solution, timestep)
             frozen += cycles
             converged &= changed == 0
@@ -335,15 +354,14 @@ def implicit_wrenches(k, slots, slot_start, out_plate, table, force, v_reg, jac,
     if frictional:
         friction_finish(friction, qvel, v_reg, solution, step)
     handed_back = False
-    if constrained:
+    if ROWS and constrained:
         handed_back = constraint_forces(constraints, qvel, solution, timestep) + cones_off > 0
-        if cones:
+        if CONES and cones:
             cone_reports(constraints)
     return (iterations if converged and frozen == 0 else -iterations), handed_back
 
 
-@njit(cache=True, error_model='numpy')
-def implicit_step(timestep, arrays):
+def _implicit_step(timestep, arrays):
     """One step's implicit sand wrenches over the plates the step's gather kernel left, in
     one call: `prepare_solve` (into jac, (>= 6S+1, nv) work space), `implicit_damping`,
     `implicit_mass` (mass: the dense M of this state, made Mh in place), `implicit_wrenches`
@@ -430,7 +448,7 @@ def implicit_step(timestep, arrays):
                          actuator_force, damping)
         implicit_mass(mass, damping, timestep)
         point = float_vector(arrays, a.cone_point) if taken > 0 else qvel  # (unused: none)
-        iterations, handed_back = implicit_wrenches(
+        iterations, handed_back = WRENCHES(
             k, slots, slot_start, out_plate, table, force, v_reg, rows, space, mass,
             dof_parentid, qvel, timestep, step, memory, work, flags, xi_new, wrench, friction,
             constraints, point)
@@ -452,6 +470,70 @@ def implicit_step(timestep, arrays):
     # one call site for any slot count (a literal 0 at a second one compiled it twice)
     scatter_wrenches(slots, slot_body, wrench, body_ids, body_wrenches, xfrc_applied, xipos,
                      wrench_sum)
+
+
+
+def _bound(template, name, constants):
+    """A copy of the function `template` named `name`, whose globals `constants` (a dict)
+    override: numba prunes the branches on module constants before it types a function,
+    so a kernel bound to ROWS = False neither types nor compiles the rows' kernels."""
+    function = types.FunctionType(template.__code__, dict(globals(), **constants), name)
+    function.__qualname__, function.__doc__ = name, template.__doc__
+    return function
+
+
+def _step_kernels(parts):
+    """(implicit_wrenches, implicit_step) compiled for `parts` (one of STEP_PARTS). Each
+    variant compiles only what it solves: on an AMD EPYC VM, compiling the step took 53 s
+    CPU with the rows and the elliptic cones, against ~20 s without either
+    (docs/speed.md)."""
+    rows, cones = parts != 'plain', parts == 'cones'
+    wrenches = njit(cache=True, error_model='numpy', fastmath=True)(_bound(
+        _implicit_wrenches, f'implicit_wrenches_{parts}', {'ROWS': rows, 'CONES': cones}))
+    step = njit(cache=True, error_model='numpy')(_bound(
+        _implicit_step, f'implicit_step_{parts}', {'WRENCHES': wrenches}))
+    return wrenches, step
+
+
+implicit_wrenches_plain, implicit_step_plain = _step_kernels('plain')
+implicit_wrenches_rows, implicit_step_rows = _step_kernels('rows')
+implicit_wrenches_cones, implicit_step_cones = _step_kernels('cones')
+#: numba's text of the compiled steps' argument types (timestep, array table).
+STEP_SIGNATURE = '(float64, int64[:, ::1])'
+_FRICTION = 'Tuple((int64[::1], float64[::1], int64[::1], int8[:, ::1], float64[::1]))'
+_ROWS = 'Tuple((float64[:, ::1], int64[:, ::1], int64[::1], float64[:, ::1], int8[:, ::1], int64))'
+#: Kernels the compiled steps call, with the argument types (numba's text) they call them
+#: with, that a cold start compiles in a second process (`background_kernels`); with ROWS,
+#: only for the steps that solve rows.
+_CALLED = (
+    (accumulate_slot, False, '(int64, int64, float64[:, ::1], float64[:, ::1], '
+     'float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], '
+     'float64[:, ::1], float64[::1])'),
+    (checked_solve, False, '(float64[:, ::1], float64[::1], int32[::1], float64[:, ::1], '
+     'float64[::1])'),
+    (friction_terms, False, f'({_FRICTION}, float64[::1], float64, float64, float64[:, ::1], '
+     'float64[::1])'),
+    (constraint_terms, True, f'({_ROWS}, float64[:, ::1], float64[::1])'),
+    (friction_sets, False, f'({_FRICTION}, float64[::1], float64)'),
+    (constraint_sets, True, f'({_ROWS}, float64[::1], float64[::1], float64)'),
+    (friction_finish, False, f'({_FRICTION}, float64[::1], float64, float64[::1], int64)'),
+    (constraint_forces, True, f'({_ROWS}, float64[::1], float64[::1], float64)'),
+    (scatter_wrenches, False, '(int64, int64[::1], float64[:, ::1], int64[::1], '
+     'float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])'))
+
+
+def background_kernels(parts):
+    """[(kernel, signature)]: kernels that the step solving `parts` (one of STEP_PARTS)
+    calls, with the argument types it calls them with, for a cold start to compile in a
+    second process (`kernel_cache.BackgroundCompile`) while this one compiles the step: in
+    the order that this process's compile reaches them last first, so that it finds them
+    in the cache when it does (a kernel it reaches first it compiles itself: time lost,
+    never correctness)."""
+    return [(kernel, signature) for kernel, rows, signature in _CALLED
+            if parts != 'plain' or not rows]
+#: The compiled implicit step (`_implicit_step`) solving each of STEP_PARTS.
+STEP_KERNELS = {'plain': implicit_step_plain, 'rows': implicit_step_rows,
+                'cones': implicit_step_cones}
 
 
 forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

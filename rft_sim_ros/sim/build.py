@@ -28,7 +28,7 @@ from ..sand.surface import (CHECKED_SLOPE_DEG, Surface, hfield_geom, hfield_labe
                             surface_from_settings)
 from ..sand.zeta_map import zeta_map_from_settings
 from ..scenes.config import SceneError
-from ..scenes.scenarios import failure_line, scenario_files
+from ..scenes.scenarios import failure_line, rows_expected, scenario_files
 from .caveats import first_few
 
 #: A plane whose upward normal is within this angle of +z is a floor (steeper: a wall).
@@ -362,7 +362,8 @@ def sand_engine(scene, model, data, plates, surface, zeta_map):
                       surface_height=scene.surface_height, surface=surface,
                       zeta_map=zeta_map, normalisation=scene.normalisation,
                       dynamic=_dynamic_term(scene.dynamic),
-                      low_velocity=LowVelocity(**scene.low_velocity))
+                      low_velocity=LowVelocity(**scene.low_velocity),
+                      rows_expected=rows_expected(scene))
     except (TypeError, ValueError) as error:
         raise SceneError(f'scene {scene.name}: rft: {error}') from None
 

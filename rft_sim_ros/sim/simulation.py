@@ -27,7 +27,7 @@ from ..robot.pose import REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, lift
 from ..sand.engine import cold_start_estimate, kernels_cached
 from ..sand.surface import GRID, SURFACE_KINDS
 from ..scenes.config import SceneError
-from ..scenes.scenarios import failure_line, load_scenario, scenario_files
+from ..scenes.scenarios import failure_line, load_scenario, rows_expected, scenario_files
 from .build import (base_id, choose_sand_bodies, compile_model, deformable_bed, ground_to_sand,
                     in_scenario, initial_pose, legs_of, named_joints, plates_of,
                     read_description, sand_engine, sand_surface, say_moved_into_ranges,
@@ -60,14 +60,17 @@ _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
 
 
 def kernel_key(scene):
-    """(low-velocity kernels, surface kind code, deformable): what selects the compiled sand
-    kernels a `scene` (SceneConfig) steps with (`engine.kernels_cached`), and nothing else:
-    'implicit' or 'explicit' (the 'ema' and 'none' methods share one set); deformable sand
-    has one gather kernel whatever surface its bed lies on (GRID)."""
+    """(low-velocity kernels, surface kind code, deformable, step parts): what selects the
+    compiled sand kernels a `scene` (SceneConfig) steps with (`engine.kernels_cached`), and
+    nothing else: 'implicit' or 'explicit' (the 'ema' and 'none' methods share one set);
+    deformable sand has one gather kernel whatever surface its bed lies on (GRID); the
+    implicit step without or with MuJoCo's constraint rows, as its scenario expects
+    (`scenarios.rows_expected`; a model with elliptic cones loads a third, said by a notice
+    of the run)."""
     deformable = bool(scene.deformable.get('enabled'))
     kind = GRID if deformable else SURFACE_KINDS[scene.surface.get('type', 'plane')]
     method = 'implicit' if scene.low_velocity['method'] == 'implicit' else 'explicit'
-    return method, kind, deformable
+    return method, kind, deformable, 'rows' if rows_expected(scene) else 'plain'
 
 
 def compile_notice(scene):
@@ -142,6 +145,9 @@ class Simulation:
                                                       base, notices)
         plates, self.other_bodies = plates_of(scene, model, self.sand_bodies, others, notices)
         self.engine = engine = sand_engine(scene, model, data, plates, surface, zeta_map)
+        if engine.compiled[0]:
+            notices.append(f'compiled the sand kernels ({engine.compiled[0]}) in '
+                           f'{engine.compiled[1]:.0f} s; numba keeps them for the next runs')
         # what the robot reports and is commanded by: joints, legs, sensors, servos
         self._joints = named_joints(model, notices)  # (those /joint_states reports)
         self.joint_names = tuple(model.joint(j).name for j in self._joints)

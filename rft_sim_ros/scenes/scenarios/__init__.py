@@ -23,6 +23,11 @@ class BaseScenario:
     observe_interval: call `observe` every this many steps (1 = every step).
     """
     observe_interval = 1
+    #: Whether the scene's model may make constraint rows (joint limits, equalities, contacts
+    #: between its own bodies): its sand engine then loads the compiled step that solves
+    #: them (`sand.engine.step_parts`) even where the model looks unable to. A bundled
+    #: scene of bodies without such rows says False, so that a first run compiles less.
+    constraint_rows = True
 
     def __init__(self, scene):
         self.scene = scene
@@ -133,6 +138,16 @@ def load_scenario(scene):
     except Exception as error:
         line = failure_line(error, scenario_files(scenario_class)) or failure_line(error)
         raise SceneError(f'{where}: cannot be made: {line}') from None
+
+
+def rows_expected(scene):
+    """Whether `scene`'s (SceneConfig) scenario expects constraint rows (`BaseScenario.
+    constraint_rows`): a bundled scenario says; any other (a file, a class of the user's)
+    is taken to (it is not imported for this)."""
+    reference = scene.scenario
+    if reference.endswith('.py') or ':' in reference or reference not in scenario_names():
+        return True
+    return importlib.import_module(f'{__name__}.{reference}').Scenario.constraint_rows
 
 
 def scenario_files(scenario_class):
