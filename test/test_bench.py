@@ -38,6 +38,17 @@ def test_report_marks_front_default_and_unstable_runs():
     text = markdown(results)
     assert '| **5 (default)** | **1** |' in text
     assert '| 5 | 2 | 0.050 | unstable | inf |' in text
+    assert 'at the start: unknown; at the end: unknown' in text
+
+
+def test_report_names_the_machine_and_its_load():
+    from rft_sim_ros.sim.runner import machine_info
+    machine = machine_info()
+    assert machine['cpu'] and machine['cores'] >= 1
+    assert len(machine['load_average']) == 3 and min(machine['load_average']) >= 0.0
+    text = markdown({'machine': machine, 'load_average_at_end': [1.5, 0.25, 3.0]})
+    assert f'Machine: {machine["cpu"]}, {machine["cores"]} cores' in text
+    assert 'at the end: 1.50, 0.25, 3.00' in text
 
 
 def test_hexapod_trial_times_the_walk_apart_from_the_drop():

@@ -10,7 +10,7 @@ machinery: speed-up over one worker, locally and on Ray, and the overhead per ru
 import tempfile
 from pathlib import Path
 
-from ..sim.runner import machine_info
+from ..sim.runner import load_average, machine_info
 from . import pareto, report, scaling, startup, step_cost
 
 
@@ -57,5 +57,6 @@ def run_bench(out, quick=False, log=print, workers=None):
         settle_steps=300 if quick else 2500)
     sweeps = pareto.QUICK_SWEEPS if quick else pareto.SWEEPS
     results['speed_against_error'] = pareto.speed_against_error(sweeps, log, workers)
+    results['load_average_at_end'] = load_average()
     report.write(Path(out), results)
     return results

@@ -17,13 +17,21 @@ def _err(value):
     return 'inf' if not math.isfinite(value) else f'{value:.2%}'
 
 
+def _load(values):
+    """A load average (1, 5, 15 min) as text, or 'unknown'."""
+    return 'unknown' if not values else ', '.join(f'{value:.2f}' for value in values)
+
+
 def markdown(results):
     """The benchmark as a markdown report."""
     machine = results['machine']
     lines = ['# rft_sim_ros benchmark', '',
              f'Machine: {machine["cpu"]}, {machine["cores"]} cores; Python {machine["python"]}, '
              f'MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. One process, one core. '
-             'Times are medians of repeated chunks; ratios are taken within one run.', '']
+             'Times are medians of repeated chunks; ratios are taken within one run.',
+             '', f'Load average (1, 5, 15 min) at the start: {_load(machine.get("load_average"))}; '
+             f'at the end: {_load(results.get("load_average_at_end"))}. On a shared machine '
+             'wall times grow with the load; compare figures taken at similar loads.', '']
     cost = results.get('step_cost')
     if cost:
         lines += ['## Hexapod step cost against plain MuJoCo', '',

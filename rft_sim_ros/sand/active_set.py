@@ -1,5 +1,5 @@
 """The bookkeeping the implicit solve's active-set iteration shares across its elements
-(plates, frictional joints, MuJoCo's constraint rows; `implicit_solve.implicit_wrenches`): each
+(plates, frictional joints, MuJoCo's constraint rows; `implicit_solve._implicit_step`): each
 element is in one of a few sets (its law's linear pieces, by a small code), a solve asks
 each for a set, and an element that would return to a set it already had in the step is
 frozen (FROZEN) for the rest of it, which ends the cycles a non-monotone law can make.

@@ -1,4 +1,4 @@
-"""MuJoCo's own constraint rows in the sand's implicit solve (`implicit_solve.implicit_wrenches`):
+"""MuJoCo's own constraint rows in the sand's implicit solve (`implicit_solve._implicit_step`):
 equalities (two-sided), joint and tendon limits and contacts with pyramidal cones
 (one-sided), and contacts with elliptic cones (a contact's rows together: `elliptic_cones`),
 as mj_step1 makes them in mjData (Jacobian rows, efc_D, efc_aref). A row is MuJoCo's soft
@@ -98,6 +98,17 @@ def take_constraint_rows(kinds, efc_type, efc_id, efc_j, efc_d, efc_aref, rownnz
 
 
 @njit(cache=True)
+def add_row_forces(jac, columns, counts, rows, n, qfrc):
+    """qfrc += J^T f over the first n rows (N or N m per dof; jac, columns, counts, rows as
+    `take_constraint_rows` leaves them, f in rows[:, ROW_FORCE]). Compiled on its own,
+    without fastmath: its products and sums round as written, whoever calls it."""
+    for r in range(n):
+        force_r = rows[r, ROW_FORCE]
+        for c in columns[r, :counts[r]]:
+            qfrc[c] += jac[r, c] * force_r
+
+
+@njit(cache=True)
 def report_constraint_forces(rows, efc_rows, n, efc_aref):
     """The forces the implicit solve gave the n rows it took (`take_constraint_rows`), made
     the forces MuJoCo's solve in mj_step2 reports for them (efc_force, and from it touch
@@ -113,7 +124,7 @@ def return_constraint_rows(jac, rows, efc_rows, n, efc_j, efc_aref, rownnz, rowa
                            sparse, nv):
     """The n rows taken (`take_constraint_rows`) given back to mjData as MuJoCo made them
     (Jacobian rows and aref), for mj_step2's own solve: a step whose rows did not settle in
-    the implicit solve (`implicit_solve.implicit_wrenches`)."""
+    the implicit solve (`implicit_solve._implicit_step`)."""
     for r in range(n):
         e = efc_rows[r]
         start, stop = (rowadr[e], rowadr[e] + rownnz[e]) if sparse else (e * nv, e * nv + nv)
@@ -124,7 +135,7 @@ def return_constraint_rows(jac, rows, efc_rows, n, efc_j, efc_aref, rownnz, rowa
 
 @njit(cache=True)
 def constraint_start(constraints, qvel, timestep, matrix, momentum):
-    """A step's start of its constraint rows (`implicit_wrenches`): with
+    """A step's start of its constraint rows (`implicit_solve._implicit_step`): with
     f = D (aref - J (qvel+ - qvel) / dt), dt J^T f adds D J^T J to the system and J^T push,
     push = D (J qvel + dt aref), to the right-hand side. Each row's push into ROW_PUSH; the
     two-sided rows' D J^T J into matrix (nv x nv, overwritten; added by every solve) and

@@ -1,5 +1,5 @@
 """MuJoCo's contacts with elliptic friction cones in the sand's implicit solve
-(`implicit_solve.implicit_wrenches`), as the rows MuJoCo makes for them (`constraint_rows`, kind
+(`implicit_solve._implicit_step`), as the rows MuJoCo makes for them (`constraint_rows`, kind
 CONE: a contact's condim rows together, its normal row first).
 
 A cone's force is MuJoCo's own function of its rows' jar = J qvel+ / dt - start (m/s^2 or

@@ -156,7 +156,7 @@ class SandEngine:
     normalisation: 'treers' or 'rft_sim'. dynamic: DynamicTerm or None.
     With the implicit law the engine takes over the model's joint friction (MJCF
     frictionloss): `joint_friction` {dof: F (N m or N)} is solved with the sand
-    (`implicit_solve.implicit_wrenches`), and model.dof_frictionloss is zeroed there, so that
+    (`implicit_solve._implicit_step`), and model.dof_frictionloss is zeroed there, so that
     MuJoCo's friction constraint does not act a second time after the solve; and MuJoCo's
     equality, limit and contact constraints (pyramidal and elliptic cones): each step the
     rows MuJoCo made for them in mj_step1 are taken into the solve (`constraint_rows`),
@@ -211,11 +211,11 @@ class SandEngine:
         self._plate = np.zeros(n, dtype=np.int64)
         self._slot = np.zeros(n, dtype=np.int64)
         self._table = np.zeros((layout.PLATE_ROWS, n))
-        self._force = np.zeros((6, n))  # G, then r x G (implicit_solve.implicit_wrenches)
+        self._force = np.zeros((6, n))  # G, then r x G (implicit_solve._implicit_step)
         self._applied = np.zeros((3, n))
         self._work = np.zeros((layout.WORK_ROWS, n))
         self._flags = np.zeros((layout.FLAG_ROWS, n), dtype=np.int8)
-        # each plate's last step in the sand and its set then (implicit_solve.implicit_wrenches)
+        # each plate's last step in the sand and its set then (implicit_solve._implicit_step)
         self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._take_friction(model)
         self._take_constraints(model)
@@ -309,7 +309,7 @@ class SandEngine:
         self._cluster_radius = np.array(radii, dtype=float)
 
     def _take_friction(self, model):
-        """The joint friction the implicit law solves (`implicit_solve.implicit_wrenches`):
+        """The joint friction the implicit law solves (`implicit_solve._implicit_step`):
         its dofs, forces, memory and work space; MuJoCo's own friction switched off for
         them."""
         frictional = (np.flatnonzero(model.dof_frictionloss > 0) if self._implicit_method
@@ -342,8 +342,8 @@ class SandEngine:
                              np.zeros(0, dtype=np.int32))
         self._rows_taken = False  # (the last step's: its counter must return to 0)
         self._constraint_room(model.nv, CONSTRAINT_ROOM)
-        self._held_constraint = np.zeros(model.nv)  # (`implicit_solve.implicit_step`)
-        self._cone_point = np.zeros(model.nv)  # (`implicit_solve.implicit_wrenches`)
+        self._held_constraint = np.zeros(model.nv)  # (`implicit_solve._implicit_step`)
+        self._cone_point = np.zeros(model.nv)  # (`implicit_solve._implicit_step`)
 
     def _constraint_room(self, nv, rows):
         """Room for `rows` constraint rows of nv dofs (`constraint_rows`)."""
@@ -465,7 +465,7 @@ class SandEngine:
         self._implicit_arrays = self._implicit_table()
 
     def _implicit_table(self):
-        """The ArrayTable of `implicit_solve.implicit_step`'s arrays (`layout.ImplicitArrays`)."""
+        """The ArrayTable of `implicit_solve._implicit_step`'s arrays (`layout.ImplicitArrays`)."""
         m, d = self.model, self.data
         return ArrayTable(*layout.ImplicitArrays(
             settings=self._settings, counters=self._counters, slot_body=self._slot_body,
@@ -530,7 +530,7 @@ class SandEngine:
     @property
     def handed_back_steps(self):
         """Steps so far whose constraint rows the implicit solve could not settle and handed
-        back to MuJoCo's own solve (`implicit_solve.implicit_wrenches`)."""
+        back to MuJoCo's own solve (`implicit_solve._implicit_step`)."""
         return int(self._counters[layout.HANDED_BACK])
 
     @property
@@ -588,7 +588,7 @@ class SandEngine:
 
     def _implicit(self):
         """The plates in the sand and their implicit wrenches, written to xfrc_applied
-        (the surface's gather kernel and implicit_solve.implicit_step, after MuJoCo's actuator
+        (the surface's gather kernel and implicit_solve._implicit_step, after MuJoCo's actuator
         forces and dense inertia of this state)."""
         mujoco.mj_fwdActuation(self.model, self.data)
         self._full_inertia(*self._full_inertia_args)

@@ -21,7 +21,7 @@ def smoothed_wrenches(k, slots, out_plate, out_slot, table, force, alpha, step,
     alpha = 1 applies the raw RFT force. Plates: columns :k of the gathered table and force
     (`gather._gather_plates`). Writes applied[:, :k] = F_s (N, world, on the body).
     ema_force (N, 3), ema_step (N,) hold each plate's last smoothed force and the step index
-    it was computed at. Writes wrench[:S] as in `implicit_wrenches`.
+    it was computed at. Writes wrench[:S] as in `implicit_solve._implicit_step`.
     """
     wrench[:slots, :] = 0.0
     for j in range(k):

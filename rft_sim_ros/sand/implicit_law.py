@@ -112,8 +112,8 @@ def resting_block(k_rank, iso, out):
 def implicit_plate_forces(k, out_slot, table, force, work, flags, xi_new, v_reg, out):
     """Per-plate forces (N, world, on the body; out[:, :k]) that an implicit step applied,
     from the plates' final sets and across dampers (rows STATE of `flags`, ACROSS of `work`,
-    left by `implicit_wrenches`) and the end-of-step twists xi_new: G - c w_perp if moving,
-    a G - c w_perp if resting (frozen: with |v| in place of v_reg in a), 0 if off (module
+    left by `implicit_solve._implicit_step`) and the end-of-step twists xi_new: G - c w_perp
+    if moving, a G - c w_perp if resting (frozen: with |v| in place of v_reg in a), 0 if off (module
     docstring); the terms of the step's wrench."""
     inv_reg = 1.0 / v_reg
     lever = table[LEVER:LEVER + 3]
@@ -180,8 +180,9 @@ def _rank_rows(a, j0, j1, h, u, along, damper, out):
 def accumulate_slot(j0, j1, h, u, arm, coef_along, coef_across, coef_moving, w_moving,
                      k_rank, k_iso):
     """A slot's accumulators from its plates j0..j1-1 (h, u (6, K), arm (3, K), per-plate set
-    coefficients, as in `implicit_wrenches`): w_moving = sum m h, k_rank = sum (a h + c u) u^T
-    and the 10 moments of c (c, c r, c r r^T). Each pass keeps its sums in registers."""
+    coefficients, as in `implicit_solve._implicit_step`): w_moving = sum m h,
+    k_rank = sum (a h + c u) u^T and the 10 moments of c (c, c r, c r r^T). Each pass keeps
+    its sums in registers."""
     _rank_rows(0, j0, j1, h, u, coef_along, coef_across, k_rank)
     _rank_rows(3, j0, j1, h, u, coef_along, coef_across, k_rank)
     h0, h1, h2 = h[0, j0:j1], h[1, j0:j1], h[2, j0:j1]

@@ -1,5 +1,5 @@
 """Joint friction (MJCF frictionloss F, N m or N) in the sand's implicit solve
-(`implicit_solve.implicit_wrenches`): the regularised Coulomb law with the sand's rest speed
+(`implicit_solve._implicit_step`): the regularised Coulomb law with the sand's rest speed
 v_reg. A joint whose end-of-step speed is below v_reg sticks (a damper F / v_reg, so at most
 F), otherwise it slips (F against its motion); a joint that would return to a set it had in
 the step is frozen (`active_set`), a damper F / max(|qvel|, v_reg) through its speed at the
@@ -22,8 +22,9 @@ STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2
 
 @njit(cache=True)
 def friction_start(friction, qvel, v_reg, last):
-    """`implicit_wrenches`' frictional joints in their first sets: the last step's (their
-    memory, `last`: that step << MEMORY_SHIFT) unless frozen then, else their speed's."""
+    """The implicit step's (`implicit_solve._implicit_step`) frictional joints in their first
+    sets: the last step's (their memory, `last`: that step << MEMORY_SHIFT) unless frozen
+    then, else their speed's."""
     dofs, memory, flags = friction[0], friction[2], friction[3]
     for f in range(dofs.shape[0]):
         previous = remembered(memory[f], last)

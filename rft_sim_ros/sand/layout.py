@@ -14,8 +14,8 @@ import numpy as np
 from ..rft.kernel import LAW_ROWS
 
 
-#: Rows of the implicit law's per-plate work space (`implicit_wrenches`), plates along the
-#: second axis: |G|, across damper c (N s/m), the set coefficients.
+#: Rows of the implicit law's per-plate work space (`implicit_solve._implicit_step`), plates
+#: along the second axis: |G|, across damper c (N s/m), the set coefficients.
 MAGNITUDE, ACROSS, COEF_ALONG, COEF_ACROSS, COEF_MOVING = 0, 1, 2, 3, 4
 WORK_ROWS = 5
 #: Rows of its per-plate flags (int8): those of `active_set` (final set, sets visited,
@@ -52,7 +52,7 @@ SETTING_COUNT = 27
 #: gathered at the last step, of those leading, slots, implicit solves so far, steps so
 #: far in which a plate was frozen or the sets had not settled, MuJoCo's constraint rows
 #: the engine took this step (`take_constraint_rows`), steps so far whose rows were handed
-#: back to MuJoCo's solve (`implicit_wrenches`), and the last of them (its STEPS count).
+#: back to MuJoCo's solve (`implicit_solve._implicit_step`), and the last of them (its STEPS count).
 (STEPS, GATHERED, LEADING, SLOTS, SOLVES, UNSETTLED, CONSTRAINT_ROWS, HANDED_BACK,
  HANDED_BACK_AT) = range(9)
 COUNTER_COUNT = 9
@@ -120,9 +120,9 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'qfrc_constraint', 'qfrc_bias',
     # the constraint force of the rows left to MuJoCo held over a step whose rows were handed
     # back (`implicit_step`), and the end velocities the cones are linearised at
-    # (`implicit_wrenches`)
+    # (`implicit_solve._implicit_step`)
     'held_constraint', 'cone_point',
-    # joint friction the engine solves (`implicit_wrenches`' friction)
+    # joint friction the engine solves (`implicit_solve._implicit_step`' friction)
     'friction_dofs', 'friction_force', 'friction_memory', 'friction_flags',
     'friction_torque',
     # MuJoCo's constraint rows the engine solves (`take_constraint_rows`): Jacobian rows,

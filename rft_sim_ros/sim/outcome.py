@@ -33,7 +33,7 @@ The summary's `outcome` (summary.json, /diagnostics):
                               foot turning slowly through the sand (the walking hexapod's
                               stance feet: 11 % of steps), where RFT's lift makes the law
                               non-monotone. It then takes the linear
-                              response through its speed (coupling.implicit_wrenches): at
+                              response through its speed (implicit_solve._implicit_step): at
                               rest the resting law, moving a damper that brakes it;
   rows_handed_back_step_share steps whose constraint rows (contacts, limits, closed loops)
                               MuJoCo's own solver took because the implicit solve could

@@ -51,8 +51,18 @@ class ProgressBar:
             self.stream.flush()
 
 
+def load_average():
+    """The machine's load average over 1, 5 and 15 minutes (runnable processes), or None
+    where the system does not say: a shared machine's wall times depend on it."""
+    try:
+        return [round(value, 2) for value in os.getloadavg()]
+    except OSError:
+        return None
+
+
 def machine_info():
-    """Where a run was measured: CPU, cores, Python, MuJoCo and numpy versions."""
+    """Where a run was measured: CPU, cores, load average now (`load_average`), Python,
+    MuJoCo and numpy versions."""
     cpu = platform.processor() or platform.machine()
     try:
         with open('/proc/cpuinfo') as info:
@@ -62,7 +72,8 @@ def machine_info():
                     break
     except OSError:
         pass
-    return {'cpu': cpu, 'cores': os.cpu_count(), 'python': platform.python_version(),
+    return {'cpu': cpu, 'cores': os.cpu_count(), 'load_average': load_average(),
+            'python': platform.python_version(),
             'mujoco': mujoco.__version__, 'numpy': np.__version__,
             'rft_sim_ros': __version__, 'platform': platform.platform()}
 
