@@ -3,9 +3,9 @@ there, whether they are still those of the package's sources, and compiling some
 second process. It imports nothing of the package: every kernel module imports it.
 
 The sand engine's kernels (`rft.kernel`, `sand.gather`, `sand.implicit_solve`,
-`sand.deformable`, `sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`, `scenes.leg_kinematics`) are numba
-functions compiled with cache=True: the first run after an install (or after their source
-changed) compiles them (`BackgroundCompile` puts a share in a second process); every later run
+`sand.deformable`, `sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`,
+`scenes.leg_kinematics`, `scenes.quadruped`) are numba functions compiled with cache=True: the
+first run after an install (or after their source changed) compiles them (`BackgroundCompile` puts a share in a second process); every later run
 loads them from the cache in a fraction of a second. `sand.engine.kernels_cached` (and
 `sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
 kernels one engine needs (one gather kernel per kind of surface); `rft-sim warmup`
@@ -38,7 +38,8 @@ KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.constraint_rows',
                   'rft_sim_ros.sand.implicit_law', 'rft_sim_ros.sand.implicit_solve',
                   'rft_sim_ros.sand.joint_friction', 'rft_sim_ros.sand.mujoco_terms',
                   'rft_sim_ros.sand.surface_kernels', 'rft_sim_ros.sand.tree_solve',
-                  'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics')
+                  'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics',
+                  'rft_sim_ros.scenes.quadruped')
 #: The package's folder.
 PACKAGE = Path(__file__).resolve().parent
 

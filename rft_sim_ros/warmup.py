@@ -49,6 +49,7 @@ def warm_up(log=print):
     with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling:
         run('hexapod', {})                      # implicit step with rows (plane), tripod gait
         run('articulated_leg', {})              # leg inverse kinematics
+        run('quadruped', {})                    # the trot's targets
         run('plate_drop', {})                   # the implicit step without rows
         run('plate_drop', {'rft.low_velocity.method': 'ema'})  # the explicit path
         compiling.wait()  # (a kernel it did not cache compiles in its run below)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from rft_sim_ros.kernel_cache import (KERNEL_MODULES, PACKAGE, forget_stale, is_cached,
-                                      kernel_sources, sources_fingerprint)
+                                      kernel_sources, module_kernels, sources_fingerprint)
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation, compile_notice
 from rft_sim_ros.warmup import cached_kernels
@@ -205,6 +205,19 @@ def test_kernels_compiled_from_other_sources_are_dropped(tmp_path, monkeypatch):
     assert is_cached(module.triple)
     assert forget_stale(vars(module), 'sources B')      # other sources: dropped
     assert not is_cached(module.triple)
+
+
+def test_every_module_with_cached_kernels_is_a_kernel_module():
+    """A module of the package that defines numba kernels cached on disk is one of
+    KERNEL_MODULES: `rft-sim warmup` compiles its kernels, and their cache is checked against
+    the sources they are compiled from."""
+    found = set()
+    for path in PACKAGE.rglob('*.py'):
+        if 'cache=True' in path.read_text():
+            name = '.'.join((PACKAGE.name, *path.relative_to(PACKAGE).with_suffix('').parts))
+            if module_kernels(name, vars(importlib.import_module(name))):
+                found.add(name)
+    assert found == set(KERNEL_MODULES)
 
 
 def test_every_kernel_module_records_the_sources_of_its_cached_kernels():

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import forget_stale
+
 from rft_sim_ros.scenes.gaits import GaitClock, foot_path
 
 #: Legs in the order of the model's ros2_control block and joint tree.
@@ -112,6 +114,7 @@ class TrotGait(GaitClock):
             raise ValueError(f'step_length_m={self.step_length_m}, step_height_m='
                              f'{self.step_height_m} move the feet out of reach or past the '
                              f'knee range {KNEE_RANGE} rad')
+        self.targets(self.start_time_s)  # (its kernel loads or compiles now, not mid-run)
 
     def targets(self, t):
         """Joint position targets (rad), shape (12,), in JOINT_NAMES order, at time t (s)."""
@@ -119,3 +122,6 @@ class TrotGait(GaitClock):
                              self.amplitude(t), self.stance_fraction, self.step_length_m,
                              self.step_height_m, self._neutral[0], self._neutral[1],
                              THIGH_LENGTH, CALF_LENGTH)
+
+
+forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)
