@@ -5,8 +5,9 @@ second process. It imports nothing of the package: every kernel module imports i
 The sand engine's kernels (`rft.kernel`, `sand.gather`, `sand.implicit_solve`,
 `sand.deformable`, `sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`,
 `scenes.leg_kinematics`, `scenes.quadruped`) are numba functions compiled with cache=True: the
-first run after an install (or after their source changed) compiles them (`BackgroundCompile` puts a share in a second process); every later run
-loads them from the cache in a fraction of a second. `sand.engine.kernels_cached` (and
+first run after an install (or after their source changed) compiles them (`BackgroundCompile`
+puts a share in a second process); every later run loads them from the cache in a fraction of
+a second. `sand.engine.kernels_cached` (and
 `sim.simulation.compile_notice`, which the CLI and the node show) asks `is_cached` about the
 kernels one engine needs (one gather kernel per kind of surface); `rft-sim warmup`
 (`rft_sim_ros.warmup`, beside the CLI) compiles every kernel ahead.

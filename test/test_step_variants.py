@@ -55,13 +55,14 @@ def test_the_second_process_compiles_kernels_its_step_calls(parts):
 def test_every_bundled_scene_loads_the_step_its_notice_checks():
     """`compile_notice` asks about the step `kernel_key` names before the model is built;
     the engine then loads that one: the plates and intruders without MuJoCo's rows, the
-    robots with them."""
+    robots with them, and a scene that keeps a rigid floor with them too."""
     loaded = {}
-    for name in bundled_scenes():
-        scene = load_scene(name)
+    for name, overrides in [*((name, {}) for name in bundled_scenes()),
+                            ('plate_drop', {'sand.keep_floor': True})]:
+        scene = load_scene(name, overrides)
         loaded[name] = Simulation(scene).engine._parts
-        assert loaded[name] == kernel_key(scene)[3], name
-    assert loaded['plate_drop'] == 'plain' and loaded['hexapod'] == 'rows'
+        assert loaded[name] == kernel_key(scene)[3], (name, overrides)
+    assert loaded['rotating_intruder'] == 'plain' and loaded['hexapod'] == 'rows'
 
 
 DROP = """
@@ -102,7 +103,7 @@ def test_rows_a_model_makes_later_load_the_step_that_solves_them(collidable, con
         getattr(model, field)[rock] = 1
         getattr(model, field.replace('geom', 'body'))[model.geom_bodyid[rock]] |= 1
     model.opt.cone = getattr(mujoco.mjtCone, f'mjCONE_{cone.upper()}')
-    reference_model, reference, right = _drop(cone=cone)
+    _, reference, right = _drop(cone=cone)
     assert right._parts != first
     for _ in range(400):
         engine.step()

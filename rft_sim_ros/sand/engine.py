@@ -59,12 +59,14 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts
 def step_parts(model, rows_expected=False):
     """Which compiled implicit step (`implicit_solve.STEP_PARTS`) an engine of MuJoCo
     `model` loads: 'plain' where the model cannot make a constraint row (no equality, no
-    limited joint or tendon, no explicit contact pair, no two geoms of different bodies
-    whose contype and conaffinity let them collide) and rows are not `rows_expected`;
-    'cones' where it can and its contacts use elliptic cones; 'rows' otherwise. (A step that
-    takes rows the loaded step does not solve loads the one that does: `_take_constraint_rows`.)"""
-    limited = model.jnt_limited.any() or (model.ntendon and model.tendon_limited.any())
-    rows = bool(rows_expected or model.neq or model.npair or limited or _may_collide(model))
+    limited joint or tendon, no tendon friction, no flex, no explicit contact pair, no two
+    geoms of different bodies whose contype and conaffinity let them collide) and rows are
+    not `rows_expected`; 'cones' where it can and its contacts use elliptic cones; 'rows'
+    otherwise. (A step that takes rows the loaded step does not solve loads the one that
+    does: `_take_constraint_rows`.)"""
+    tendons = model.ntendon and (model.tendon_limited.any() or model.tendon_frictionloss.any())
+    rows = bool(rows_expected or model.neq or model.npair or model.nflex or tendons
+                or model.jnt_limited.any() or _may_collide(model))
     if not rows:
         return 'plain'
     return 'cones' if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC else 'rows'
@@ -412,7 +414,8 @@ class SandEngine:
                 self._implicit_arrays = self._implicit_table()
         self._counters[layout.CONSTRAINT_ROWS] = taken
         self._rows_taken = taken > 0
-        if taken > 0 and self._parts != 'cones':
+        if taken > 0 and (self._parts == 'plain' or (contacts is not self._no_contacts
+                                                      and self._parts == 'rows')):
             self._solve_at_least('rows' if contacts is self._no_contacts else 'cones')
         return taken
 
@@ -633,8 +636,9 @@ class SandEngine:
         (`BackgroundCompile`) while this one compiles the step (which then loads that share
         from the cache): on two cores the start-up is about the longer of the two."""
         if self._implicit_method:
-            background = [] if is_cached(self._implicit_step) else (
-                implicit_solve.background_kernels(self._parts))
+            background = [] if is_cached(self._implicit_step) else [
+                (kernel, signature) for kernel, signature
+                in implicit_solve.background_kernels(self._parts) if not is_cached(kernel)]
             if not is_cached(self._gather):
                 background.append((self._gather, TABLE_SIGNATURE))
             with (BackgroundCompile(background) if background

@@ -149,8 +149,9 @@ def _implicit_step(timestep, arrays):
     N). Each joint is in a set (`joint_friction`: sticking, a damper -F qvel+ / v_reg in the
     system; slipping, a constant -F or +F) chosen by its end speed like a plate's, starting
     from its last set.
-    Constraint rows (ROWS), (jac, columns, counts, rows, flags, n): the n rows of MuJoCo's
-    constraints the engine solves this step (`take_constraint_rows`: Jacobian rows, their
+    Constraint rows (ROWS), `constraints` = (constraint_jac, constraint_columns,
+    constraint_counts, constraint_rows, flags, n): the n rows of MuJoCo's constraints the
+    engine solves this step (`take_constraint_rows`: Jacobian rows, their
     nonzero columns, ROW_D ...) and their flags ((3, >= n) int8 work space: STATE, VISITED,
     SOLVED). Each row is MuJoCo's soft constraint f = D (aref - J (qvel+ - qvel) / dt) (N or
     N m): a two-sided row (an equality) is in every solve; a one-sided row (a limit, a
@@ -160,7 +161,7 @@ def _implicit_step(timestep, arrays):
     (CONES, `elliptic_cones`) are in every solve, linearised at `point` ((nv,) work space:
     the end velocities they are linearised at); after a solve where some cone's force is off
     MuJoCo's, the next solve is its Newton step (`cone_step`) with every other element
-    keeping its set. Their forces are written to rows[:, ROW_FORCE].
+    keeping its set. Their forces are written to constraint_rows[:, ROW_FORCE].
     A plate that would return to a set it already had this step is frozen for the rest of
     the step (the law is not monotone where RFT's lift makes G d^T non-symmetric, and plain
     active-set iterations can cycle): its along response becomes the secant
@@ -533,7 +534,8 @@ def background_kernels(parts):
     compiles the step: in the reverse of the order the step's compile reaches them, so that
     the two meet in the middle (this process then loads the rest from the cache, and the
     second compiles nothing twice but the kernel they meet at: on two cores each does about
-    half)."""
+    half; the engine has the second compile the gather kernel after them, while this one
+    compiles the step's own code)."""
     return [(kernel, signature) for kernel, rows, signature in reversed(_CALLED)
             if parts != 'plain' or not rows]
 

@@ -110,7 +110,8 @@ def solve_space(nv, bodies):
         constraint_matrix=np.zeros((nv, nv)))
 
 
-#: The arrays of `implicit_step`, likewise (IMPLICIT: their rows), ending with a SolveSpace.
+#: The arrays of the implicit step (`implicit_solve._implicit_step`), likewise (IMPLICIT:
+#: their rows), ending with a SolveSpace.
 ImplicitArrays = namedtuple('ImplicitArrays', [
     # the engine's settings and counters, the gathered plates (`gather._gather_plates`)
     'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'table', 'force',
@@ -119,8 +120,7 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
     'qfrc_constraint', 'qfrc_bias',
     # the constraint force of the rows left to MuJoCo held over a step whose rows were handed
-    # back (`implicit_step`), and the end velocities the cones are linearised at
-    # (`implicit_solve._implicit_step`)
+    # back, and the end velocities the cones are linearised at (`implicit_solve._implicit_step`)
     'held_constraint', 'cone_point',
     # joint friction the engine solves (`implicit_solve._implicit_step`' friction)
     'friction_dofs', 'friction_force', 'friction_memory', 'friction_flags',

@@ -24,7 +24,7 @@ def prepare_solve(slots, slot_body, body_ids, xipos, subtree_com, cdof, body_roo
     world axes, as mujoco.mj_jac at xipos), and row 6S the generalised force without sand,
     tau_free = passive + actuator + applied + constraint - bias (N or N m per dof), the
     constraint force of the constraints the solve leaves to MuJoCo (tendon friction) being
-    MuJoCo's of the step before (`implicit_step`; mj_step2 computes this step's after the
+    MuJoCo's of the step before (`implicit_solve._implicit_step`; mj_step2 computes this step's after the
     solve, and the last one is the estimate).
     chain[s, :chain_count[s]] (S x nv, S) become the dofs slot s's rows reach: its kinematic
     chain, leaf to root."""

@@ -56,7 +56,7 @@ def load_average():
     where the system does not say: a shared machine's wall times depend on it."""
     try:
         return [round(value, 2) for value in os.getloadavg()]
-    except OSError:
+    except (OSError, AttributeError):  # (AttributeError: a system without it, e.g. Windows)
         return None
 
 

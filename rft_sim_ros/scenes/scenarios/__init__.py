@@ -142,10 +142,12 @@ def load_scenario(scene):
 
 def rows_expected(scene):
     """Whether `scene`'s (SceneConfig) scenario expects constraint rows (`BaseScenario.
-    constraint_rows`): a bundled scenario says; any other (a file, a class of the user's)
-    is taken to (it is not imported for this)."""
+    constraint_rows`): a bundled scenario says, unless the scene keeps its floor rigid
+    (sand.keep_floor: its contacts make rows); any other (a file, a class of the user's) is
+    taken to (it is not imported for this)."""
     reference = scene.scenario
-    if reference.endswith('.py') or ':' in reference or reference not in scenario_names():
+    if (scene.keep_floor or reference.endswith('.py') or ':' in reference
+            or reference not in scenario_names()):
         return True
     return importlib.import_module(f'{__name__}.{reference}').Scenario.constraint_rows
 

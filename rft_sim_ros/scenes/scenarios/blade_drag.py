@@ -18,6 +18,7 @@ RESTART_WINDOW_S = 0.3
 
 class Scenario(BaseScenario):
     constraint_rows = False  # (a free or driven body: no limits, equalities or contacts)
+
     def __init__(self, scene):
         super().__init__(scene)
         self.depth = self.number('depth', positive=True)

@@ -31,6 +31,7 @@ def expected_impact_depth(mass, area, zeta, drop_height, gravity=9.81):
 
 class Scenario(BaseScenario):
     constraint_rows = False  # (a free or driven body: no limits, equalities or contacts)
+
     def __init__(self, scene):
         super().__init__(scene)
         self.mass = self.number('mass', positive=True)

@@ -18,6 +18,7 @@ from . import BaseScenario
 
 class Scenario(BaseScenario):
     constraint_rows = False  # (a free or driven body: no limits, equalities or contacts)
+
     def __init__(self, scene):
         super().__init__(scene)
         self.side = self.number('side', positive=True)

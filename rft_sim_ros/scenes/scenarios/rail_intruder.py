@@ -45,6 +45,7 @@ ROTATION_RAD = math.pi
 
 class Scenario(BaseScenario):
     constraint_rows = False  # (a free or driven body: no limits, equalities or contacts)
+
     observe_interval = 5
     #: What `series()` holds, one value per observed step.
     columns = ('time_s', 'angle_rad', 'carriage_x_m', 'servo_torque_Nm', 'sand_torque_Nm',
