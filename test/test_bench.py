@@ -149,3 +149,15 @@ def test_other_bodies_cost_compares_the_same_robot_with_and_without_their_plates
     cost = step_cost_ratio('quadruped', {'gait': 'none'}, warm_s=0.05, chunks=2, chunk_steps=20)
     assert cost['other_plates'] > 0 and cost['others_in_sand'] == 0  # trunk, calves: above
     assert cost['with_us'] > 0 and cost['without_us'] > 0 and cost['ratio'] > 0
+
+
+def test_dof_scaling_adds_degrees_of_freedom_only():
+    """The chain adds hinges in the air: nv grows by one a link, the plates in the sand do
+    not change, and the body still stands."""
+    from rft_sim_ros.bench.dof_scaling import body_with_chain, dof_scaling
+    assert body_with_chain(0)[0].nv == 14 and body_with_chain(5)[0].nv == 19
+    rows = dof_scaling((0, 6), chunks=1, chunk_steps=20, settle_steps=300)
+    assert [row['nv'] for row in rows] == [14, 20]
+    assert rows[0]['plates_in_sand'] == rows[1]['plates_in_sand'] > 0
+    assert all(row['standing'] and row['sand_step_s'] > 0 and row['rigid_step_s'] > 0
+               for row in rows)

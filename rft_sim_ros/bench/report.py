@@ -22,16 +22,22 @@ def _load(values):
     return 'unknown' if not values else ', '.join(f'{value:.2f}' for value in values)
 
 
+def machine_line(machine, load_at_end=None):
+    """Where a benchmark was measured (`sim.runner.machine_info`): CPU, cores, versions and
+    the load average at its start (and end, when given), as one line of markdown."""
+    end = '' if load_at_end is None else f'; at the end: {_load(load_at_end)}'
+    return (f'Machine: {machine["cpu"]}, {machine["cores"]} cores; Python {machine["python"]}, '
+            f'MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. Load average (1, 5, 15 '
+            f'min) at the start: {_load(machine.get("load_average"))}{end}. On a shared '
+            'machine wall times grow with the load; compare figures taken at similar loads.')
+
+
 def markdown(results):
     """The benchmark as a markdown report."""
-    machine = results['machine']
     lines = ['# rft_sim_ros benchmark', '',
-             f'Machine: {machine["cpu"]}, {machine["cores"]} cores; Python {machine["python"]}, '
-             f'MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. One process, one core. '
-             'Times are medians of repeated chunks; ratios are taken within one run.',
-             '', f'Load average (1, 5, 15 min) at the start: {_load(machine.get("load_average"))}; '
-             f'at the end: {_load(results.get("load_average_at_end"))}. On a shared machine '
-             'wall times grow with the load; compare figures taken at similar loads.', '']
+             machine_line(results['machine'], results.get('load_average_at_end', [])), '',
+             'One process, one core. Times are medians of repeated chunks; ratios are taken '
+             'within one run.', '']
     cost = results.get('step_cost')
     if cost:
         lines += ['## Hexapod step cost against plain MuJoCo', '',
