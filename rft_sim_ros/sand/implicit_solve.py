@@ -491,53 +491,61 @@ STEP_SIGNATURE = '(float64, int64[:, ::1])'
 _FRICTION = 'Tuple((int64[::1], float64[::1], int64[::1], int8[:, ::1], float64[::1]))'
 _ROWS = ('Tuple((float64[:, ::1], int64[:, ::1], int64[::1], float64[:, ::1], int8[:, ::1], '
          'int64))')
-#: Kernels the compiled steps call, whether only the steps with ROWS call them, and the
+#: Kernels the compiled steps call, the least of STEP_PARTS whose step calls them, and the
 #: argument types (numba's text) the steps call them with (`background_kernels`), in the
 #: order a step's compile reaches them.
 _CALLED = (
-    (prepare_solve, False, '(int64, int64[::1], int64[::1], float64[:, ::1], float64[:, ::1], '
-     'float64[:, ::1], int32[::1], int32[::1], int32[::1], int32[::1], int32[::1], '
-     'float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], '
-     'int64[:, ::1], int64[::1])'),
-    (implicit_damping, False, '(boolean, boolean, float64[::1], int32[::1], int32[:, ::1], '
+    (prepare_solve, 'plain', '(int64, int64[::1], int64[::1], float64[:, ::1], '
+     'float64[:, ::1], float64[:, ::1], int32[::1], int32[::1], int32[::1], int32[::1], '
+     'int32[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], '
+     'float64[:, ::1], int64[:, ::1], int64[::1])'),
+    (implicit_damping, 'plain', '(boolean, boolean, float64[::1], int32[::1], int32[:, ::1], '
      'float64[:, ::1], int32[::1], int32[::1], int32[::1], int32[::1], float64[:, ::1], '
      'int32[::1], float64[:, ::1], uint8[::1], float64[:, ::1], float64[::1], float64[::1], '
      'int32[::1], float64[::1], float64[::1])'),
-    (implicit_mass, False, '(float64[:, ::1], float64[::1], float64)'),
-    (constraint_start, True, f'({_ROWS}, float64[::1], float64, float64[:, ::1], '
+    (implicit_mass, 'plain', '(float64[:, ::1], float64[::1], float64)'),
+    (constraint_start, 'rows', f'({_ROWS}, float64[::1], float64, float64[:, ::1], '
      'float64[::1])'),
-    (translational_inverse_masses, False, '(float64[:, ::1], int32[::1], float64[:, ::1], '
+    (cone_start, 'cones', f'({_ROWS}, float64)'),
+    (translational_inverse_masses, 'plain', '(float64[:, ::1], int32[::1], float64[:, ::1], '
      'int64, float64[:, ::1], float64[:, ::1], float64[::1])'),
-    (friction_start, False, f'({_FRICTION}, float64[::1], float64, int64)'),
-    (accumulate_slot, False, '(int64, int64, float64[:, ::1], float64[:, ::1], '
+    (friction_start, 'plain', f'({_FRICTION}, float64[::1], float64, int64)'),
+    (accumulate_slot, 'plain', '(int64, int64, float64[:, ::1], float64[:, ::1], '
      'float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], '
      'float64[:, ::1], float64[::1])'),
-    (friction_terms, False, f'({_FRICTION}, float64[::1], float64, float64, float64[:, ::1], '
+    (friction_terms, 'plain', f'({_FRICTION}, float64[::1], float64, float64, '
+     'float64[:, ::1], float64[::1])'),
+    (constraint_terms, 'rows', f'({_ROWS}, float64[:, ::1], float64[::1])'),
+    (cone_terms, 'cones', f'({_ROWS}, float64[:, ::1], float64[::1])'),
+    (checked_solve, 'plain', '(float64[:, ::1], float64[::1], int32[::1], float64[:, ::1], '
      'float64[::1])'),
-    (constraint_terms, True, f'({_ROWS}, float64[:, ::1], float64[::1])'),
-    (checked_solve, False, '(float64[:, ::1], float64[::1], int32[::1], float64[:, ::1], '
-     'float64[::1])'),
-    (friction_sets, False, f'({_FRICTION}, float64[::1], float64)'),
-    (constraint_sets, True, f'({_ROWS}, float64[::1], float64[::1], float64)'),
-    (friction_finish, False, f'({_FRICTION}, float64[::1], float64, float64[::1], int64)'),
-    (constraint_forces, True, f'({_ROWS}, float64[::1], float64[::1], float64)'),
-    (add_row_forces, True, '(float64[:, ::1], int64[:, ::1], int64[::1], float64[:, ::1], '
+    (cone_errors, 'cones', f'({_ROWS}, float64[::1], float64[::1], float64)'),
+    (cone_step, 'cones', f'({_ROWS}, float64[::1], float64[::1], float64[:, ::1], '
+     'float64[::1], float64)'),
+    (cone_settled, 'cones', f'({_ROWS}, float64)'),
+    (friction_sets, 'plain', f'({_FRICTION}, float64[::1], float64)'),
+    (constraint_sets, 'rows', f'({_ROWS}, float64[::1], float64[::1], float64)'),
+    (friction_finish, 'plain', f'({_FRICTION}, float64[::1], float64, float64[::1], int64)'),
+    (constraint_forces, 'rows', f'({_ROWS}, float64[::1], float64[::1], float64)'),
+    (cone_reports, 'cones', f'({_ROWS},)'),
+    (add_row_forces, 'rows', '(float64[:, ::1], int64[:, ::1], int64[::1], float64[:, ::1], '
      'int64, float64[::1])'),
-    (scatter_wrenches, False, '(int64, int64[::1], float64[:, ::1], int64[::1], '
+    (scatter_wrenches, 'plain', '(int64, int64[::1], float64[:, ::1], int64[::1], '
      'float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])'))
 
 
 def background_kernels(parts):
     """[(kernel, signature)]: the kernels that the step solving `parts` (one of STEP_PARTS)
-    calls (but elliptic cones' own), with the argument types it calls them with, for a cold
-    start to compile in a second process (`kernel_cache.BackgroundCompile`) while this one
-    compiles the step: in the reverse of the order the step's compile reaches them, so that
-    the two meet in the middle (this process then loads the rest from the cache, and the
-    second compiles nothing twice but the kernel they meet at: on two cores each does about
-    half; the engine has the second compile the gather kernel after them, while this one
-    compiles the step's own code)."""
-    return [(kernel, signature) for kernel, rows, signature in reversed(_CALLED)
-            if parts != 'plain' or not rows]
+    calls, with the argument types it calls them with, for a cold start to compile in a
+    second process (`kernel_cache.BackgroundCompile`) while this one compiles the step: in
+    the reverse of the order the step's compile reaches them, so that the two meet in the
+    middle (this process then loads the rest from the cache, and the second compiles nothing
+    twice but the kernel they meet at: on two cores each does about half; the engine has the
+    second compile the gather kernel after them, while this one compiles the step's own
+    code)."""
+    level = STEP_PARTS.index(parts)
+    return [(kernel, signature) for kernel, least, signature in reversed(_CALLED)
+            if STEP_PARTS.index(least) <= level]
 
 
 forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)
