@@ -10,7 +10,7 @@ import pytest
 from rft_sim_ros.scenes import hexapod
 from rft_sim_ros.scenes.gaits import make_gait
 from rft_sim_ros.scenes.config import load_scene
-from rft_sim_ros.sim.build import can_collide
+from rft_sim_ros.sand.engine import can_collide
 from rft_sim_ros.sim.simulation import Simulation
 
 MODELS = Path(__file__).resolve().parent.parent / 'models'

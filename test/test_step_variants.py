@@ -12,7 +12,7 @@ from numba.core.compiler import run_frontend
 from numba.core.ir_utils import simplify_CFG
 
 from rft_sim_ros.sand import implicit_solve
-from rft_sim_ros.sand.engine import SandEngine, step_parts
+from rft_sim_ros.sand.engine import SandEngine, can_collide, step_parts
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.scenes.config import bundled_scenes, load_scene
 from rft_sim_ros.sim.simulation import Simulation, kernel_key
@@ -86,6 +86,10 @@ def _drop(cone='pyramidal', rock=1, box=1):
 
 def test_a_model_that_can_make_no_row_loads_the_plain_step():
     assert step_parts(_drop(rock=0)[0]) == 'plain'
+    two_geoms_one_body = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body><freejoint/><geom size="0.1"/><geom pos="0.3 0 0" '
+        'size="0.1"/></body></worldbody></mujoco>')  # (MuJoCo never collides them)
+    assert not can_collide(two_geoms_one_body) and step_parts(two_geoms_one_body) == 'plain'
     assert step_parts(_drop(rock=0)[0], rows_expected=True) == 'rows'
     assert step_parts(_drop()[0]) == 'rows'
     assert step_parts(_drop(cone='elliptic')[0]) == 'cones'

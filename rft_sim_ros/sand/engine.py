@@ -59,28 +59,31 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts
 def step_parts(model, rows_expected=False):
     """Which compiled implicit step (`implicit_solve.STEP_PARTS`) an engine of MuJoCo
     `model` loads: 'plain' where the model cannot make a constraint row (no equality, no
-    limited joint or tendon, no tendon friction, no flex, no explicit contact pair, no two
-    geoms of different bodies whose contype and conaffinity let them collide) and rows are
-    not `rows_expected`; 'cones' where it can and its contacts use elliptic cones; 'rows'
+    limited joint or tendon, no tendon friction and no rigid contact: `can_collide`) and rows
+    are not `rows_expected`; 'cones' where it can and its contacts use elliptic cones; 'rows'
     otherwise. (A step that takes rows the loaded step does not solve loads the one that
     does: `_take_constraint_rows`.)"""
     tendons = model.ntendon and (model.tendon_limited.any() or model.tendon_frictionloss.any())
-    rows = bool(rows_expected or model.neq or model.npair or model.nflex or tendons
-                or model.jnt_limited.any() or _may_collide(model))
+    rows = bool(rows_expected or model.neq or tendons or model.jnt_limited.any()
+                or can_collide(model))
     if not rows:
         return 'plain'
     return 'cones' if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC else 'rows'
 
 
-def _may_collide(model):
-    """Whether two geoms of different bodies of `model` have contype and conaffinity bits
-    that let MuJoCo collide them (parent-child filtering and distance left out: a
-    conservative answer)."""
+def can_collide(model):
+    """Whether MuJoCo could ever make a rigid contact in `model`: an explicit <pair>, a flex,
+    or two geoms of bodies that are not welded together whose contype and conaffinity bits
+    let them collide (parent-child filtering and distance left out: a conservative
+    answer)."""
+    if model.npair or model.nflex:
+        return True
     contype, conaffinity = model.geom_contype, model.geom_conaffinity
     live = np.flatnonzero((contype != 0) | (conaffinity != 0))
     if len(live) < 2:
         return False
-    kinds, affinities, bodies = contype[live], conaffinity[live], model.geom_bodyid[live]
+    kinds, affinities = contype[live], conaffinity[live]
+    bodies = model.body_weldid[model.geom_bodyid[live]]  # (MuJoCo skips geoms of one weld)
     pairs = ((kinds[:, None] & affinities[None, :]) != 0) | (
         (affinities[:, None] & kinds[None, :]) != 0)
     return bool((pairs & (bodies[:, None] != bodies[None, :])).any())

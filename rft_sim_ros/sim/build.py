@@ -21,7 +21,7 @@ from ..robot.pose import (DEFAULT_KEYFRAMES, initial_keyframe, keyframe_label, p
 from ..robot.sand_bodies import (AUTO, free_root_joint, keep_sand_visuals, legs_from_tree,
                                  other_bodies, resolve_sand_bodies)
 from ..sand.deformable import DeformableSand
-from ..sand.engine import LowVelocity, SandEngine
+from ..sand.engine import LowVelocity, SandEngine, can_collide
 from ..sand.geoms import body_plates
 from ..sand.paper_loop import PaperLoopEngine
 from ..sand.surface import (CHECKED_SLOPE_DEG, Surface, hfield_geom, hfield_label,
@@ -147,15 +147,6 @@ def sand_surface(scene, model, given, notices):
     except ValueError as error:
         raise SceneError(f'scene {scene.name}: {error}') from None
     return surface, zeta_map
-
-
-def can_collide(model):
-    """Whether MuJoCo could ever make a rigid contact in `model`: an explicit <pair>, a flex,
-    or two geoms whose contype/conaffinity bits let them collide."""
-    if model.npair or model.nflex:
-        return True
-    return bool(np.bitwise_or.reduce(model.geom_contype, initial=0)
-                & np.bitwise_or.reduce(model.geom_conaffinity, initial=0))
 
 
 def world_ground(model, geom_type):
