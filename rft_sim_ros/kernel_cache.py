@@ -72,6 +72,7 @@ def _imports(name, path):
             yield from (f'{base}.{alias.name}' for alias in node.names)
 
 
+@functools.lru_cache(maxsize=None)
 def kernel_sources():
     """The package's source files its cached kernels are compiled from: the kernel modules
     and, transitively, every module of the package they import (read, not imported), but
@@ -84,7 +85,7 @@ def kernel_sources():
         if path is not None and name not in found and name != __name__:
             found[name] = path
             pending.extend(_imports(name, path))
-    return sorted(set(found.values()))
+    return tuple(sorted(set(found.values())))
 
 
 @functools.lru_cache(maxsize=None)
@@ -109,29 +110,65 @@ def module_kernels(module_name, namespace):
             and value.targetoptions.get('inline', 'never') == 'never'}
 
 
+def _stats(paths):
+    """{path relative to the package: [modification time ns, size]} of source files `paths`
+    (absolute); None for one that is gone."""
+    stats = {}
+    for path in paths:
+        try:
+            stat = path.stat()
+        except OSError:
+            return None
+        stats[path.relative_to(PACKAGE).as_posix()] = [stat.st_mtime_ns, stat.st_size]
+    return stats
+
+
+def _unchanged(recorded):
+    """Whether the source files of `recorded` ({relative path: [mtime ns, size]}, what
+    `_stats` gave when a marker was written) are still those: same modification time and
+    size each. A new source joins `kernel_sources` only through an edit of one of them."""
+    try:
+        return _stats([PACKAGE / name for name in recorded]) == recorded
+    except (TypeError, ValueError):
+        return False
+
+
 def forget_stale(namespace, fingerprint=None):
     """Drop the cached kernels of the module whose globals are `namespace` when they were
     compiled from other sources than `fingerprint` (default: `sources_fingerprint()`, the
     package's now), as a marker file beside them in numba's cache records; then record
     `fingerprint` there. Called by each kernel module at the end of its import. Returns
-    whether it dropped them."""
-    fingerprint = fingerprint or sources_fingerprint()
+    whether it dropped them.
+
+    The marker's first line is the fingerprint; its second, the modification time and size
+    of each of `kernel_sources` when it was written (JSON). While those all still hold, the
+    sources are the marker's and the fingerprint is not computed (it reads and parses some
+    thirty files, about 0.1 s of every start); an explicit `fingerprint` is always compared."""
     kernels = module_kernels(namespace['__name__'], namespace).values()
     if not kernels:  # (e.g. NUMBA_DISABLE_JIT: no dispatchers)
         return False
     marker = Path(next(iter(kernels))._cache._cache_path) / f'{namespace["__name__"]}.sources'
     try:
-        if marker.read_text() == fingerprint:
-            return False
+        recorded, _, stats = marker.read_text().partition('\n')
     except OSError:
-        pass  # no marker yet: kernels cached before this check, if any, are dropped too
-    for kernel in kernels:
-        kernel._cache.flush()
+        recorded = stats = None  # no marker yet: kernels cached before, if any, are dropped
+    if fingerprint is None and stats:
+        try:
+            if _unchanged(json.loads(stats)):
+                return False
+        except ValueError:
+            pass
+    now = fingerprint or sources_fingerprint()
+    dropped = recorded != now
+    if dropped:
+        for kernel in kernels:
+            kernel._cache.flush()
     try:
-        marker.write_text(fingerprint)
+        marker.write_text(now if fingerprint else
+                          f'{now}\n{json.dumps(_stats(kernel_sources()))}')
     except OSError:
         pass  # a cache folder numba cannot write to either: nothing is cached there
-    return True
+    return dropped
 
 
 def is_cached(kernel):

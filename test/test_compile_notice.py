@@ -207,6 +207,39 @@ def test_kernels_compiled_from_other_sources_are_dropped(tmp_path, monkeypatch):
     assert not is_cached(module.triple)
 
 
+def test_unchanged_sources_are_known_by_their_stat_without_the_fingerprint(tmp_path,
+                                                                          monkeypatch):
+    """A marker written by the default check records each source's modification time and
+    size: while they hold, the check does not compute the fingerprint; where one differs it
+    does, keeps the kernels if the contents are the same (a touched file) and records the
+    new times, and drops them if not."""
+    import json
+    from rft_sim_ros import kernel_cache
+    (tmp_path / 'stat_checked_kernels.py').write_text(_KERNEL_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = importlib.import_module('stat_checked_kernels')
+    assert module.triple(2.0) == 6.0
+    assert forget_stale(vars(module))                   # no marker yet: dropped
+    module.triple.recompile()
+    marker = Path(module.triple._cache._cache_path) / 'stat_checked_kernels.sources'
+    fingerprint, _, stats = marker.read_text().partition('\n')
+    assert fingerprint == sources_fingerprint()
+    assert set(json.loads(stats)) == {path.relative_to(PACKAGE).as_posix()
+                                      for path in kernel_sources()}
+
+    def not_computed():
+        raise AssertionError('the fingerprint was computed although no source changed')
+    with monkeypatch.context() as patch:
+        patch.setattr(kernel_cache, 'sources_fingerprint', not_computed)
+        assert not forget_stale(vars(module)) and is_cached(module.triple)
+    touched = {name: [mtime + 1, size] for name, (mtime, size) in json.loads(stats).items()}
+    marker.write_text(f'{fingerprint}\n{json.dumps(touched)}')
+    assert not forget_stale(vars(module)) and is_cached(module.triple)  # same contents
+    assert marker.read_text() == f'{fingerprint}\n{stats}'              # times renewed
+    marker.write_text(f'other sources\n{json.dumps(touched)}')
+    assert forget_stale(vars(module)) and not is_cached(module.triple)
+
+
 def test_every_module_with_cached_kernels_is_a_kernel_module():
     """A module of the package that defines numba kernels cached on disk is one of
     KERNEL_MODULES: `rft-sim warmup` compiles its kernels, and their cache is checked against
@@ -226,7 +259,7 @@ def test_every_kernel_module_records_the_sources_of_its_cached_kernels():
         kernel = next(kernel for qualified, kernel in kernels.items()
                       if qualified.rpartition('.')[0] == name)
         marker = Path(kernel._cache._cache_path) / f'{name}.sources'
-        assert marker.read_text() == sources_fingerprint(), name
+        assert marker.read_text().partition("\n")[0] == sources_fingerprint(), name
 
 
 _SHARE_PROBE = '''

@@ -216,3 +216,18 @@ def test_roll_pitch_yaw_of_a_quaternion():
         (0, math.radians(30), 0))
     assert roll_pitch_yaw([math.cos(half), 0, 0, math.sin(half)]) == pytest.approx(
         (0, 0, math.radians(30)))
+
+
+def test_a_long_outcome_is_wrapped_inside_the_figure(figure):
+    """An outcome of several findings (the main job's: the deepest point, frozen plates) is
+    wrapped onto lines the title's width holds, all of it inside the figure."""
+    words = ('upright: base turned at most 3 deg; deepest: R2_dactyl 10.7 cm below the '
+             'surface at t = 1.80 s; in 40 % of steps the implicit solve froze plates whose '
+             'leading/trailing sets cycled (at rest, or turning slowly in the sand): they took '
+             'a linear response through their speed, not RFT\'s switch')
+    fig = figure(_summary(outcome={'fell': False, 'fell_at_s': None, 'words': words}))
+    title = fig._suptitle
+    assert ' '.join(title.get_text().split()).endswith(' '.join(words.split()))
+    assert max(len(line) for line in title.get_text().splitlines()) <= plots.TITLE_WIDTH
+    box = title.get_window_extent(fig.canvas.get_renderer())
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width

@@ -86,6 +86,17 @@ def _scene_files(folder):
             if _is_scene_file(path)}
 
 
+def _bundled_scene(name):
+    """The path of the bundled scene `name`; raises SceneError naming them all where there
+    is none. Only that scene's file is read when it is one (start-up reads no other)."""
+    path = resources.config_dir() / f'{name}.yaml'
+    if _is_scene_file(path):
+        return path
+    scenes = bundled_scenes()
+    raise SceneError(f'unknown scene {name!r}: not a scene file and not one of the bundled '
+                     f'scenes ({", ".join(scenes)})')
+
+
 def _is_scene_file(path):
     try:
         content = yaml.safe_load(path.read_text())
@@ -112,11 +123,7 @@ def load_scene(name_or_path, overrides=None, given_by='--set'):
         if not path.is_file():
             raise SceneError(f'scene file {path} not found')
     else:
-        scenes = bundled_scenes()
-        if str(name_or_path) not in scenes:
-            raise SceneError(f'unknown scene {name_or_path!r}: not a scene file and not one '
-                             f'of the bundled scenes ({", ".join(scenes)})')
-        path = scenes[str(name_or_path)]
+        path = _bundled_scene(str(name_or_path))
     try:
         text = path.read_text()
     except OSError as error:

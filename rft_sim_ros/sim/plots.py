@@ -20,6 +20,7 @@ and in the title, which names the robot and the scene (labels.run_name).
 """
 import math
 import os
+import textwrap
 
 import matplotlib
 
@@ -38,6 +39,9 @@ LEAST_ANGLE_DEG = 2.0
 #: Legs side by side in the joints' rows; the figure's grid columns (a multiple of 2 and
 #: of every count of legs a row).
 LEGS_PER_ROW, GRID_COLUMNS = 3, 6
+#: The most characters a line of the figure's title holds (its 15 in width); a longer one (an
+#: outcome's words) is wrapped, not cut off at the figure's edges.
+TITLE_WIDTH = 150
 #: Where a legend goes: right of its axes, outside.
 OUTSIDE = dict(loc='upper left', bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
                fontsize='small')
@@ -218,7 +222,7 @@ def plot_run(path, series, summary):
     lines = [run_name(summary),
              f'zeta = {summary.get("zeta", float("nan")):g} N/cm$^3${changes}, '
              f'dt = {summary.get("timestep_s", float("nan")) * 1e3:g} ms', *words]
-    fig.suptitle('\n'.join(lines))
+    fig.suptitle('\n'.join(textwrap.fill(line, TITLE_WIDTH) for line in lines))
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
