@@ -19,7 +19,9 @@ edit that changed only those would load kernels compiled from the old code. So e
 module ends by calling `forget_stale(globals())`, before any of its kernels can load: the
 fingerprint of every source the kernels are compiled from (`kernel_sources`, read as text,
 never imported) is kept in a marker file beside the module's cached kernels, and where it
-differs, their cache entries are dropped and compile afresh.
+differs, their cache entries are dropped and compile afresh. The marker also keeps those
+sources' modification times and sizes, so that a start whose sources have not changed since
+does not compute the fingerprint.
 
 The cache is numba's: `__pycache__` beside the sources, or NUMBA_CACHE_DIR. A kernel counts as
 cached when numba's index for it holds at least one compiled signature for its current source.
@@ -112,7 +114,7 @@ def module_kernels(module_name, namespace):
 
 def _stats(paths):
     """{path relative to the package: [modification time ns, size]} of source files `paths`
-    (absolute); None for one that is gone."""
+    (absolute); None where one of them is gone."""
     stats = {}
     for path in paths:
         try:
