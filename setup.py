@@ -39,6 +39,10 @@ setup(
         'trimesh>=4.0',
         'pyyaml>=6.0',
         'numba>=0.59',
+        # numba's ahead-of-time compiler (numba.pycc: `rft-sim warmup` builds the engine's
+        # kernels for this CPU, rft_sim_ros/prebuild.py) compiles and links with setuptools,
+        # which a Python 3.12 virtual environment no longer has
+        'setuptools>=64',
         'rosbags>=0.10',
         'matplotlib>=3.7',
         # PNG height fields and zeta maps read exactly at every bit depth (sand/grid_files.py;

@@ -521,10 +521,11 @@ def cmd_warmup(args):
     from .warmup import cached_kernels, warm_up
     say_if_cold()
     started = time.perf_counter()
-    missing = warm_up(log=lambda line: print(line, file=sys.stderr))
+    missing, prebuilt = warm_up(log=lambda line: print(line, file=sys.stderr))
     print(f'{len(cached_kernels()) - len(missing)} of {len(cached_kernels())} kernels cached '
           f'({time.perf_counter() - started:.1f} s)' + (f'; not cached: {", ".join(missing)}'
                                                        if missing else ''))
+    print(prebuilt)
     return 1 if missing else 0
 
 

@@ -112,7 +112,7 @@ def module_kernels(module_name, namespace):
             and value.targetoptions.get('inline', 'never') == 'never'}
 
 
-def _stats(paths):
+def source_stats(paths):
     """{path relative to the package: [modification time ns, size]} of source files `paths`
     (absolute); None where one of them is gone."""
     stats = {}
@@ -125,12 +125,12 @@ def _stats(paths):
     return stats
 
 
-def _unchanged(recorded):
+def sources_unchanged(recorded):
     """Whether the source files of `recorded` ({relative path: [mtime ns, size]}, what
-    `_stats` gave when a marker was written) are still those: same modification time and
+    `source_stats` gave when a marker was written) are still those: same modification time and
     size each. A new source joins `kernel_sources` only through an edit of one of them."""
     try:
-        return _stats([PACKAGE / name for name in recorded]) == recorded
+        return source_stats([PACKAGE / name for name in recorded]) == recorded
     except (TypeError, ValueError):
         return False
 
@@ -156,7 +156,7 @@ def forget_stale(namespace, fingerprint=None):
         recorded = stats = None  # no marker yet: kernels cached before, if any, are dropped
     if fingerprint is None and stats:
         try:
-            if _unchanged(json.loads(stats)):
+            if sources_unchanged(json.loads(stats)):
                 return False
         except ValueError:
             pass
@@ -167,7 +167,7 @@ def forget_stale(namespace, fingerprint=None):
             kernel._cache.flush()
     try:
         marker.write_text(now if fingerprint else
-                          f'{now}\n{json.dumps(_stats(kernel_sources()))}')
+                          f'{now}\n{json.dumps(source_stats(kernel_sources()))}')
     except OSError:
         pass  # a cache folder numba cannot write to either: nothing is cached there
     return dropped

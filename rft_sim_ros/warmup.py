@@ -1,16 +1,20 @@
 """`rft-sim warmup`: every compiled kernel of the package into numba's on-disk cache ahead of
-a first run, by short runs of the scenes and settings that use them.
+a first run, by short runs of the scenes and settings that use them; then the engine's table
+kernels built ahead of time for this machine (`prebuild`, `prebuilt`).
 
 This sits beside the CLI, above the simulation it runs; the cache bookkeeping the kernel
 modules themselves need (`kernel_cache`) sits below them and imports none of the package.
 """
 import importlib
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .kernel_cache import KERNEL_MODULES, BackgroundCompile, is_cached, module_kernels
+from .prebuilt import load
 from .rft.kernel import plate_forces_compiled
 from .sand import gather, implicit_solve
 from .sand.array_table import TABLE_SIGNATURE
@@ -37,7 +41,10 @@ def warm_up(log=print):
     """Compile (or load) every kernel: short runs of the scenes and settings that use them,
     with the gather kernels of the other surfaces and the implicit step with elliptic cones
     compiled meanwhile in a second process.
-    Returns the qualified names still not cached (none, unless a kernel went unused)."""
+    Then builds the prebuilt table kernels (`prebuild`); where that fails (e.g. no C
+    compiler), says why and goes on: runs then load them from numba's cache, as before.
+    Returns (the qualified names still not cached (none, unless a kernel went unused),
+    one line on the prebuilt kernels: `prebuilt.state`, or why the build failed)."""
     others = [(kernel, TABLE_SIGNATURE) for kernel in (
         gather.gather_slope, gather.gather_grid, gather.gather_deformable)]
     others.append((implicit_solve.implicit_step_cones, implicit_solve.STEP_SIGNATURE))
@@ -61,4 +68,19 @@ def warm_up(log=print):
         run('plate_drop', {'sand.deformable.enabled': True})  # and deformable sand's
     down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
     plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
-    return uncached()
+    log('warmup: the table kernels, ahead of time for this CPU')
+    return uncached(), prebuild()
+
+
+def prebuild():
+    """Build the prebuilt table kernels in a second process (`python -m rft_sim_ros.prebuild`:
+    it loads the kernels from numba's cache, which this process has compiled some of); one
+    line: what it printed (`prebuilt.state`), or why it failed (e.g. no C compiler: runs then
+    load the kernels from numba's cache)."""
+    done = subprocess.run([sys.executable, '-m', 'rft_sim_ros.prebuild'], capture_output=True,
+                          text=True, stdin=subprocess.DEVNULL)
+    load.cache_clear()
+    if done.returncode == 0:
+        return done.stdout.strip().splitlines()[-1]
+    why = done.stderr.strip().splitlines()[-1:] or [f'exit status {done.returncode}']
+    return f'prebuilt kernels: not built ({why[0]})'

@@ -1,4 +1,5 @@
-"""Test configuration: reproducible property tests, a plate cache of the tests' own, and
+"""Test configuration: reproducible property tests, a plate cache of the tests' own, numba's
+kernels rather than prebuilt ones (RFT_SIM_PREBUILT=0; `test_prebuilt` tests those), and
 SIGINT as a terminal's foreground job has it (`ctrl_c_raises`), and the rclpy tests' ROS
 session (`ros`: test_node_rclpy.Ros, only where rclpy is installed).
 
@@ -14,6 +15,9 @@ from hypothesis import settings
 
 # plates made by the tests are cached in a folder of their own, not the user's cache
 os.environ['XDG_CACHE_HOME'] = tempfile.mkdtemp(prefix='rft-sim-test-cache-')
+# the tests run numba's kernels (and test their cache), whether or not `rft-sim warmup` built
+# the prebuilt ones in this checkout; test_prebuilt builds and tests those in its own folder
+os.environ['RFT_SIM_PREBUILT'] = '0'
 
 settings.register_profile('default', max_examples=200, derandomize=True, deadline=None)
 settings.register_profile('explore', max_examples=5000, deadline=None)

@@ -24,11 +24,14 @@ def _load(values):
 
 def machine_line(machine, load_at_end=None):
     """Where a benchmark was measured (`sim.runner.machine_info`): CPU, cores, versions and
-    the load average at its start (and end, when given), as one line of markdown."""
+    the load average at its start (and end, when given), and which kernels ran
+    (`prebuilt.state`), as one line of markdown."""
     end = '' if load_at_end is None else f'; at the end: {_load(load_at_end)}'
+    kernels = machine.get('kernels', 'kernels: not recorded')
     return (f'Machine: {machine["cpu"]}, {machine["cores"]} cores; Python {machine["python"]}, '
             f'MuJoCo {machine["mujoco"]}, numpy {machine["numpy"]}. Load average (1, 5, 15 '
-            f'min) at the start: {_load(machine.get("load_average"))}{end}. On a shared '
+            f'min) at the start: {_load(machine.get("load_average"))}{end}. '
+            f'{kernels[:1].upper()}{kernels[1:]}. On a shared '
             'machine wall times grow with the load; compare figures taken at similar loads.')
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .. import prebuilt
 from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, record_cold_start
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.plates import Plates
@@ -24,7 +25,7 @@ from ..units import validated_zeta, zeta_to_si
 from . import constraint_rows, explicit, gather, implicit_law, implicit_solve, layout, mujoco_terms
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .deformable import DeformableSand, no_bed_arrays
-from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
+from .surface import FLAT, GRID, SLOPE, Plane, tile_planes, window_extremes, window_span
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
@@ -48,11 +49,27 @@ def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False, parts
             *rows)
 
 
+#: The kernels that take their arrays as one table (`array_table`), with numba's text of
+#: their argument types: those `rft-sim warmup` also builds ahead of time (`prebuilt`).
+TABLE_KERNELS = (*((gather.gather_kernel(kind), TABLE_SIGNATURE)
+                   for kind in (FLAT, SLOPE, GRID)),
+                 (gather.gather_kernel(GRID, deformable=True), TABLE_SIGNATURE),
+                 *((implicit_solve.STEP_KERNELS[parts], implicit_solve.STEP_SIGNATURE)
+                   for parts in implicit_solve.STEP_PARTS),
+                 (implicit_law.implicit_plate_forces, TABLE_SIGNATURE))
+
+
+def ready(kernel):
+    """Whether numba dispatcher `kernel` runs without compiling: prebuilt (`prebuilt.has`) or
+    held, current, in numba's on-disk cache (`kernel_cache.is_cached`)."""
+    return prebuilt.has(kernel) or is_cached(kernel)
+
+
 def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
-    """Whether numba's on-disk cache holds current compiled code of the `engine_kernels` of
-    these arguments, so that building such an engine compiles nothing (otherwise it compiles
-    them: a first run after install, or after an upgrade)."""
-    return all(is_cached(kernel)
+    """Whether the `engine_kernels` of these arguments are all `ready`, so that building
+    such an engine compiles nothing (otherwise it compiles them: a first run after install,
+    or after an upgrade)."""
+    return all(ready(kernel)
                for kernel in engine_kernels(method, surface_kind, deformable, parts))
 
 
@@ -93,7 +110,7 @@ def _uncached_key(kernels):
     """The names of those of `kernels` (numba dispatchers) that the cache lacks, as one text
     (what a cold start's record is kept under); '' when it holds them all."""
     return ' '.join(sorted(kernel.py_func.__qualname__ for kernel in kernels
-                           if not is_cached(kernel)))
+                           if not ready(kernel)))
 
 
 def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
@@ -193,7 +210,10 @@ class SandEngine:
         self.surface = Plane(surface_height) if surface is None else surface
         self.deformable = isinstance(self.surface, DeformableSand)
         self._set_surface(self.surface)
-        self._gather = gather.gather_kernel(self.surface.data.kind, self.deformable)
+        self._gathering = gather.gather_kernel(self.surface.data.kind, self.deformable)
+        self._gather = prebuilt.kernel(self._gathering)
+        # per-plate forces of an implicit step, where asked for (`active_plates`)
+        self._plate_forces = prebuilt.kernel(implicit_law.implicit_plate_forces)
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
                               else np.ascontiguousarray(zeta_map.factors, dtype=float))
@@ -224,8 +244,8 @@ class SandEngine:
         self._plate_memory = np.full(n, -1, dtype=np.int64)
         self._take_friction(model)
         self._take_constraints(model)
-        self._parts = step_parts(model, rows_expected)
-        self._implicit_step = implicit_solve.STEP_KERNELS[self._parts]
+        self._parts = None
+        self._solve_at_least(step_parts(model, rows_expected))
         self._xi = np.zeros(6 * nb)
         self._slot_body = np.zeros(nb, dtype=np.int64)
         self._slot_start = np.zeros(nb + 1, dtype=np.int64)  # slot s: plates [start s, s+1)
@@ -428,9 +448,10 @@ class SandEngine:
         did not foresee (its options changed at run time). It loads, or compiles, at its first
         call."""
         order = implicit_solve.STEP_PARTS
-        if order.index(parts) > order.index(self._parts):
+        if self._parts is None or order.index(parts) > order.index(self._parts):
             self._parts = parts
-            self._implicit_step = implicit_solve.STEP_KERNELS[parts]
+            self._stepping = implicit_solve.STEP_KERNELS[parts]
+            self._implicit_step = prebuilt.kernel(self._stepping)
 
     def _views(self):
         """Record the arrays of the per-step kernels in array tables (`ArrayTable`): numpy views
@@ -475,7 +496,8 @@ class SandEngine:
         m, d = self.model, self.data
         return ArrayTable(*layout.ImplicitArrays(
             settings=self._settings, counters=self._counters, slot_body=self._slot_body,
-            slot_start=self._slot_start, out_plate=self._plate, table=self._table,
+            slot_start=self._slot_start, out_plate=self._plate, out_slot=self._slot,
+            table=self._table,
             force=self._force, body_ids=self.body_ids,
             body_rootid=m.body_rootid, body_dofnum=m.body_dofnum, body_dofadr=m.body_dofadr,
             body_parentid=m.body_parentid, dof_parentid=m.dof_parentid, xipos=d.xipos,
@@ -497,7 +519,7 @@ class SandEngine:
             forcerange=m.actuator_forcerange, ctrl=d.ctrl, act=d.act,
             actadr=m.actuator_actadr, actuator_force=d.actuator_force, damping=self._damping,
             mass=self._mass, jac=self._jac, memory=self._plate_memory, work=self._work,
-            flags=self._flags, xi_new=self._xi, wrench=self._slot_wrench,
+            flags=self._flags, xi_new=self._xi, applied=self._applied, wrench=self._slot_wrench,
             body_wrenches=self.body_wrenches, xfrc_applied=d.xfrc_applied,
             wrench_sum=self._wrench_sum, **self._solve_space._asdict()))
 
@@ -639,22 +661,23 @@ class SandEngine:
         (`BackgroundCompile`) while this one compiles the step (which then loads that share
         from the cache): on two cores the start-up is about the longer of the two."""
         if self._implicit_method:
-            background = [] if is_cached(self._implicit_step) else [
+            background = [] if ready(self._stepping) else [
                 (kernel, signature) for kernel, signature
                 in implicit_solve.background_kernels(self._parts) if not is_cached(kernel)]
-            if not is_cached(self._gather):
-                background.append((self._gather, TABLE_SIGNATURE))
+            if not ready(self._gathering):
+                background.append((self._gathering, TABLE_SIGNATURE))
             with (BackgroundCompile(background) if background
                   else contextlib.nullcontext()) as compiling:
                 self._implicit_step(self._options.timestep, self._implicit_arrays.table)
-                self._implicit_plate_forces(0)
+                self._plate_forces(self._implicit_arrays.table)
                 if self._parts != 'plain':
                     self._compile_constraint_rows()
                 if compiling is not None:
                     compiling.wait()  # (a kernel it did not cache compiles below)
         else:
             self._explicit()
-        load(self._gather, TABLE_SIGNATURE)
+        if not prebuilt.has(self._gathering):
+            load(self._gathering, TABLE_SIGNATURE)
 
     def mean_wrenches(self):
         """(nb, 6) mean of each sand body's wrench over the steps since the last call (what
@@ -677,13 +700,7 @@ class SandEngine:
         (K,) m^2), world frame; forces after the low-velocity treatment, on the body."""
         k = self._counters[layout.GATHERED]
         if self._implicit_method:
-            self._implicit_plate_forces(k)
+            self._plate_forces(self._implicit_arrays.table)
         com = self._xipos[self.body_ids[self._slot_body[self._slot[:k]]]]
         lever = self._table[layout.LEVER:layout.LEVER + 3, :k].T
         return lever + com, self._applied[:, :k].T.copy(), self.areas[self._plate[:k]]
-
-    def _implicit_plate_forces(self, k):
-        """Per-plate forces of the last implicit step into _applied[:, :k] (N, world)."""
-        implicit_law.implicit_plate_forces(k, self._slot, self._table, self._force, self._work,
-                                       self._flags, self._xi, self.low_velocity.rest_speed,
-                                       self._applied)

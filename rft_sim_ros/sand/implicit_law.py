@@ -30,7 +30,8 @@ from numba import njit
 from ..kernel_cache import forget_stale
 from ..rft.kernel import DIRECTION
 from .active_set import FROZEN, STATE
-from .layout import ACROSS, LEVER, SPEED
+from .array_table import float_matrix, float_vector, int8_matrix, int_vector
+from .layout import ACROSS, GATHERED, IMPLICIT, LEVER, REST_SPEED, SPEED
 
 MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0 (and FROZEN: anti-cycling)
 
@@ -109,7 +110,20 @@ def resting_block(k_rank, iso, out):
     out[5, 3] += zx
 
 @njit(cache=True, error_model='numpy')
-def implicit_plate_forces(k, out_slot, table, force, work, flags, xi_new, v_reg, out):
+def implicit_plate_forces(arrays):
+    """`plate_forces` of the plates the last implicit step gathered (counter GATHERED), of
+    the engine's implicit array table (`layout.ImplicitArrays`; settings REST_SPEED), into its
+    `applied` (3, n). A table kernel (`sand.engine.TABLE_KERNELS`)."""
+    ids = IMPLICIT
+    plate_forces(int_vector(arrays, ids.counters)[GATHERED], int_vector(arrays, ids.out_slot),
+                 float_matrix(arrays, ids.table), float_matrix(arrays, ids.force),
+                 float_matrix(arrays, ids.work), int8_matrix(arrays, ids.flags),
+                 float_vector(arrays, ids.xi_new), float_vector(arrays, ids.settings)[REST_SPEED],
+                 float_matrix(arrays, ids.applied))
+
+
+@njit(cache=True, inline='always', error_model='numpy')
+def plate_forces(k, out_slot, table, force, work, flags, xi_new, v_reg, out):
     """Per-plate forces (N, world, on the body; out[:, :k]) that an implicit step applied,
     from the plates' final sets and across dampers (rows STATE of `flags`, ACROSS of `work`,
     left by `implicit_solve._implicit_step`) and the end-of-step twists xi_new: G - c w_perp

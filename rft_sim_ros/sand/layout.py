@@ -114,7 +114,8 @@ def solve_space(nv, bodies):
 #: their rows), ending with a SolveSpace.
 ImplicitArrays = namedtuple('ImplicitArrays', [
     # the engine's settings and counters, the gathered plates (`gather._gather_plates`)
-    'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'table', 'force',
+    'settings', 'counters', 'slot_body', 'slot_start', 'out_plate', 'out_slot', 'table',
+    'force',
     # the sand bodies, mjModel, mjData
     'body_ids', 'body_rootid', 'body_dofnum', 'body_dofadr', 'body_parentid', 'dof_parentid',
     'xipos', 'subtree_com', 'cdof', 'qvel', 'qfrc_passive', 'qfrc_actuator', 'qfrc_applied',
@@ -133,7 +134,7 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'dof_damping', 'trntype', 'trnid', 'gear', 'jnt_type', 'jnt_dofadr', 'dyntype',
     'gaintype', 'gainprm', 'biastype', 'biasprm', 'forcelimited', 'forcerange', 'ctrl', 'act',
     'actadr', 'actuator_force',
-    # work space and results
-    'damping', 'mass', 'jac', 'memory', 'work', 'flags', 'xi_new',
+    # work space and results (`applied`: per-plate forces, `implicit_law.implicit_plate_forces`)
+    'damping', 'mass', 'jac', 'memory', 'work', 'flags', 'xi_new', 'applied',
     'wrench', 'body_wrenches', 'xfrc_applied', 'wrench_sum', *SolveSpace._fields])
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))

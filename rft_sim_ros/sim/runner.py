@@ -17,7 +17,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from .. import __version__
+from .. import __version__, prebuilt
 from ..sand.timestep import timestep_bound, timestep_problem
 from .metrics import GenericMetrics
 from ..scenes.scenarios import load_scenario
@@ -62,7 +62,8 @@ def load_average():
 
 def machine_info():
     """Where a run was measured: CPU, cores, load average now (`load_average`), Python,
-    MuJoCo and numpy versions."""
+    MuJoCo and numpy versions, and whether the engine's table kernels were the prebuilt ones
+    (`prebuilt.state`)."""
     cpu = platform.processor() or platform.machine()
     try:
         with open('/proc/cpuinfo') as info:
@@ -75,7 +76,8 @@ def machine_info():
     return {'cpu': cpu, 'cores': os.cpu_count(), 'load_average': load_average(),
             'python': platform.python_version(),
             'mujoco': mujoco.__version__, 'numpy': np.__version__,
-            'rft_sim_ros': __version__, 'platform': platform.platform()}
+            'rft_sim_ros': __version__, 'platform': platform.platform(),
+            'kernels': prebuilt.state()}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,116 @@
+"""Kernels built ahead of time (`prebuild`, `prebuilt`): a run on them gives the results
+numba's kernels give, to the bit; a table in another order still raises; an extension that
+no longer fits this process (its sources, numba, numpy, Python, the CPU), or one switched off,
+is not used, and `prebuilt.state` says why."""
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from rft_sim_ros import prebuilt
+from rft_sim_ros.prebuild import build
+from rft_sim_ros.sand import gather, implicit_law
+from rft_sim_ros.sand.array_table import TABLE_SIGNATURE, ArrayTable
+from rft_sim_ros.sand.implicit_solve import STEP_KERNELS, STEP_SIGNATURE
+from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.sim.simulation import Simulation
+
+_KERNELS = [(gather.gather_plane, TABLE_SIGNATURE), (STEP_KERNELS['plain'], STEP_SIGNATURE),
+            (implicit_law.implicit_plate_forces, TABLE_SIGNATURE)]
+
+
+@pytest.fixture(scope='module')
+def built(tmp_path_factory):
+    """A folder with an extension of the plane's gather, the plain step and its plates'
+    forces."""
+    folder = tmp_path_factory.mktemp('prebuilt')
+    build(_KERNELS, folder)
+    return folder
+
+
+@pytest.fixture
+def use(monkeypatch):
+    """use(folder): runs in this test load the prebuilt kernels of `folder` (the test run
+    has them off: conftest)."""
+    def use(folder):
+        monkeypatch.setenv(prebuilt.SWITCH, '1')
+        monkeypatch.setattr(prebuilt, 'FOLDER', folder)
+        prebuilt.load.cache_clear()
+    yield use
+    prebuilt.load.cache_clear()
+
+
+def _drop(steps=3000):
+    """The plate drop after `steps` steps: final qpos and qvel, its plates' forces (K, 3),
+    and its engine."""
+    sim = Simulation(load_scene('plate_drop'))
+    sim.step(steps)
+    _, forces, _ = sim.engine.active_plates()
+    return np.concatenate([sim.data.qpos, sim.data.qvel]), forces, sim.engine
+
+
+def test_a_run_on_prebuilt_kernels_gives_numbas_results_to_the_bit(built, use):
+    jit, jit_forces, engine = _drop()
+    assert not prebuilt.has(engine._gathering)
+    use(built)
+    assert prebuilt.state() == 'prebuilt kernels: in use'
+    ahead, ahead_forces, engine = _drop()
+    assert all(prebuilt.has(kernel) for kernel, _ in _KERNELS)
+    assert engine._gather is not engine._gathering  # (the extension's function is called)
+    assert np.array_equal(ahead, jit) and np.array_equal(ahead_forces, jit_forces)
+    assert jit[2] < 0.0  # (the plate sank into the sand: the kernels had work to do)
+    assert len(jit_forces) > 50 and jit_forces[:, 2].sum() > 0.0
+
+
+def test_a_table_in_another_order_raises_in_a_prebuilt_kernel(built, use):
+    use(built)
+    gathering = prebuilt.kernel(gather.gather_plane)
+    assert gathering is not gather.gather_plane
+    swapped = ArrayTable(np.zeros(3, dtype=np.int8), np.zeros((2, 2)))
+    with pytest.raises(TypeError, match='another dtype or rank'):
+        gathering(swapped.table)
+
+
+def _copy(built, tmp_path, **changes):
+    """A copy of the built folder whose record has `changes`."""
+    folder = tmp_path / 'copy'
+    shutil.copytree(built, folder)
+    record = json.loads((folder / prebuilt.RECORD).read_text())
+    record.update(changes)
+    (folder / prebuilt.RECORD).write_text(json.dumps(record))
+    return folder
+
+
+@pytest.mark.parametrize('name', ['numba', 'numpy', 'python', 'cpu'])
+def test_an_extension_built_with_another_toolchain_is_not_used(built, use, tmp_path, name):
+    use(_copy(built, tmp_path, **{name: 'other'}))
+    assert not prebuilt.has(gather.gather_plane)
+    assert prebuilt.state().startswith(f'prebuilt kernels: built for another {name} (other,')
+    assert 'rft-sim warmup' in prebuilt.state()
+
+
+def test_an_extension_of_other_sources_is_not_used(built, use, tmp_path):
+    use(_copy(built, tmp_path, stats={'sand/gather.py': [1, 2]}, fingerprint='0' * 64))
+    assert not prebuilt.has(gather.gather_plane)
+    assert 'built from other sources' in prebuilt.state()
+
+
+def test_sources_touched_but_the_same_keep_the_extension(built, use, tmp_path):
+    use(_copy(built, tmp_path, stats={'sand/gather.py': [1, 2]}))
+    assert prebuilt.has(gather.gather_plane)
+
+
+def test_no_extension_and_the_switch_say_so(use, tmp_path, monkeypatch):
+    use(tmp_path)
+    assert prebuilt.state() == 'prebuilt kernels: not built (`rft-sim warmup` builds them)'
+    monkeypatch.setenv(prebuilt.SWITCH, '0')
+    prebuilt.load.cache_clear()
+    assert prebuilt.state() == f'prebuilt kernels: off ({prebuilt.SWITCH}=0)'
+
+
+def test_the_extension_holds_each_kernel_it_was_given(built, use):
+    use(built)
+    module, _ = prebuilt.load()
+    assert sorted(name for name in dir(module) if name.startswith('rft_sim_ros')) == sorted(
+        prebuilt.symbol(kernel) for kernel, _ in _KERNELS)
