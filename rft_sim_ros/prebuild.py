@@ -4,13 +4,15 @@ table kernels, compiled for this machine's CPU by numba's ahead-of-time compiler
 
 Each kernel compiles through its own numba dispatcher, with the options it was declared with
 (fastmath, error model), or loads from numba's cache where that holds it already; the
-extension exports a caller of it with the argument types given, so the code a run calls is
-the code the dispatcher would have run. `rft-sim warmup` builds after it has run the scenes,
-in a second process (`python -m rft_sim_ros.prebuild`, `main`): there every kernel loads from
-numba's cache as machine code, which the extension takes as it is (19 s on an AMD EPYC VM);
-kernels compiled in the same process are held as LLVM IR, which the build would optimise and
-generate again (60 s).
+extension exports a caller of it with the argument types given, and its machine code is
+generated for the CPU name and instruction-set features numba's JIT compiles for (numba's
+ahead-of-time compiler would otherwise take every feature of the CPU's model, which a virtual
+machine may hide). `rft-sim warmup` builds after it has run the scenes, in a second process
+(`python -m rft_sim_ros.prebuild`, `main`): measured on an AMD EPYC VM, the build took 19 to
+23 s where the kernels loaded from numba's cache, and 60 s where the same process had just
+compiled them.
 """
+import contextlib
 import json
 import os
 import tempfile
@@ -18,7 +20,9 @@ import time
 import warnings
 from pathlib import Path
 
-from .prebuilt import FOLDER, RECORD, extension_file, load, record, state, symbol
+from .kernel_cache import kernel_sources, source_stats, sources_fingerprint, sources_unchanged
+from .prebuilt import (FOLDER, RECORD, extension_file, load, module_name, state, symbol,
+                       toolchain, toolchain_key)
 
 
 def _caller(dispatcher, arity):
@@ -31,38 +35,60 @@ def _caller(dispatcher, arity):
     return namespace['call']
 
 
+@contextlib.contextmanager
+def _host_features():
+    """numba's ahead-of-time code generation with the instruction-set features its JIT
+    uses (`get_host_cpu_features`: this machine's, or NUMBA_CPU_FEATURES) instead of none
+    (which lets LLVM take every feature of the CPU's model)."""
+    from numba.core.codegen import AOTCPUCodegen, get_host_cpu_features
+    original = AOTCPUCodegen._customize_tm_features
+    AOTCPUCodegen._customize_tm_features = lambda self: get_host_cpu_features()
+    try:
+        yield
+    finally:
+        AOTCPUCodegen._customize_tm_features = original
+
+
 def build(kernels, folder=FOLDER):
     """Compile `kernels` ((numba dispatcher, numba's text of its argument types) pairs) into
-    the extension in `folder` and record what it was built from (`prebuilt.RECORD`),
-    replacing the extension and record there (a process that loaded the old one keeps it).
-    Returns the wall seconds it took. Raises what the compiler raised (e.g. no C compiler):
-    the old extension, if any, is then kept."""
+    an extension in `folder`'s subfolder of this `toolchain()` and record what it was built
+    from there (`prebuilt.RECORD`), replacing the extension and record of older sources (a
+    process that loaded one keeps it). Returns the wall seconds it took. Raises what the
+    compiler raised (e.g. no C compiler), or RuntimeError where a source changed while it
+    compiled: the previous extension, if any, is then kept."""
     from numba.core import sigutils
     with warnings.catch_warnings():  # (numba marks pycc as deprecated, without a successor)
         warnings.simplefilter('ignore')
         from numba.pycc import CC
     start = time.perf_counter()
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=folder) as work:
-        compiler = CC(extension_file(folder).name.split('.')[0])
+    tools = toolchain()
+    target = Path(folder) / toolchain_key(tools)
+    target.mkdir(parents=True, exist_ok=True)
+    fingerprint, stats = sources_fingerprint(), source_stats(kernel_sources())
+    name = module_name(fingerprint)
+    with tempfile.TemporaryDirectory(dir=target) as work, _host_features():
+        compiler = CC(name)
         compiler.output_dir, compiler.target_cpu, compiler.verbose = work, 'host', False
         for dispatcher, signature in kernels:
             arguments, _ = sigutils.normalize_signature(signature)
             dispatcher.compile(arguments)
             returns = dispatcher.overloads[tuple(arguments)].signature.return_type
-            compiler.export(symbol(dispatcher), returns(*arguments))(_caller(dispatcher, len(arguments)))
+            compiler.export(symbol(dispatcher), returns(*arguments))(
+                _caller(dispatcher, len(arguments)))
         compiler.compile()
-        built = Path(work) / extension_file(folder).name
-        (folder / RECORD).unlink(missing_ok=True)
-        os.replace(built, extension_file(folder))
+        if not sources_unchanged(stats):
+            raise RuntimeError("the kernels' sources changed while they compiled: build again")
+        os.replace(extension_file(work, name), extension_file(target, name))
         seconds = time.perf_counter() - start
         kept = Path(work) / RECORD
-        kept.write_text(json.dumps(record(folder, seconds), indent=1))
-        os.replace(kept, folder / RECORD)
+        kept.write_text(json.dumps({'fingerprint': fingerprint, 'stats': stats, **tools,
+                                    'built_s': round(seconds, 1)}, indent=1))
+        os.replace(kept, target / RECORD)
+    for older in target.glob(f'{module_name("")}*'):
+        if older != extension_file(target, name):
+            older.unlink(missing_ok=True)
     load.cache_clear()
     return seconds
-
 
 
 def main():

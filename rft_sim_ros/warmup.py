@@ -5,7 +5,9 @@ kernels built ahead of time for this machine (`prebuild`, `prebuilt`).
 This sits beside the CLI, above the simulation it runs; the cache bookkeeping the kernel
 modules themselves need (`kernel_cache`) sits below them and imports none of the package.
 """
+import contextlib
 import importlib
+import os
 import subprocess
 import sys
 import tempfile
@@ -13,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .kernel_cache import KERNEL_MODULES, BackgroundCompile, is_cached, module_kernels
-from .prebuilt import load
+from .kernel_cache import KERNEL_MODULES, PACKAGE, BackgroundCompile, is_cached, module_kernels
+from .prebuilt import SWITCH, load
 from .rft.kernel import plate_forces_compiled
 from .sand import gather, implicit_solve
 from .sand.array_table import TABLE_SIGNATURE
@@ -37,6 +39,23 @@ def uncached():
     return [name for name, kernel in cached_kernels().items() if not is_cached(kernel)]
 
 
+@contextlib.contextmanager
+def _numba_kernels_only():
+    """Runs within call numba's kernels, not prebuilt ones (which would leave those out of
+    numba's cache, from which the build takes them)."""
+    previous = os.environ.get(SWITCH)
+    os.environ[SWITCH] = '0'
+    load.cache_clear()
+    try:
+        yield
+    finally:
+        if previous is None:
+            del os.environ[SWITCH]
+        else:
+            os.environ[SWITCH] = previous
+        load.cache_clear()
+
+
 def warm_up(log=print):
     """Compile (or load) every kernel: short runs of the scenes and settings that use them,
     with the gather kernels of the other surfaces and the implicit step with elliptic cones
@@ -53,7 +72,8 @@ def warm_up(log=print):
         log(f'warmup: {scene} {overrides or ""}'.rstrip())
         Simulation(load_scene(scene, overrides)).step(2)
 
-    with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling:
+    with tempfile.TemporaryDirectory() as folder, BackgroundCompile(others) as compiling, \
+            _numba_kernels_only():
         run('hexapod', {})                      # implicit step with rows (plane), tripod gait
         run('articulated_leg', {})              # leg inverse kinematics
         run('quadruped', {})                    # the trot's targets
@@ -77,8 +97,12 @@ def prebuild():
     it loads the kernels from numba's cache, which this process has compiled some of); one
     line: what it printed (`prebuilt.state`), or why it failed (e.g. no C compiler: runs then
     load the kernels from numba's cache)."""
-    done = subprocess.run([sys.executable, '-m', 'rft_sim_ros.prebuild'], capture_output=True,
-                          text=True, stdin=subprocess.DEVNULL)
+    try:
+        done = subprocess.run([sys.executable, '-m', 'rft_sim_ros.prebuild'],
+                              capture_output=True, text=True, stdin=subprocess.DEVNULL,
+                              cwd=PACKAGE.parent)  # (this package, not one in the cwd)
+    except OSError as error:  # (no usable sys.executable, e.g. an embedding application)
+        return f'prebuilt kernels: not built (no building process: {error})'
     load.cache_clear()
     if done.returncode == 0:
         return done.stdout.strip().splitlines()[-1]

@@ -16,8 +16,10 @@ from hypothesis import settings
 # plates made by the tests are cached in a folder of their own, not the user's cache
 os.environ['XDG_CACHE_HOME'] = tempfile.mkdtemp(prefix='rft-sim-test-cache-')
 # the tests run numba's kernels (and test their cache), whether or not `rft-sim warmup` built
-# the prebuilt ones in this checkout; test_prebuilt builds and tests those in its own folder
-os.environ['RFT_SIM_PREBUILT'] = '0'
+# the prebuilt ones in this checkout; test_prebuilt builds and tests those in its own folder.
+# (RFT_SIM_PREBUILT=1 in the environment runs them on the prebuilt kernels instead: then the
+# tests of a cold start's compile do not hold.)
+os.environ.setdefault('RFT_SIM_PREBUILT', '0')
 
 settings.register_profile('default', max_examples=200, derandomize=True, deadline=None)
 settings.register_profile('explore', max_examples=5000, deadline=None)

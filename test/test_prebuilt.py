@@ -4,6 +4,8 @@ no longer fits this process (its sources, numba, numpy, Python, the CPU), or one
 is not used, and `prebuilt.state` says why."""
 import json
 import shutil
+import subprocess
+import sysconfig
 
 import numpy as np
 import pytest
@@ -20,10 +22,19 @@ _KERNELS = [(gather.gather_plane, TABLE_SIGNATURE), (STEP_KERNELS['plain'], STEP
             (implicit_law.implicit_plate_forces, TABLE_SIGNATURE)]
 
 
+def _c_compiler():
+    """The C compiler numba's ahead-of-time compiler calls (Python's build configuration),
+    or None where it is not installed."""
+    command = (sysconfig.get_config_var('CC') or 'cc').split()[0]
+    return shutil.which(command)
+
+
 @pytest.fixture(scope='module')
 def built(tmp_path_factory):
     """A folder with an extension of the plane's gather, the plain step and its plates'
     forces."""
+    if _c_compiler() is None:
+        pytest.skip('no C compiler: numba.pycc cannot build the prebuilt kernels here')
     folder = tmp_path_factory.mktemp('prebuilt')
     build(_KERNELS, folder)
     return folder
@@ -76,24 +87,35 @@ def _copy(built, tmp_path, **changes):
     """A copy of the built folder whose record has `changes`."""
     folder = tmp_path / 'copy'
     shutil.copytree(built, folder)
-    record = json.loads((folder / prebuilt.RECORD).read_text())
+    record_file = folder / prebuilt.toolchain_key(prebuilt.toolchain()) / prebuilt.RECORD
+    record = json.loads(record_file.read_text())
     record.update(changes)
-    (folder / prebuilt.RECORD).write_text(json.dumps(record))
+    record_file.write_text(json.dumps(record))
     return folder
 
 
-@pytest.mark.parametrize('name', ['numba', 'numpy', 'python', 'cpu'])
-def test_an_extension_built_with_another_toolchain_is_not_used(built, use, tmp_path, name):
-    use(_copy(built, tmp_path, **{name: 'other'}))
+@pytest.mark.parametrize('name', ['numba', 'numpy', 'python', 'cpu', 'cpu_features'])
+def test_an_extension_built_with_another_toolchain_is_not_used(built, use, monkeypatch, name):
+    use(built)
+    assert prebuilt.has(gather.gather_plane)
+    other = dict(prebuilt.toolchain(), **{name: 'other'})
+    monkeypatch.setattr(prebuilt, 'toolchain', lambda: other)
+    prebuilt.load.cache_clear()
     assert not prebuilt.has(gather.gather_plane)
-    assert prebuilt.state().startswith(f'prebuilt kernels: built for another {name} (other,')
-    assert 'rft-sim warmup' in prebuilt.state()
+    assert prebuilt.state() == ('prebuilt kernels: not built for this numba, numpy, Python '
+                                'and CPU (`rft-sim warmup` builds them)')
 
 
 def test_an_extension_of_other_sources_is_not_used(built, use, tmp_path):
     use(_copy(built, tmp_path, stats={'sand/gather.py': [1, 2]}, fingerprint='0' * 64))
     assert not prebuilt.has(gather.gather_plane)
-    assert 'built from other sources' in prebuilt.state()
+    assert prebuilt.state() == ('prebuilt kernels: built from other sources (they changed '
+                                'since): `rft-sim warmup` builds them again')
+
+
+def test_a_record_without_the_sources_times_checks_their_fingerprint(built, use, tmp_path):
+    use(_copy(built, tmp_path, stats=None, fingerprint='0' * 64))
+    assert not prebuilt.has(gather.gather_plane)
 
 
 def test_sources_touched_but_the_same_keep_the_extension(built, use, tmp_path):
@@ -101,9 +123,19 @@ def test_sources_touched_but_the_same_keep_the_extension(built, use, tmp_path):
     assert prebuilt.has(gather.gather_plane)
 
 
+@pytest.mark.parametrize('setting', ['DISABLE_JIT', 'BOUNDSCHECK'])
+def test_numbas_debugging_settings_turn_it_off(built, use, monkeypatch, setting):
+    import numba
+    use(built)
+    monkeypatch.setattr(numba.config, setting, 1)
+    prebuilt.load.cache_clear()
+    assert prebuilt.state() == f'prebuilt kernels: off (NUMBA_{setting} is set)'
+
+
 def test_no_extension_and_the_switch_say_so(use, tmp_path, monkeypatch):
     use(tmp_path)
-    assert prebuilt.state() == 'prebuilt kernels: not built (`rft-sim warmup` builds them)'
+    assert prebuilt.state() == ('prebuilt kernels: not built for this numba, numpy, Python '
+                                'and CPU (`rft-sim warmup` builds them)')
     monkeypatch.setenv(prebuilt.SWITCH, '0')
     prebuilt.load.cache_clear()
     assert prebuilt.state() == f'prebuilt kernels: off ({prebuilt.SWITCH}=0)'
@@ -114,3 +146,16 @@ def test_the_extension_holds_each_kernel_it_was_given(built, use):
     module, _ = prebuilt.load()
     assert sorted(name for name in dir(module) if name.startswith('rft_sim_ros')) == sorted(
         prebuilt.symbol(kernel) for kernel, _ in _KERNELS)
+
+
+def test_a_build_that_fails_says_why_and_the_warmup_goes_on(monkeypatch):
+    from rft_sim_ros import warmup
+    failed = subprocess.CompletedProcess([], 1, stdout='', stderr=(
+        'Traceback (most recent call last):\n  ...\n'
+        "distutils.errors.CompileError: command 'gcc' failed: No such file or directory\n"))
+    monkeypatch.setattr(warmup.subprocess, 'run', lambda *args, **kwargs: failed)
+    assert warmup.prebuild() == ("prebuilt kernels: not built (distutils.errors.CompileError: "
+                                 "command 'gcc' failed: No such file or directory)")
+    monkeypatch.undo()
+    monkeypatch.setattr(warmup.sys, 'executable', '/nonexistent/python')
+    assert warmup.prebuild().startswith('prebuilt kernels: not built (no building process: ')

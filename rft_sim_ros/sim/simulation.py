@@ -74,8 +74,9 @@ def kernel_key(scene):
 
 
 def compile_notice(scene):
-    """The line to show before building `scene` (SceneConfig) when its sand kernels are not
-    in numba's cache yet: 'compiling kernels, first run only', with ', ~N s as here last
+    """The line to show before building `scene` (SceneConfig) when its sand kernels are
+    neither prebuilt nor in numba's cache yet (`engine.kernels_cached`): 'compiling kernels,
+    first run only', with ', ~N s as here last
     time' where a start that compiled the same kernels with this cache measured it
     (`engine.cold_start_estimate`; a first run after install has no such measure, and a
     figure from another machine would be a promise); None when cached."""
