@@ -234,7 +234,8 @@ def diagnostic_values(msg):
 def test_diagnostics_ok():
     state = make_state()
     run = messages.RunStatus(scene='hexapod', real_time_factor=14.5,
-                             commands_rejected={'unknown_joint': 3, 'not_finite': 1})
+                             commands_rejected={'unknown_joint': 3, 'not_finite': 1},
+                             kernels='prebuilt kernels: in use')
     msg = messages.diagnostics_message(FACTORY, state, run)
     assert msg.__msgtype__ == topics.DIAGNOSTICS_TYPE
     assert stamp_ns(msg.header.stamp) == seconds_to_ns(state.time)
@@ -250,6 +251,7 @@ def test_diagnostics_ok():
     assert int(values['commands_rejected']) == 4
     assert int(values['commands_rejected.unknown_joint']) == 3
     assert int(values['commands_rejected.not_finite']) == 1
+    assert values['kernels'] == 'prebuilt kernels: in use'
 
 
 def test_diagnostics_error_when_diverged():
@@ -261,6 +263,7 @@ def test_diagnostics_error_when_diverged():
     assert values['stable'] == 'false'
     assert values['commands_rejected'] == '0'
     assert np.isnan(float(values['real_time_factor']))
+    assert 'kernels' not in values  # (not said)
 
 
 def test_diagnostics_say_paused():

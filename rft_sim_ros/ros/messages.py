@@ -68,6 +68,8 @@ class RunStatus:
         (`CommandHandler.rejections`).
     paused: True while the simulation is paused (sim time stands still).
     outcome: the run's outcome so far (`Simulation.outcome`; None: not given).
+    kernels: which sand kernels run, the prebuilt ones or numba's (`prebuilt.state`), beside
+        the real-time factor they give ('': not said).
     """
     scene: str
     real_time_factor: float
@@ -76,6 +78,7 @@ class RunStatus:
     commands_rejected: Mapping[str, int] = field(default_factory=dict)
     paused: bool = False
     outcome: Mapping = None
+    kernels: str = ''
 
 
 def stamp(factory, t):
@@ -333,6 +336,7 @@ def diagnostic_fields(state, status):
               ('paused', bool(status.paused)),
               ('commands_rejected', int(sum(rejected.values())))]
     values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
+    values += [('kernels', status.kernels)] if status.kernels else []
     values += outcome_values(status.outcome)
     fell = status.outcome is not None and status.outcome['fell']
     return DiagnosticFields(
