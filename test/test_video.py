@@ -17,6 +17,7 @@ import pytest
 from rft_sim_ros.render.gl import offscreen_problem
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.runner import run_scene
+from test_cli import _as_in_a_terminal
 
 av = pytest.importorskip('av')
 
@@ -155,7 +156,8 @@ def test_ctrl_c_ends_a_cli_run_with_its_whole_video(tmp_path):
                               '--video', '--duration', '600', '--out', str(out), '--quiet',
                               *[f'--set={k}={v}' for k, v in SMALL.items()]],
                              env={**os.environ, 'PYTHONPATH': os.getcwd()},
-                             start_new_session=True, stderr=subprocess.PIPE, text=True)
+                             start_new_session=True, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=_as_in_a_terminal)
     try:
         deadline = time.monotonic() + 180
         while _playable_frames(out / 'video.mp4') < FPS:  # a second of video written
