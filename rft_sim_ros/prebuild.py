@@ -15,6 +15,7 @@ compiled them.
 import contextlib
 import json
 import os
+import sys
 import tempfile
 import time
 import warnings
@@ -94,11 +95,18 @@ def build(kernels, folder=FOLDER):
 def main():
     """`python -m rft_sim_ros.prebuild`: build the engine's table kernels
     (`sand.engine.TABLE_KERNELS`) into `prebuilt.FOLDER` and print `prebuilt.state` and how
-    long it took; a failure raises (the traceback's last line says why)."""
+    long it took; returns 0. Where the build fails, prints why as one line on stderr (the
+    error's type and message, whose lines numba's compiler errors spread over several) and
+    returns 1."""
     from rft_sim_ros.sand.engine import TABLE_KERNELS
-    seconds = build(TABLE_KERNELS)
+    try:
+        seconds = build(TABLE_KERNELS)
+    except Exception as error:  # (the building process's report: warmup says it and goes on)
+        print(f'{type(error).__name__}: {" ".join(str(error).split())}', file=sys.stderr)
+        return 1
     print(f'{state()} (built in {seconds:.1f} s)')
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

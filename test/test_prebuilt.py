@@ -159,3 +159,16 @@ def test_a_build_that_fails_says_why_and_the_warmup_goes_on(monkeypatch):
     monkeypatch.undo()
     monkeypatch.setattr(warmup.sys, 'executable', '/nonexistent/python')
     assert warmup.prebuild().startswith('prebuilt kernels: not built (no building process: ')
+
+
+def test_the_building_process_says_why_it_failed_on_one_line(monkeypatch, capsys):
+    from rft_sim_ros import prebuild
+
+    def no_compiler(kernels):
+        raise RuntimeError('Attempted to compile AOT function without the compiler present.'
+                           ' If using conda try:\n\n#> conda install gcc_linux-64')
+    monkeypatch.setattr(prebuild, 'build', no_compiler)
+    assert prebuild.main() == 1
+    assert capsys.readouterr().err == (
+        'RuntimeError: Attempted to compile AOT function without the compiler present. If '
+        'using conda try: #> conda install gcc_linux-64\n')
