@@ -136,7 +136,13 @@ def has(dispatcher):
     return kernel(dispatcher) is not dispatcher
 
 
-def state():
-    """One line: whether runs use the prebuilt kernels, and why not."""
+def state(*dispatchers):
+    """One line: whether runs use the prebuilt kernels, and why not; given numba dispatchers,
+    whether those are all prebuilt (an extension built before one of them was made a table
+    kernel lacks it)."""
     module, why = load()
-    return 'prebuilt kernels: in use' if module else f'prebuilt kernels: {why}'
+    if not module:
+        return f'prebuilt kernels: {why}'
+    lacking = [kernel.py_func.__name__ for kernel in dispatchers if not has(kernel)]
+    return (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
+            'them)' if lacking else 'prebuilt kernels: in use')

@@ -64,10 +64,12 @@ def _drop(steps=3000):
 def test_a_run_on_prebuilt_kernels_gives_numbas_results_to_the_bit(built, use):
     jit, jit_forces, engine = _drop()
     assert not prebuilt.has(engine._gathering)
+    assert engine.kernels == f'prebuilt kernels: off ({prebuilt.SWITCH}=0)'
     use(built)
     assert prebuilt.state() == 'prebuilt kernels: in use'
     ahead, ahead_forces, engine = _drop()
     assert all(prebuilt.has(kernel) for kernel, _ in _KERNELS)
+    assert engine.kernels == 'prebuilt kernels: in use'
     assert engine._gather is not engine._gathering  # (the extension's function is called)
     assert np.array_equal(ahead, jit) and np.array_equal(ahead_forces, jit_forces)
     assert jit[2] < 0.0  # (the plate sank into the sand: the kernels had work to do)
@@ -172,3 +174,14 @@ def test_the_building_process_says_why_it_failed_on_one_line(monkeypatch, capsys
     assert capsys.readouterr().err == (
         'RuntimeError: Attempted to compile AOT function without the compiler present. If '
         'using conda try: #> conda install gcc_linux-64\n')
+
+
+def test_an_engine_says_which_of_its_kernels_are_not_prebuilt(built, use):
+    use(built)
+    slope = Simulation(load_scene('plate_drop', {'sand.surface.type': 'slope'})).engine
+    assert not prebuilt.has(gather.gather_slope)  # (not in this extension)
+    assert slope.kernels == ('prebuilt kernels: not built for gather_slope (`rft-sim warmup` '
+                             'builds them)')
+    paper = Simulation(load_scene('plate_drop', {'rft.coupling': 'paper',
+                                                 'rft.low_velocity.method': 'ema'})).engine
+    assert paper.kernels == 'numpy (rft.coupling: paper), no compiled kernels'

@@ -68,7 +68,7 @@ class RunStatus:
         (`CommandHandler.rejections`).
     paused: True while the simulation is paused (sim time stands still).
     outcome: the run's outcome so far (`Simulation.outcome`; None: not given).
-    kernels: which sand kernels run, the prebuilt ones or numba's (`prebuilt.state`), beside
+    kernels: which sand kernels run, the prebuilt ones or numba's (`SandEngine.kernels`), beside
         the real-time factor they give ('': not said).
     """
     scene: str

@@ -12,7 +12,6 @@ cycles are written in batches (`BATCH`); the bag is complete once the recorder i
 """
 import time
 
-from rft_sim_ros import prebuilt
 from rft_sim_ros.ros.bag import BagWriter
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, status_key
 from rft_sim_ros.ros.messages import RunStatus
@@ -65,7 +64,7 @@ class BagRecorder:
                          if wall > 0 and state.time > sim_start else float('nan'),
                          stable=self._sim.diverged is None, problem=self._sim.diverged or '',
                          commands_rejected=rejected, outcome=self._sim.outcome(),
-                         kernels=prebuilt.state())
+                         kernels=self._sim.engine.kernels)
 
     def record(self, state):
         """One publish cycle of `state` (SimState), plus the sand surface and /diagnostics

@@ -43,7 +43,6 @@ import math
 import time
 from collections import Counter
 
-from rft_sim_ros import prebuilt
 from rft_sim_ros.ros import inbound, parameters, topics
 from rft_sim_ros.ros.diagnostics import DiagnosticsSchedule, RateMeter, status_key
 from rft_sim_ros.ros.messages import RunStatus, ServiceResult
@@ -151,7 +150,7 @@ class SimRuntime:
         return RunStatus(scene=self.sim.scene.name, real_time_factor=real_time_factor,
                          stable=self.diverged is None, problem=self.diverged or '',
                          commands_rejected=self.rejections, paused=self.paused,
-                         outcome=self.sim.outcome(), kernels=prebuilt.state())
+                         outcome=self.sim.outcome(), kernels=self.sim.engine.kernels)
 
     # --- stepping and publishing ------------------------------------------------------------
 

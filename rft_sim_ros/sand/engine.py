@@ -596,6 +596,13 @@ class SandEngine:
             if self._counters[layout.SLOTS] or had_slots:  # (zeros once the last leave)
                 self._explicit()
 
+    @property
+    def kernels(self):
+        """One line: whether this engine's step calls the prebuilt table kernels (its gather,
+        and its implicit step) or numba's, and why (`prebuilt.state`)."""
+        stepping = (self._stepping,) if self._implicit_method else ()
+        return prebuilt.state(self._gathering, *stepping)
+
     def _explicit(self):
         """Explicit sand wrenches ('ema' or 'none': explicit.smoothed_wrenches) of the plates
         gathered this step, written to xfrc_applied."""

@@ -62,6 +62,11 @@ class PaperLoopEngine(SandEngine):
         self._normals = np.zeros((len(self.areas), 3))
         self.forget_last_step()
 
+    @property
+    def kernels(self):
+        """This engine's step runs in numpy, no compiled kernel (module docstring)."""
+        return 'numpy (rft.coupling: paper), no compiled kernels'
+
     def forget_last_step(self):
         """As SandEngine's, and the loop's own memory: the last plate positions (so the
         next velocities are zero), the EMA history and the pending wrenches."""
