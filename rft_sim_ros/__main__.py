@@ -1,6 +1,6 @@
 """`rft-sim` and `python -m rft_sim_ros`: the CLI behind a guard for Ctrl-C during start-up.
 
-Importing the CLI loads numpy, MuJoCo, numba and the scene code (about a second, longer on a
+Importing the CLI loads numpy, MuJoCo and the scene code (about half a second, longer on a
 cold machine). A KeyboardInterrupt raised inside those imports can end in a traceback, or be
 swallowed by a library's catch-all and lost. So while they load, this module (standard
 library only) only notes a Ctrl-C; once they are loaded, a noted Ctrl-C ends the command the

@@ -19,6 +19,8 @@ import sys
 import threading
 import traceback
 
+from . import kernel_cache
+
 #: s after a KeyboardInterrupt was lost before it is delivered again.
 REDELIVERY_S = 0.01
 
@@ -91,13 +93,27 @@ class _HoldInterrupts:
                 signal.raise_signal(signal.SIGINT)  # handled at the next bytecode
 
 
+@contextlib.contextmanager
 def held_while_compiling():
     """Context: a first Ctrl-C (SIGINT) waits for the numba compile or cache load in hand to
     end before it acts (`_HoldInterrupts`). For a process whose Python code owns SIGINT's
-    handler: rclpy installs its own in C, which Python's `signal.signal` would replace."""
-    from numba.core import event  # (numba loads scipy: 0.3 s the CLI's start does without)
-    event.Listener.register(_HoldInterrupts)  # (numba takes Listener instances)
-    return event.install_listener('numba:compiler_lock', _HoldInterrupts())
+    handler: rclpy installs its own in C, which Python's `signal.signal` would replace.
+    The listener is installed once the package imports numba for its kernels
+    (`kernel_cache.when_kernels_import`): a run on prebuilt kernels imports none, and numba
+    loads scipy (0.3 s)."""
+    listening = contextlib.ExitStack()
+
+    def listen():
+        from numba.core import event
+        event.Listener.register(_HoldInterrupts)  # (numba takes Listener instances)
+        listening.enter_context(event.install_listener('numba:compiler_lock',
+                                                       _HoldInterrupts()))
+    withdraw = kernel_cache.when_kernels_import(listen)
+    with listening:
+        try:
+            yield
+        finally:
+            withdraw()
 
 
 def release_quietly(interrupt):

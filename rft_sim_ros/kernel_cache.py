@@ -3,8 +3,8 @@ there, whether they are still those of the package's sources, and compiling some
 second process. It imports nothing of the package: every kernel module imports it.
 
 The sand engine's kernels (`rft.kernel`, `sand.gather`, `sand.implicit_solve`,
-`sand.deformable`, `sand.surface_kernels`, ...) and the gaits' (`scenes.gaits`,
-`scenes.leg_kinematics`, `scenes.quadruped`) are numba functions compiled with cache=True: the
+`sand.deformable_kernels`, `sand.surface_kernels`, ...) and the gaits'
+(`scenes.gait_kernels`) are numba functions compiled with cache=True: the
 first run after an install (or after their source changed) compiles them (`BackgroundCompile`
 puts a share in a second process); every later run loads them from the cache in a fraction of
 a second. `sand.engine.kernels_cached` (and
@@ -14,7 +14,7 @@ kernels one engine needs (one gather kernel per kind of surface); `rft-sim warmu
 
 numba checks a cached kernel against its own source file only, but a kernel compiles in
 helpers and constants from other files too (`sand/surface_kernels.py`, `sand/deformable.py`
-and `sand/array_table.py` into the gather kernels of `sand/gather.py`): an upgrade or an
+and `sand/table_readers.py` into the gather kernels of `sand/gather.py`): an upgrade or an
 edit that changed only those would load kernels compiled from the old code. So each kernel
 module ends by calling `forget_stale(globals())`, before any of its kernels can load: the
 fingerprint of every source the kernels are compiled from (`kernel_sources`, read as text,
@@ -32,17 +32,17 @@ import hashlib
 import importlib
 import importlib.util
 import json
+import sys
 from pathlib import Path
 
 #: Modules holding the package's cached numba kernels.
 KERNEL_MODULES = ('rft_sim_ros.rft.kernel', 'rft_sim_ros.sand.constraint_rows',
-                  'rft_sim_ros.sand.deformable', 'rft_sim_ros.sand.elliptic_cones',
+                  'rft_sim_ros.sand.deformable_kernels', 'rft_sim_ros.sand.elliptic_cones',
                   'rft_sim_ros.sand.explicit', 'rft_sim_ros.sand.gather',
                   'rft_sim_ros.sand.implicit_law', 'rft_sim_ros.sand.implicit_solve',
                   'rft_sim_ros.sand.joint_friction', 'rft_sim_ros.sand.mujoco_terms',
                   'rft_sim_ros.sand.surface_kernels', 'rft_sim_ros.sand.tree_solve',
-                  'rft_sim_ros.scenes.gaits', 'rft_sim_ros.scenes.leg_kinematics',
-                  'rft_sim_ros.scenes.quadruped')
+                  'rft_sim_ros.scenes.gait_kernels')
 #: The package's folder.
 PACKAGE = Path(__file__).resolve().parent
 
@@ -135,6 +135,22 @@ def sources_unchanged(recorded):
         return False
 
 
+#: Callables `when_kernels_import` keeps for the first kernel module's import.
+_KERNEL_MODULE_HOOKS = []
+
+
+def when_kernels_import(hook):
+    """Call `hook()` once numba is imported for the package's kernels: now, where it is
+    already, else when the first kernel module is imported (its `forget_stale`, before any
+    of its kernels can compile or load). A run whose kernels are all prebuilt imports none
+    (`prebuilt`). Returns a callable that withdraws the hook where it was not called yet."""
+    if 'numba' in sys.modules:
+        hook()
+    else:
+        _KERNEL_MODULE_HOOKS.append(hook)
+    return lambda: hook in _KERNEL_MODULE_HOOKS and _KERNEL_MODULE_HOOKS.remove(hook)
+
+
 def forget_stale(namespace, fingerprint=None):
     """Drop the cached kernels of the module whose globals are `namespace` when they were
     compiled from other sources than `fingerprint` (default: `sources_fingerprint()`, the
@@ -146,6 +162,8 @@ def forget_stale(namespace, fingerprint=None):
     of each of `kernel_sources` when it was written (JSON). While those all still hold, the
     sources are the marker's and the fingerprint is not computed (it reads and parses some
     thirty files, about 0.1 s of every start); an explicit `fingerprint` is always compared."""
+    while _KERNEL_MODULE_HOOKS:  # (the first kernel module: numba is now imported)
+        _KERNEL_MODULE_HOOKS.pop(0)()
     kernels = module_kernels(namespace['__name__'], namespace).values()
     if not kernels:  # (e.g. NUMBA_DISABLE_JIT: no dispatchers)
         return False
@@ -296,5 +314,4 @@ def _compile_main(specs):
 
 
 if __name__ == '__main__':
-    import sys
     _compile_main(sys.argv[1:])

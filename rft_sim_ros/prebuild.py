@@ -1,16 +1,17 @@
-"""Build the prebuilt kernels that `prebuilt` loads: one extension module of the engine's
-table kernels, compiled for this machine's CPU by numba's ahead-of-time compiler
-(`numba.pycc`, which needs a C compiler for its small runtime).
+"""Build the prebuilt kernels that `prebuilt` loads: one extension module of the kernels a run
+calls from Python (`kernel_names.PREBUILT`), compiled for this machine's CPU by numba's
+ahead-of-time compiler (`numba.pycc`, which needs a C compiler for its small runtime).
 
 Each kernel compiles through its own numba dispatcher, with the options it was declared with
 (fastmath, error model), or loads from numba's cache where that holds it already; the
-extension exports a caller of it with the argument types given, and its machine code is
-generated for the CPU name and instruction-set features numba's JIT compiles for (numba's
-ahead-of-time compiler would otherwise take every feature of the CPU's model, which a virtual
-machine may hide). `rft-sim warmup` builds after it has run the scenes, in a second process
-(`python -m rft_sim_ros.prebuild`, `main`): measured on an AMD EPYC VM, the build took 19 to
-23 s where the kernels loaded from numba's cache, and 60 s where the same process had just
-compiled them.
+extension exports a caller of it with the argument types given, which the record keeps for
+the checks of every call (`prebuilt.checked`), and its machine code is generated for the CPU
+name and instruction-set features numba's JIT compiles for (numba's ahead-of-time compiler
+would otherwise take every feature of the CPU's model, which a virtual machine may hide).
+`rft-sim warmup` builds after it has run the scenes, in a second process (`python -m
+rft_sim_ros.prebuild`, `main`): measured on an AMD EPYC VM, the build took 19 to 28 s where
+the kernels loaded from numba's cache, and 60 s where the same process had just compiled
+them.
 """
 import contextlib
 import json
@@ -22,16 +23,16 @@ import warnings
 from pathlib import Path
 
 from .kernel_cache import kernel_sources, source_stats, sources_fingerprint, sources_unchanged
-from .prebuilt import (FOLDER, RECORD, extension_file, load, module_name, state, symbol,
-                       toolchain, toolchain_key)
+from .prebuilt import (FOLDER, RECORD, dispatcher, extension_file, load, module_name, state,
+                       symbol, toolchain, toolchain_key)
 
 
-def _caller(dispatcher, arity):
-    """A Python function of `arity` arguments that calls numba dispatcher `dispatcher` with
+def _caller(kernel, arity):
+    """A Python function of `arity` arguments that calls numba dispatcher `kernel` with
     them (what the extension exports, compiled for one signature: numba compiles an exported
     function of named arguments only, not *args)."""
     names = ', '.join(f'a{i}' for i in range(arity))
-    namespace = {'kernel': dispatcher}
+    namespace = {'kernel': kernel}
     exec(f'def call({names}):\n    return kernel({names})\n', namespace)
     return namespace['call']
 
@@ -51,7 +52,7 @@ def _host_features():
 
 
 def build(kernels, folder=FOLDER):
-    """Compile `kernels` ((numba dispatcher, numba's text of its argument types) pairs) into
+    """Compile `kernels` ((kernel name, numba's text of its argument types) pairs) into
     an extension in `folder`'s subfolder of this `toolchain()` and record what it was built
     from there (`prebuilt.RECORD`), replacing the extension and record of older sources (a
     process that loaded one keeps it). Returns the wall seconds it took. Raises what the
@@ -70,12 +71,13 @@ def build(kernels, folder=FOLDER):
     with tempfile.TemporaryDirectory(dir=target) as work, _host_features():
         compiler = CC(name)
         compiler.output_dir, compiler.target_cpu, compiler.verbose = work, 'host', False
-        for dispatcher, signature in kernels:
+        for kernel_name, signature in kernels:
+            kernel = dispatcher(kernel_name)
             arguments, _ = sigutils.normalize_signature(signature)
-            dispatcher.compile(arguments)
-            returns = dispatcher.overloads[tuple(arguments)].signature.return_type
-            compiler.export(symbol(dispatcher), returns(*arguments))(
-                _caller(dispatcher, len(arguments)))
+            kernel.compile(arguments)
+            returns = kernel.overloads[tuple(arguments)].signature.return_type
+            compiler.export(symbol(kernel_name), returns(*arguments))(
+                _caller(kernel, len(arguments)))
         compiler.compile()
         if not sources_unchanged(stats):
             raise RuntimeError("the kernels' sources changed while they compiled: build again")
@@ -83,7 +85,8 @@ def build(kernels, folder=FOLDER):
         seconds = time.perf_counter() - start
         kept = Path(work) / RECORD
         kept.write_text(json.dumps({'fingerprint': fingerprint, 'stats': stats, **tools,
-                                    'built_s': round(seconds, 1)}, indent=1))
+                                    'kernels': dict(kernels), 'built_s': round(seconds, 1)},
+                                   indent=1))
         os.replace(kept, target / RECORD)
     for older in target.glob(f'{module_name("")}*'):
         if older != extension_file(target, name):
@@ -93,14 +96,14 @@ def build(kernels, folder=FOLDER):
 
 
 def main():
-    """`python -m rft_sim_ros.prebuild`: build the engine's table kernels
-    (`sand.engine.TABLE_KERNELS`) into `prebuilt.FOLDER` and print `prebuilt.state` and how
+    """`python -m rft_sim_ros.prebuild`: build the kernels a run calls from Python
+    (`kernel_names.PREBUILT`) into `prebuilt.FOLDER` and print `prebuilt.state` and how
     long it took; returns 0. Where the build fails, prints why as one line on stderr (the
     error's type and message, whose lines numba's compiler errors spread over several) and
     returns 1."""
-    from rft_sim_ros.sand.engine import TABLE_KERNELS
+    from rft_sim_ros.kernel_names import PREBUILT
     try:
-        seconds = build(TABLE_KERNELS)
+        seconds = build(PREBUILT)
     except Exception as error:  # (the building process's report: warmup says it and goes on)
         print(f'{type(error).__name__}: {" ".join(str(error).split())}', file=sys.stderr)
         return 1

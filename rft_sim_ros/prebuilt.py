@@ -1,26 +1,34 @@
-"""The engine's table kernels compiled ahead of time for this machine, and whether a run can
-use them. `rft-sim warmup` builds them (`prebuild`); a run that finds them current calls them
-from a plain extension module and compiles or loads none of them through numba.
+"""The kernels a run calls from Python compiled ahead of time for this machine, and whether a
+run can use them. `rft-sim warmup` builds them (`prebuild`); a run that finds them current
+calls them from a plain extension module and compiles, loads or imports nothing of numba's.
 
-Which kernels: those that take their arrays as one `sand.array_table` table (the gather
-kernels, the implicit steps, the plates' forces; `sand.engine.TABLE_KERNELS`). A function
-compiled ahead has no dispatcher that checks the types of its arguments: numba's unboxing of
-an array checks only its item size, not its dtype, rank or layout (given another it reads the
-wrong memory). A table is always an int64 C-contiguous matrix, and its accessors check each
-entry's element type and rank as the kernel reads it, so these are safe to call from Python.
-They are also the kernels that take longest to compile: the implicit step alone takes 14 to
-18 s of CPU on an AMD EPYC VM.
+Which kernels: every numba kernel the sand engine and the built-in gaits call from Python
+(`kernel_names.PREBUILT`): the gather kernels, the implicit steps and the plates' forces,
+which take their arrays as one `sand.array_table` table, and the constraint rows' and the
+gaits' kernels, which take arrays and numbers. A function compiled ahead has no dispatcher
+that checks the types of its arguments: numba's unboxing of an array checks only its item
+size, not its dtype, rank or layout (given another it reads the wrong memory). So each is
+called through a check of every argument against the types it was built for (`checked`),
+and arguments of other types go to its numba dispatcher, as a call from Python always has;
+a table's own entries are checked by the kernel as it reads them. They include the kernels
+that take longest to compile (the implicit step alone: 14 to 18 s of CPU on an AMD EPYC VM).
 
 Where: `_prebuilt/<toolchain key>/` in the package's folder, one folder per `toolchain()`
-(numba, numpy and Python versions, and the CPU name and instruction-set features numba
-compiles for), so that environments sharing a checkout keep their own: an extension named
-by the fingerprint of the kernels' sources (`kernel_cache.sources_fingerprint`) and
-`build.json`, which names it and records those sources' fingerprint and their files' times
-and sizes. A run uses the extension only where all of that still holds (`load`); otherwise,
-with RFT_SIM_PREBUILT=0 in the environment, and under numba's debugging settings
-(NUMBA_DISABLE_JIT, NUMBA_BOUNDSCHECK, which the extension was not built with), the numba
-dispatchers run, as without it (`state` says why). Standard library, numba's configuration
-and kernel_cache only: the engine imports this.
+(numba, numpy and Python versions, the CPU name and instruction-set features, numba's CPU
+settings), so that environments sharing a checkout keep their own: an extension named by the
+fingerprint of the kernels' sources (`kernel_cache.sources_fingerprint`) and `build.json`,
+which names it and records those sources' fingerprint, their files' times and sizes, and
+each kernel's argument types. A run uses the extension only where all of that still holds
+(`load`); otherwise, with RFT_SIM_PREBUILT=0 in the environment, under numba's debugging
+settings (NUMBA_DISABLE_JIT, NUMBA_BOUNDSCHECK, which the extension was not built with) and
+with a numba configuration file in the working folder, the numba dispatchers run, as
+without it (`state` says why).
+
+This module imports neither numba nor the kernels' modules (llvmlite only, for the CPU), so
+that a run whose kernels are all prebuilt starts without numba (its import, 0.3 to 0.5 s,
+and its first load of a kernel, as much again): kernels are named by their dotted path
+(`kernel_names`), and `dispatcher` imports one's module where a run needs numba's. Standard
+library, numpy and kernel_cache besides: the engine and the gaits import this.
 """
 import functools
 import hashlib
@@ -28,8 +36,11 @@ import importlib.machinery
 import importlib.util
 import json
 import os
+import re
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from .kernel_cache import PACKAGE, sources_fingerprint, sources_unchanged
 
@@ -39,11 +50,25 @@ FOLDER = PACKAGE / '_prebuilt'
 RECORD = 'build.json'
 #: Environment variable that turns the prebuilt kernels off where it is '0'.
 SWITCH = 'RFT_SIM_PREBUILT'
+#: numba's configuration file, read from the working folder.
+CONFIG_FILE = '.numba_config.yaml'
 
 
-def symbol(kernel):
-    """The name the extension exports numba dispatcher `kernel` under."""
-    return f'{kernel.py_func.__module__}.{kernel.py_func.__name__}'.replace('.', '__')
+def symbol(name):
+    """The name the extension exports kernel `name` ('package.module.function') under."""
+    return name.replace('.', '__')
+
+
+def kernel_name(dispatcher):
+    """The dotted name of numba dispatcher `dispatcher` ('package.module.function')."""
+    return f'{dispatcher.py_func.__module__}.{dispatcher.py_func.__name__}'
+
+
+def dispatcher(name):
+    """The numba dispatcher of kernel `name` ('package.module.function'): imports its module,
+    and so numba."""
+    module, _, function = name.rpartition('.')
+    return getattr(importlib.import_module(module), function)
 
 
 def module_name(fingerprint):
@@ -59,16 +84,20 @@ def extension_file(folder, name):
 
 def toolchain():
     """{name: version} of what compiled code depends on besides its sources: numba, numpy,
-    Python, and the CPU name and features numba compiles for (those of this machine, or
-    NUMBA_CPU_NAME and NUMBA_CPU_FEATURES)."""
+    Python, the CPU name and instruction-set features LLVM finds on this machine, and the
+    settings of numba's that change which of them its code uses (NUMBA_CPU_NAME,
+    NUMBA_CPU_FEATURES, NUMBA_ENABLE_AVX), without importing numba: numba's version from its
+    installed distribution, the CPU from llvmlite (0.05 s)."""
+    from importlib.metadata import version
+
     import llvmlite.binding
-    import numba
     import numpy
-    from numba.core.codegen import get_host_cpu_features
-    return {'numba': numba.__version__, 'numpy': numpy.__version__,
+    return {'numba': version('numba'), 'numpy': numpy.__version__,
             'python': sys.version.split()[0],
-            'cpu': numba.config.CPU_NAME or llvmlite.binding.get_host_cpu_name(),
-            'cpu_features': get_host_cpu_features()}
+            'cpu': os.environ.get('NUMBA_CPU_NAME') or llvmlite.binding.get_host_cpu_name(),
+            'cpu_features': (os.environ.get('NUMBA_CPU_FEATURES')
+                             or llvmlite.binding.get_host_cpu_features().flatten()),
+            'numba_enable_avx': os.environ.get('NUMBA_ENABLE_AVX', '')}
 
 
 def toolchain_key(tools):
@@ -77,11 +106,18 @@ def toolchain_key(tools):
 
 
 def _debugging():
-    """The numba debugging setting in force that the extension was not built with, or ''."""
-    import numba
-    for name in ('DISABLE_JIT', 'BOUNDSCHECK'):
-        if getattr(numba.config, name):
-            return f'NUMBA_{name}'
+    """Why numba's settings rule the extension out, or '': a debugging setting it was not
+    built with (NUMBA_DISABLE_JIT, NUMBA_BOUNDSCHECK: read from the environment as numba reads
+    them, so that numba is not imported), or a numba configuration file in the working folder
+    (which may set anything)."""
+    for name in ('NUMBA_DISABLE_JIT', 'NUMBA_BOUNDSCHECK'):
+        try:
+            if int(os.environ.get(name) or 0):
+                return f'{name} is set'
+        except ValueError:
+            return f'{name} is set'
+    if Path(CONFIG_FILE).is_file():
+        return f"numba's {CONFIG_FILE} in the working folder sets its options"
     return ''
 
 
@@ -97,52 +133,100 @@ def _stale(kept):
 
 @functools.lru_cache(maxsize=None)
 def load():
-    """(the extension module or None, why not: '' when loaded), for this process's
-    `toolchain()` in `FOLDER`. Cached: the first answer holds for the process."""
+    """({kernel name: its prebuilt function, `checked`}, why there are none: '' when
+    loaded), for this process's `toolchain()` in `FOLDER`. Cached: the first answer holds
+    for the process."""
     if os.environ.get(SWITCH, '1') == '0':
-        return None, f'off ({SWITCH}=0)'
+        return {}, f'off ({SWITCH}=0)'
     debugging = _debugging()
     if debugging:
-        return None, f'off ({debugging} is set)'
+        return {}, f'off ({debugging})'
     folder = FOLDER / toolchain_key(toolchain())
     try:
         kept = json.loads((folder / RECORD).read_text())
     except (OSError, ValueError):
-        return None, ('not built for this numba, numpy, Python and CPU (`rft-sim warmup` '
-                      'builds them)')
+        return {}, ('not built for this numba, numpy, Python and CPU (`rft-sim warmup` '
+                    'builds them)')
     why = _stale(kept)
     if why:
-        return None, f'{why}: `rft-sim warmup` builds them again'
+        return {}, f'{why}: `rft-sim warmup` builds them again'
     name = module_name(kept['fingerprint'])
     try:
         spec = importlib.util.spec_from_file_location(name, extension_file(folder, name))
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
     except (ImportError, OSError) as error:
-        return None, f'not loadable: {error}'
-    return module, ''
+        return {}, f'not loadable: {error}'
+    return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature)
+            for kernel, signature in kept.get('kernels', {}).items()}, ''
 
 
-def kernel(dispatcher):
-    """The prebuilt function of numba dispatcher `dispatcher` where the current extension
-    has it, else the dispatcher itself (same arguments, same results). Call it with what
-    `sand.engine.TABLE_KERNELS` says only: it does not check its arguments' types."""
-    module, _ = load()
-    return getattr(module, symbol(dispatcher), dispatcher) if module else dispatcher
+#: numba's scalar types a prebuilt kernel may take, and the Python and numpy types numba
+#: types as each (`checked`).
+_SCALARS = {'float64': (float, np.float64), 'int64': (int, np.int64),
+            'boolean': (bool, np.bool_)}
+_ARRAY = re.compile(r'(\w+)\[([:, ]*)::1\]')  # a C-contiguous array: float64[:, ::1]
 
 
-def has(dispatcher):
-    """Whether a run calls `dispatcher`'s prebuilt function (`kernel`)."""
-    return kernel(dispatcher) is not dispatcher
+def checked(function, name, signature):
+    """`function` (kernel `name`'s prebuilt function, compiled for `signature`, numba's text
+    of its argument types) called only with arguments numba would type as that signature,
+    and kernel `name`'s numba dispatcher (`dispatcher`) with any others. A function compiled
+    ahead does not check its arguments (numba's unboxing of an array checks only its item
+    size: given another dtype, rank or layout it reads the wrong memory): the check is made
+    here, per call, on each argument's exact type: for a scalar Python's or numpy's type that
+    numba types as it (float or numpy.float64 for float64; int or numpy.int64 for int64;
+    bool or numpy.bool_ for boolean), for an array a numpy.ndarray of that dtype and rank,
+    C-contiguous, writeable and aligned. Scalars and C-contiguous arrays only (ValueError
+    otherwise). The check is one generated expression (0.1 to 0.3 us an argument)."""
+    arguments = [part.strip() for part in re.split(r',\s*(?![^\[]*\])', signature.strip('()'))
+                 if part.strip()]
+    tests, constants = [], {'function': function, 'name': name, 'dispatcher': dispatcher,
+                            'ndarray': np.ndarray}
+    for i, argument in enumerate(arguments):
+        array = _ARRAY.fullmatch(argument)
+        if argument in _SCALARS:
+            constants[f't{i}'], constants[f'u{i}'] = _SCALARS[argument]
+            tests.append(f'(type(a{i}) is t{i} or type(a{i}) is u{i})')
+        elif array:
+            constants[f'd{i}'] = np.dtype(array.group(1))
+            rank = array.group(2).count(':') + 1
+            tests.append(f'(type(a{i}) is ndarray and a{i}.dtype == d{i} and a{i}.ndim == {rank}'
+                         f' and (f := a{i}.flags).c_contiguous and f.writeable and f.aligned)')
+        else:
+            raise ValueError(f'{name}: argument type {argument!r}: a prebuilt kernel takes '
+                             'float64, int64, boolean and C-contiguous arrays')
+    names = ', '.join(f'a{i}' for i in range(len(arguments)))
+    exec(f'def call({names}):\n'
+         f'    if {" and ".join(tests) or "True"}:\n'
+         f'        return function({names})\n'
+         f'    return dispatcher(name)({names})\n', constants)
+    call = constants['call']
+    call.__name__ = call.__qualname__ = name.rpartition('.')[2]
+    call.__doc__ = f'The prebuilt {name}{signature}, its arguments checked (`prebuilt.checked`).'
+    return call
 
 
-def state(*dispatchers):
-    """One line: whether runs use the prebuilt kernels, and why not; given numba dispatchers,
-    whether those are all prebuilt (an extension built before one of them was made a table
-    kernel lacks it)."""
-    module, why = load()
-    if not module:
+def kernel(name):
+    """The prebuilt function of kernel `name` ('package.module.function', `kernel_names`)
+    where the current extension has it (`checked`: arguments of other types run numba's),
+    else its numba dispatcher (`dispatcher`; same arguments, same results)."""
+    functions, _ = load()
+    return functions.get(name) or dispatcher(name)
+
+
+def has(name):
+    """Whether a run calls kernel `name`'s prebuilt function (`kernel`)."""
+    return name in load()[0]
+
+
+def state(*names):
+    """One line: whether runs use the prebuilt kernels, and why not; given kernels' names,
+    whether those are all prebuilt (an extension built before one of them was made one
+    lacks it)."""
+    functions, why = load()
+    if not functions and why:
         return f'prebuilt kernels: {why}'
-    lacking = [kernel.py_func.__name__ for kernel in dispatchers if not has(kernel)]
+    lacking = [name.rpartition('.')[2] for name in names if not has(name)]
     return (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
             'them)' if lacking else 'prebuilt kernels: in use')

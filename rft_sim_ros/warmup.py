@@ -20,6 +20,7 @@ from .prebuilt import SWITCH, load
 from .rft.kernel import plate_forces_compiled
 from .sand import gather, implicit_solve
 from .sand.array_table import TABLE_SIGNATURE
+from .kernel_names import STEP_SIGNATURE
 from .scenes.config import load_scene
 from .sim.simulation import Simulation
 
@@ -66,7 +67,7 @@ def warm_up(log=print):
     one line on the prebuilt kernels: `prebuilt.state`, or why the build failed)."""
     others = [(kernel, TABLE_SIGNATURE) for kernel in (
         gather.gather_slope, gather.gather_grid, gather.gather_deformable)]
-    others.append((implicit_solve.implicit_step_cones, implicit_solve.STEP_SIGNATURE))
+    others.append((implicit_solve.implicit_step_cones, STEP_SIGNATURE))
 
     def run(scene, overrides):
         log(f'warmup: {scene} {overrides or ""}'.rstrip())

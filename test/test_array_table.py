@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from numba import njit
 
-from rft_sim_ros.sand.array_table import (ArrayTable, byte_vector, float_matrix, float_vector,
-                                         int8_matrix, int8_vector, int32_matrix, int32_vector,
-                                         int_matrix, int_vector)
+from rft_sim_ros.sand.array_table import ArrayTable
+from rft_sim_ros.sand.table_readers import (byte_vector, float_matrix, float_vector, int8_matrix,
+                                            int8_vector, int32_matrix, int32_vector, int_matrix,
+                                            int_vector)
 
 
 @njit

@@ -171,10 +171,13 @@ def test_a_compiling_process_that_cannot_start_says_why(monkeypatch):
 
 def test_the_kernels_sources_include_the_helpers_and_constants_they_compile_in():
     names = {path.relative_to(PACKAGE).as_posix() for path in kernel_sources()}
-    assert {'sand/gather.py', 'sand/implicit_solve.py', 'sand/layout.py', 'sand/deformable.py',
-            'sand/surface_kernels.py', 'sand/array_table.py', 'sand/surface.py', 'rft/kernel.py', 'rft/force_law.py',
-            'scenes/gaits.py', 'scenes/leg_kinematics.py'} <= names
+    assert {'sand/gather.py', 'sand/implicit_solve.py', 'sand/layout.py',
+            'sand/deformable_kernels.py', 'sand/deformable_codes.py', 'sand/surface_kernels.py',
+            'sand/table_readers.py', 'sand/array_table.py', 'sand/surface.py', 'rft/kernel.py',
+            'rft/law_rows.py', 'rft/force_law.py', 'scenes/gait_kernels.py',
+            'kernel_names.py'} <= names
     assert 'cli.py' not in names and 'sim/simulation.py' not in names
+    assert 'sand/engine.py' not in names and 'scenes/gaits.py' not in names  # (no kernels)
 
 
 _KERNEL_MODULE = '''

@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from rft_sim_ros.sand import constraint_rows, elliptic_cones
+from rft_sim_ros.sand import elliptic_cones, layout
 from rft_sim_ros.sand.engine import CONSTRAINT_ROOM, LowVelocity, SandEngine
 from rft_sim_ros.sand.geoms import body_plates
 from standing_body import four_legs, settle
@@ -243,17 +243,17 @@ def test_a_cones_force_and_hessian_are_mujocos(condim):
     mujoco.mj_forward(model, data)
     assert data.ncon == 1 and data.nefc == condim
     contact = data.contact[0]
-    rows = np.zeros((condim, constraint_rows.ROW_COLUMNS))
-    rows[:, constraint_rows.ROW_D] = data.efc_D
-    rows[:, constraint_rows.ROW_FRICTION] = [contact.mu, *contact.friction[:condim - 1]]
-    force, hessian = np.zeros(constraint_rows.CONE_ROWS), np.zeros((6, 6))
+    rows = np.zeros((condim, layout.ROW_COLUMNS))
+    rows[:, layout.ROW_D] = data.efc_D
+    rows[:, layout.ROW_FRICTION] = [contact.mu, *contact.friction[:condim - 1]]
+    force, hessian = np.zeros(layout.CONE_ROWS), np.zeros((6, 6))
     zones = set()
     cones = elliptic_cones
     for jar in np.random.default_rng(5).normal(0.0, 1.0, (200, condim)):
-        rows[:, constraint_rows.ROW_JAR] = jar
-        zone = cones.cone_zone(rows, 0, condim, constraint_rows.ROW_JAR)
+        rows[:, layout.ROW_JAR] = jar
+        zone = cones.cone_zone(rows, 0, condim, layout.ROW_JAR)
         zones.add(zone)
-        cones.cone_force(rows, 0, condim, zone, constraint_rows.ROW_JAR, force, hessian)
+        cones.cone_force(rows, 0, condim, zone, layout.ROW_JAR, force, hessian)
         mujoco.mj_constraintUpdate(model, data, jar, None, 1)
         assert force[:condim] == pytest.approx(data.efc_force, rel=1e-12, abs=1e-12)
         if zone == cones.MIDDLE:

@@ -4,8 +4,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from rft_sim_ros.sand.deformable import (COUNT, DeformableSand, _free_distances, mark_cell,
-                                         neighbour_slopes, settle, touch_cell)
+from rft_sim_ros.sand.deformable import DeformableSand, neighbour_slopes
+from rft_sim_ros.sand.deformable_codes import COUNT
+from rft_sim_ros.sand.deformable_kernels import _free_distances, mark_cell, settle, touch_cell
 from rft_sim_ros.sand.surface import (BLOCK, HeightGrid, Plane, Slope, block_maximum,
                                       block_minimum)
 from rft_sim_ros.scenes.config import SceneError, load_scene
@@ -421,7 +422,8 @@ def test_the_avalanche_works_around_the_changes_not_across_the_space_between_the
     """Two columns of sand at opposite corners of a 2 m bed relax to the angle of repose in a
     few dozen node visits: the work follows the exchanges, not the 160 x 160 nodes between
     them (one sweep of that box alone would be 25,600 visits)."""
-    from rft_sim_ros.sand.deformable import HEAD, MAX_VISITS, QUEUED, avalanche
+    from rft_sim_ros.sand.deformable_codes import HEAD, MAX_VISITS, QUEUED
+    from rft_sim_ros.sand.deformable_kernels import avalanche
     bed = DeformableSand(Plane(0.0), size=(2.0, 2.0), cell=0.01, repose_deg=30.0)
     nx = bed.grid.shape[1]
     heights = bed._heights  # (the kernels' writable heights: the avalanche is called alone)

@@ -1,25 +1,29 @@
 """Kernels built ahead of time (`prebuild`, `prebuilt`): a run on them gives the results
-numba's kernels give, to the bit; a table in another order still raises; an extension that
-no longer fits this process (its sources, numba, numpy, Python, the CPU), or one switched off,
-is not used, and `prebuilt.state` says why."""
+numba's kernels give, to the bit, and imports no numba; a table in another order still
+raises; arguments of other types than a kernel was built for run numba's kernel; an
+extension that no longer fits this process (its sources, numba, numpy, Python, the CPU), or
+one switched off, is not used, and `prebuilt.state` says why."""
 import json
+import os
 import shutil
 import subprocess
+import sys
 import sysconfig
 
 import numpy as np
 import pytest
 
 from rft_sim_ros import prebuilt
+from rft_sim_ros.kernel_names import CALLED_KERNELS, FOOT_PATH, GATHERS, PREBUILT
 from rft_sim_ros.prebuild import build
-from rft_sim_ros.sand import gather, implicit_law
-from rft_sim_ros.sand.array_table import TABLE_SIGNATURE, ArrayTable
-from rft_sim_ros.sand.implicit_solve import STEP_KERNELS, STEP_SIGNATURE
+from rft_sim_ros.sand import gather
+from rft_sim_ros.sand.array_table import ArrayTable
+from rft_sim_ros.sand.surface import FLAT, SLOPE
 from rft_sim_ros.scenes.config import load_scene
+from rft_sim_ros.scenes.gait_kernels import foot_path
 from rft_sim_ros.sim.simulation import Simulation
 
-_KERNELS = [(gather.gather_plane, TABLE_SIGNATURE), (STEP_KERNELS['plain'], STEP_SIGNATURE),
-            (implicit_law.implicit_plate_forces, TABLE_SIGNATURE)]
+_PLANE = GATHERS[FLAT]
 
 
 def _c_compiler():
@@ -31,12 +35,12 @@ def _c_compiler():
 
 @pytest.fixture(scope='module')
 def built(tmp_path_factory):
-    """A folder with an extension of the plane's gather, the plain step and its plates'
-    forces."""
+    """A folder with an extension of every kernel `rft-sim warmup` builds
+    (`kernel_names.PREBUILT`)."""
     if _c_compiler() is None:
         pytest.skip('no C compiler: numba.pycc cannot build the prebuilt kernels here')
     folder = tmp_path_factory.mktemp('prebuilt')
-    build(_KERNELS, folder)
+    build(PREBUILT, folder)
     return folder
 
 
@@ -68,17 +72,59 @@ def test_a_run_on_prebuilt_kernels_gives_numbas_results_to_the_bit(built, use):
     use(built)
     assert prebuilt.state() == 'prebuilt kernels: in use'
     ahead, ahead_forces, engine = _drop()
-    assert all(prebuilt.has(kernel) for kernel, _ in _KERNELS)
+    assert all(prebuilt.has(kernel) for kernel, _ in PREBUILT)
     assert engine.kernels == 'prebuilt kernels: in use'
-    assert engine._gather is not engine._gathering  # (the extension's function is called)
+    assert engine._gather is not gather.gather_plane  # (the extension's function is called)
     assert np.array_equal(ahead, jit) and np.array_equal(ahead_forces, jit_forces)
     assert jit[2] < 0.0  # (the plate sank into the sand: the kernels had work to do)
     assert len(jit_forces) > 50 and jit_forces[:, 2].sum() > 0.0
 
 
+@pytest.mark.parametrize('scene', ['plate_drop', 'hexapod', 'quadruped'])
+def test_a_run_on_prebuilt_kernels_imports_no_numba(built, scene):
+    run = ('import sys\n'
+           'from pathlib import Path\n'
+           'from rft_sim_ros import prebuilt\n'
+           f'prebuilt.FOLDER = Path({str(built)!r})\n'
+           'from rft_sim_ros.scenes.config import load_scene\n'
+           'from rft_sim_ros.sim.runner import run_scene\n'
+           f'summary = run_scene(load_scene({scene!r}), duration=0.05, progress=False)\n'
+           "print(summary['stable'], 'numba' in sys.modules, summary['machine']['kernels'])\n")
+    done = subprocess.run([sys.executable, '-c', run], capture_output=True, text=True,
+                          env=dict(os.environ, **{prebuilt.SWITCH: '1'}), check=True)
+    assert done.stdout.split('\n')[-2] == 'True False prebuilt kernels: in use', done.stderr
+
+
+def test_a_prebuilt_kernel_given_other_types_runs_numbas(built, use):
+    use(built)
+    path = prebuilt.kernel(FOOT_PATH)
+    assert path is not foot_path  # (the extension's, checked)
+    phases = np.linspace(0.0, 0.99, 7)
+    expected = foot_path(phases, 0.5, 0.05, 0.02)
+    assert all(np.array_equal(a, b) for a, b in zip(path(phases, 0.5, 0.05, 0.02), expected))
+    # each of these, unboxed as the extension's float64 C-contiguous array, would read other
+    # memory: numba's kernel takes them, as a call from Python always has
+    read_only = phases.copy()
+    read_only.flags.writeable = False
+    for other in (phases.astype(np.float32), np.repeat(phases, 2)[::2], read_only):
+        assert all(np.allclose(a, b) for a, b in zip(path(other, 0.5, 0.05, 0.02), expected))
+    with pytest.raises(TypeError):  # (the wrong number of arguments)
+        path(phases, 0.5, 0.05)
+
+
+def test_the_kernels_called_from_python_are_built_for_the_types_runs_call_them_with():
+    from numba.core import sigutils
+    from rft_sim_ros.sim.runner import run_scene
+    for scene in ('hexapod', 'quadruped'):  # (the prebuilt kernels are off in tests)
+        run_scene(load_scene(scene), duration=0.01, progress=False, plots=False)
+    for name, signature in CALLED_KERNELS:
+        arguments, _ = sigutils.normalize_signature(signature)
+        assert tuple(arguments) in prebuilt.dispatcher(name).overloads, name
+
+
 def test_a_table_in_another_order_raises_in_a_prebuilt_kernel(built, use):
     use(built)
-    gathering = prebuilt.kernel(gather.gather_plane)
+    gathering = prebuilt.kernel(_PLANE)
     assert gathering is not gather.gather_plane
     swapped = ArrayTable(np.zeros(3, dtype=np.int8), np.zeros((2, 2)))
     with pytest.raises(TypeError, match='another dtype or rank'):
@@ -96,42 +142,54 @@ def _copy(built, tmp_path, **changes):
     return folder
 
 
-@pytest.mark.parametrize('name', ['numba', 'numpy', 'python', 'cpu', 'cpu_features'])
+@pytest.mark.parametrize('name', ['numba', 'numpy', 'python', 'cpu', 'cpu_features',
+                                  'numba_enable_avx'])
 def test_an_extension_built_with_another_toolchain_is_not_used(built, use, monkeypatch, name):
     use(built)
-    assert prebuilt.has(gather.gather_plane)
+    assert prebuilt.has(_PLANE)
     other = dict(prebuilt.toolchain(), **{name: 'other'})
     monkeypatch.setattr(prebuilt, 'toolchain', lambda: other)
     prebuilt.load.cache_clear()
-    assert not prebuilt.has(gather.gather_plane)
+    assert not prebuilt.has(_PLANE)
     assert prebuilt.state() == ('prebuilt kernels: not built for this numba, numpy, Python '
                                 'and CPU (`rft-sim warmup` builds them)')
 
 
 def test_an_extension_of_other_sources_is_not_used(built, use, tmp_path):
     use(_copy(built, tmp_path, stats={'sand/gather.py': [1, 2]}, fingerprint='0' * 64))
-    assert not prebuilt.has(gather.gather_plane)
+    assert not prebuilt.has(_PLANE)
     assert prebuilt.state() == ('prebuilt kernels: built from other sources (they changed '
                                 'since): `rft-sim warmup` builds them again')
 
 
 def test_a_record_without_the_sources_times_checks_their_fingerprint(built, use, tmp_path):
     use(_copy(built, tmp_path, stats=None, fingerprint='0' * 64))
-    assert not prebuilt.has(gather.gather_plane)
+    assert not prebuilt.has(_PLANE)
 
 
 def test_sources_touched_but_the_same_keep_the_extension(built, use, tmp_path):
     use(_copy(built, tmp_path, stats={'sand/gather.py': [1, 2]}))
-    assert prebuilt.has(gather.gather_plane)
+    assert prebuilt.has(_PLANE)
 
 
 @pytest.mark.parametrize('setting', ['DISABLE_JIT', 'BOUNDSCHECK'])
 def test_numbas_debugging_settings_turn_it_off(built, use, monkeypatch, setting):
-    import numba
     use(built)
-    monkeypatch.setattr(numba.config, setting, 1)
+    monkeypatch.setenv(f'NUMBA_{setting}', '1')
     prebuilt.load.cache_clear()
     assert prebuilt.state() == f'prebuilt kernels: off (NUMBA_{setting} is set)'
+    monkeypatch.setenv(f'NUMBA_{setting}', '0')
+    prebuilt.load.cache_clear()
+    assert prebuilt.state() == 'prebuilt kernels: in use'
+
+
+def test_a_numba_configuration_file_turns_it_off(built, use, monkeypatch, tmp_path):
+    use(built)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / prebuilt.CONFIG_FILE).write_text('boundscheck: 1\n')
+    prebuilt.load.cache_clear()
+    assert prebuilt.state() == ("prebuilt kernels: off (numba's .numba_config.yaml in the "
+                                'working folder sets its options)')
 
 
 def test_no_extension_and_the_switch_say_so(use, tmp_path, monkeypatch):
@@ -145,9 +203,8 @@ def test_no_extension_and_the_switch_say_so(use, tmp_path, monkeypatch):
 
 def test_the_extension_holds_each_kernel_it_was_given(built, use):
     use(built)
-    module, _ = prebuilt.load()
-    assert sorted(name for name in dir(module) if name.startswith('rft_sim_ros')) == sorted(
-        prebuilt.symbol(kernel) for kernel, _ in _KERNELS)
+    functions, _ = prebuilt.load()
+    assert sorted(functions) == sorted(name for name, _ in PREBUILT)
 
 
 def test_a_build_that_fails_says_why_and_the_warmup_goes_on(monkeypatch):
@@ -176,10 +233,11 @@ def test_the_building_process_says_why_it_failed_on_one_line(monkeypatch, capsys
         'using conda try: #> conda install gcc_linux-64\n')
 
 
-def test_an_engine_says_which_of_its_kernels_are_not_prebuilt(built, use):
-    use(built)
+def test_an_engine_says_which_of_its_kernels_are_not_prebuilt(built, use, tmp_path):
+    use(_copy(built, tmp_path, kernels=dict(
+        (name, signature) for name, signature in PREBUILT if name != GATHERS[SLOPE])))
     slope = Simulation(load_scene('plate_drop', {'sand.surface.type': 'slope'})).engine
-    assert not prebuilt.has(gather.gather_slope)  # (not in this extension)
+    assert not prebuilt.has(GATHERS[SLOPE])  # (not in this extension)
     assert slope.kernels == ('prebuilt kernels: not built for gather_slope (`rft-sim warmup` '
                              'builds them)')
     paper = Simulation(load_scene('plate_drop', {'rft.coupling': 'paper',

@@ -9,7 +9,8 @@ from test_engine import _arm, _random_state
 
 from rft_sim_ros.rft import body_wrench
 from rft_sim_ros.rft.plates import Plates
-from rft_sim_ros.sand.deformable import COUNT, DeformableSand
+from rft_sim_ros.sand.deformable import DeformableSand
+from rft_sim_ros.sand.deformable_codes import COUNT
 from rft_sim_ros.sand.engine import LowVelocity, SandEngine
 from rft_sim_ros.sand.geoms import body_plates
 from rft_sim_ros.sand.surface import (HeightGrid, Plane, Slope, block_maximum, block_minimum,

@@ -21,6 +21,7 @@ from numba.extending import intrinsic
 from ..kernel_cache import forget_stale
 from . import coefficients as co
 from .force_law import HORIZONTAL_NZ, TANGENTIAL
+from .law_rows import AREA, DIRECTION, LAW_ROWS, NORMAL, NORMAL_SPEED, SCALE  # (the table's rows)
 
 _TANH_A3 = float(np.tanh(co._F1_A3))
 _ATANH_B3 = float(np.arctanh(co._F23_B3))
@@ -53,15 +54,6 @@ def _exp_bounded(x):
     return p * p
 
 
-#: Rows of a plate table: the law's inputs, one plate per column (structure of arrays, so
-#: the law's loop vectorises). Callers may keep further rows of their own after LAW_ROWS
-#: (DIRECTION comes last, so they can extend it).
-NORMAL = 0        # outward unit normal, world (3 rows)
-NORMAL_SPEED = 3  # n . v, m/s
-SCALE = 4         # zeta_si x depth x area, N; 0 for a plate that feels no force
-AREA = 5          # m^2 (the dynamic term's); 0 for a plate that feels no force
-DIRECTION = 6     # unit direction of motion, world (3 rows); zero for a plate at rest
-LAW_ROWS = 9
 
 _SQRT2 = float(np.sqrt(2.0))
 _LN2 = float(np.log(2.0))

@@ -21,29 +21,9 @@ from numba import njit
 
 from ..kernel_cache import forget_stale
 from .active_set import SOLVED, STATE, VISITED, next_set
+from .layout import (ACTIVE, CONE, INACTIVE, KEPT, ONE_SIDED, ROW_AREF, ROW_D, ROW_DIM, ROW_FORCE,
+                     ROW_FRICTION, ROW_KIND, ROW_PUSH, ROW_REPORT, ROW_START)
 
-#: A one-sided row's sets: pushing (MuJoCo's soft constraint in the system) or not.
-INACTIVE, ACTIVE = 0, 1
-#: The kinds of MuJoCo's constraint rows (`take_constraint_rows`' kinds, by mjtConstraint):
-#: left to MuJoCo, two-sided (equalities), one-sided (limits, frictionless and pyramidal
-#: contacts) or a row of an elliptic cone (`elliptic_cones`).
-KEPT, TWO_SIDED, ONE_SIDED, CONE = -1, 0, 1, 2
-#: Columns of a row: MuJoCo's efc_D and efc_aref, its kind (TWO_SIDED ...), its push (N s or
-#: N m s: its term of the system's right-hand side; a row's D (J qvel + dt aref)), the force
-#: the step applies along it (N or N m) and the aref that makes MuJoCo report that force
-#: (`report_constraint_forces`). A cone's rows also hold (`elliptic_cones`): per row its jar
-#: at the last solve's end velocities; its friction coefficient along the row (the contact's
-#: mu on its first, normal row, then its `friction` per tangent row); on its first row its
-#: row count (condim); per row its start J qvel / dt + aref (jar = J qvel+ / dt - start),
-#: the jar its linearisation is made at, a jar a line search tries, the linearisation's
-#: force at jar = 0 (N or N m), and from ROW_HESSIAN that row of the linearisation's Hessian
-#: H (CONE_ROWS columns): f = ROW_LINEAR - H jar.
-(ROW_D, ROW_AREF, ROW_KIND, ROW_PUSH, ROW_FORCE, ROW_REPORT, ROW_JAR, ROW_FRICTION, ROW_DIM,
- ROW_START, ROW_POINT, ROW_TRIAL, ROW_LINEAR) = range(13)
-#: Rows of a cone at most (condim 6), and where its Hessian's columns begin.
-CONE_ROWS = 6
-ROW_HESSIAN = 13
-ROW_COLUMNS = ROW_HESSIAN + CONE_ROWS
 
 
 @njit(cache=True)

@@ -21,9 +21,10 @@ from numba import njit
 
 from ..kernel_cache import forget_stale
 from .active_set import STATE
-from .constraint_rows import (CONE, CONE_ROWS, ROW_AREF, ROW_D, ROW_DIM, ROW_FORCE, ROW_FRICTION,
-                              ROW_HESSIAN, ROW_JAR, ROW_KIND, ROW_LINEAR, ROW_POINT, ROW_PUSH,
-                              ROW_REPORT, ROW_START, ROW_TRIAL, row_jar)
+from .constraint_rows import row_jar
+from .layout import (CONE, CONE_ROWS, ROW_AREF, ROW_D, ROW_DIM, ROW_FORCE, ROW_FRICTION,
+                     ROW_HESSIAN, ROW_JAR, ROW_KIND, ROW_LINEAR, ROW_POINT, ROW_PUSH, ROW_REPORT,
+                     ROW_START, ROW_TRIAL)
 
 #: A cone's zones (its set, flags row STATE): top (separating: no force), bottom (sticking:
 #: every row its soft constraint -D jar) and middle (sliding: on the cone's surface).

@@ -17,15 +17,17 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .. import prebuilt
+from .. import kernel_names, prebuilt
 from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, record_cold_start
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
-from . import constraint_rows, explicit, gather, implicit_law, implicit_solve, layout, mujoco_terms
+from ..kernel_names import EXPLICIT, PLATE_FORCES, ROWS, STEP_PARTS, STEPS, function
+from . import layout
 from .array_table import TABLE_SIGNATURE, ArrayTable
-from .deformable import DeformableSand, no_bed_arrays
-from .surface import FLAT, GRID, SLOPE, Plane, tile_planes, window_extremes, window_span
+from .clusters import cluster_plates
+from .deformable import no_bed_arrays
+from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
@@ -35,34 +37,22 @@ CONSTRAINT_ROOM = 16
 
 
 def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
-    """The compiled kernels an engine with low-velocity `method` ('implicit'; any other: the
-    explicit methods' kernels) on a surface of `surface_kind` (deformable or not) runs; with
-    the implicit method, its step solving `parts` (`implicit_solve.STEP_PARTS`,
-    `step_parts`)."""
-    gathering = gather.gather_kernel(surface_kind, deformable)
+    """The names (`kernel_names`) of the compiled kernels an engine with low-velocity
+    `method` ('implicit'; any other: the explicit methods' kernels) on a surface of
+    `surface_kind` (deformable or not) runs; with the implicit method, its step solving
+    `parts` (`kernel_names.STEP_PARTS`, `step_parts`)."""
+    gathering = kernel_names.gather(surface_kind, deformable)
     if method != 'implicit':
-        return (gathering, explicit.smoothed_wrenches, mujoco_terms.scatter_wrenches)
-    rows = () if parts == 'plain' else (
-        constraint_rows.take_constraint_rows, constraint_rows.report_constraint_forces,
-        constraint_rows.return_constraint_rows)
-    return (gathering, implicit_solve.STEP_KERNELS[parts], implicit_law.implicit_plate_forces,
-            *rows)
+        return (gathering, *EXPLICIT)
+    rows = () if parts == 'plain' else ROWS
+    return (gathering, STEPS[parts], PLATE_FORCES, *rows)
 
 
-#: The kernels that take their arrays as one table (`array_table`), with numba's text of
-#: their argument types: those `rft-sim warmup` also builds ahead of time (`prebuilt`).
-TABLE_KERNELS = (*((gather.gather_kernel(kind), TABLE_SIGNATURE)
-                   for kind in (FLAT, SLOPE, GRID)),
-                 (gather.gather_kernel(GRID, deformable=True), TABLE_SIGNATURE),
-                 *((implicit_solve.STEP_KERNELS[parts], implicit_solve.STEP_SIGNATURE)
-                   for parts in implicit_solve.STEP_PARTS),
-                 (implicit_law.implicit_plate_forces, TABLE_SIGNATURE))
-
-
-def ready(kernel):
-    """Whether numba dispatcher `kernel` runs without compiling: prebuilt (`prebuilt.has`) or
-    held, current, in numba's on-disk cache (`kernel_cache.is_cached`)."""
-    return prebuilt.has(kernel) or is_cached(kernel)
+def ready(name):
+    """Whether kernel `name` (`kernel_names`) runs without compiling: prebuilt
+    (`prebuilt.has`) or held, current, in numba's on-disk cache (`kernel_cache.is_cached`,
+    which imports the kernel's module and numba)."""
+    return prebuilt.has(name) or is_cached(prebuilt.dispatcher(name))
 
 
 def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
@@ -74,7 +64,7 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts
 
 
 def step_parts(model, rows_expected=False):
-    """Which compiled implicit step (`implicit_solve.STEP_PARTS`) an engine of MuJoCo
+    """Which compiled implicit step (`kernel_names.STEP_PARTS`) an engine of MuJoCo
     `model` loads: 'plain' where the model cannot make a constraint row (no equality, no
     limited joint or tendon, no tendon friction and no rigid contact: `can_collide`) and rows
     are not `rows_expected`; 'cones' where it can and its contacts use elliptic cones; 'rows'
@@ -107,10 +97,10 @@ def can_collide(model):
 
 
 def _uncached_key(kernels):
-    """The names of those of `kernels` (numba dispatchers) that the cache lacks, as one text
-    (what a cold start's record is kept under); '' when it holds them all."""
-    return ' '.join(sorted(kernel.py_func.__qualname__ for kernel in kernels
-                           if not ready(kernel)))
+    """The function names of those of `kernels` (names, `kernel_names`) that are neither
+    prebuilt nor cached, as one text (what a cold start's record is kept under); '' when
+    none is missing."""
+    return ' '.join(sorted(function(name) for name in kernels if not ready(name)))
 
 
 def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
@@ -119,8 +109,14 @@ def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False, 
     `SandEngine._load_kernels`, kept by `kernel_cache.record_cold_start`); None when no start
     compiled just those here (e.g. a first run after install) or none are missing."""
     key = _uncached_key(engine_kernels(method, surface_kind, deformable, parts))
-    record = last_cold_start(implicit_solve.implicit_step_plain, key) if key else None
+    record = last_cold_start(prebuilt.dispatcher(STEPS['plain']), key) if key else None
     return None if record is None else record['wall_s']
+
+
+def _step_module():
+    """The module of the compiled implicit steps (`implicit_solve`; imports numba)."""
+    from . import implicit_solve
+    return implicit_solve
 
 
 def _cpu_seconds():
@@ -208,12 +204,17 @@ class SandEngine:
         self._settings = np.zeros(layout.SETTING_COUNT)
         self._counters = np.zeros(layout.COUNTER_COUNT, dtype=np.int64)
         self.surface = Plane(surface_height) if surface is None else surface
-        self.deformable = isinstance(self.surface, DeformableSand)
+        self.deformable = not self.surface.rigid
         self._set_surface(self.surface)
-        self._gathering = gather.gather_kernel(self.surface.data.kind, self.deformable)
+        self._gathering = kernel_names.gather(self.surface.data.kind, self.deformable)
         self._gather = prebuilt.kernel(self._gathering)
         # per-plate forces of an implicit step, where asked for (`active_plates`)
-        self._plate_forces = prebuilt.kernel(implicit_law.implicit_plate_forces)
+        self._plate_forces = prebuilt.kernel(PLATE_FORCES)
+        # numba's kernels of the explicit methods and of MuJoCo's constraint rows, where the
+        # engine calls them (`_row_kernels`)
+        self._smoothed_wrenches, self._scatter_wrenches = (
+            (None, None) if self._implicit_method else map(prebuilt.dispatcher, EXPLICIT))
+        self._rows_kernels = None  # (`_row_kernels`)
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
                               else np.ascontiguousarray(zeta_map.factors, dtype=float))
@@ -308,7 +309,7 @@ class SandEngine:
         parts, body_clusters, plate_starts, centers, radii = [], [0], [], [], []
         offset = 0
         for body in plates:
-            order, starts = gather.cluster_plates(body.centroids)
+            order, starts = cluster_plates(body.centroids)
             ordered = body.subset(order)
             parts.append(ordered)
             for c in range(len(starts) - 1):
@@ -352,14 +353,14 @@ class SandEngine:
         TWO_SIDED, ONE_SIDED by mjtConstraint; none with the explicit methods) and room for
         a step's rows, grown when a step has more (`_take_constraint_rows`)."""
         kind = mujoco.mjtConstraint
-        self._constraint_kinds = np.full(len(kind.__members__), constraint_rows.KEPT,
+        self._constraint_kinds = np.full(len(kind.__members__), layout.KEPT,
                                          dtype=np.int64)
         if self._implicit_method:
-            self._constraint_kinds[int(kind.mjCNSTR_EQUALITY)] = constraint_rows.TWO_SIDED
+            self._constraint_kinds[int(kind.mjCNSTR_EQUALITY)] = layout.TWO_SIDED
             for one_sided in (kind.mjCNSTR_LIMIT_JOINT, kind.mjCNSTR_LIMIT_TENDON,
                               kind.mjCNSTR_CONTACT_FRICTIONLESS, kind.mjCNSTR_CONTACT_PYRAMIDAL):
-                self._constraint_kinds[int(one_sided)] = constraint_rows.ONE_SIDED
-            self._constraint_kinds[int(kind.mjCNSTR_CONTACT_ELLIPTIC)] = constraint_rows.CONE
+                self._constraint_kinds[int(one_sided)] = layout.ONE_SIDED
+            self._constraint_kinds[int(kind.mjCNSTR_CONTACT_ELLIPTIC)] = layout.CONE
         self._sparse = bool(mujoco.mj_isSparse(model))
         self._dense_index = tuple(np.zeros(0, dtype=np.int32) for _ in range(3))
         # contacts' mu, friction, dim, efc_address (read for elliptic cones only)
@@ -375,22 +376,30 @@ class SandEngine:
         self._constraint_jac = np.zeros((rows, nv))
         self._constraint_columns = np.zeros((rows, nv), dtype=np.int64)
         self._constraint_counts = np.zeros(rows, dtype=np.int64)
-        self._constraint_rows = np.zeros((rows, constraint_rows.ROW_COLUMNS))
+        self._constraint_rows = np.zeros((rows, layout.ROW_COLUMNS))
         self._constraint_flags = np.zeros((3, rows), dtype=np.int8)
         self._constraint_efc = np.zeros(rows, dtype=np.int64)  # their rows in mjData's efc
 
+    def _row_kernels(self):
+        """The kernels of MuJoCo's constraint rows (`kernel_names.ROWS`: take, report,
+        return; prebuilt, or numba's imported where first needed)."""
+        if self._rows_kernels is None:
+            self._rows_kernels = tuple(map(prebuilt.kernel, ROWS))
+        return self._rows_kernels
+
     def _compile_constraint_rows(self):
-        """`constraint_rows`' take_constraint_rows and report_constraint_forces compiled or
-        loaded for mjData's arrays, on none of their rows."""
+        """The constraint rows' kernels (`_row_kernels`) compiled or loaded for mjData's
+        arrays, on none of their rows."""
         d = self.data
-        constraint_rows.take_constraint_rows(
+        take_constraint_rows, report_constraint_forces, return_constraint_rows = (
+            self._row_kernels())
+        take_constraint_rows(
             self._constraint_kinds, d.efc_type[:0], d.efc_id[:0], d.efc_J[:0], d.efc_D[:0],
             d.efc_aref[:0], d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0],
             self._sparse, *self._no_contacts, self._constraint_jac, self._constraint_columns,
             self._constraint_counts, self._constraint_rows, self._constraint_efc)
-        constraint_rows.report_constraint_forces(self._constraint_rows, self._constraint_efc,
-                                                 0, d.efc_aref[:0])
-        constraint_rows.return_constraint_rows(
+        report_constraint_forces(self._constraint_rows, self._constraint_efc, 0, d.efc_aref[:0])
+        return_constraint_rows(
             self._constraint_jac, self._constraint_rows, self._constraint_efc, 0, d.efc_J[:0],
             d.efc_aref[:0], d.efc_J_rownnz[:0], d.efc_J_rowadr[:0], d.efc_J_colind[:0],
             self._sparse, self.model.nv)
@@ -426,7 +435,7 @@ class SandEngine:
             index = self._jacobian_index()
             contacts = self._contacts()
             while True:
-                taken = constraint_rows.take_constraint_rows(
+                taken = self._row_kernels()[0](
                     self._constraint_kinds, d.efc_type, d.efc_id, d.efc_J, d.efc_D,
                     d.efc_aref, *index, self._sparse, *contacts, self._constraint_jac,
                     self._constraint_columns, self._constraint_counts, self._constraint_rows,
@@ -447,10 +456,9 @@ class SandEngine:
         from now on, where the one loaded solves less: the model made rows that `step_parts`
         did not foresee (its options changed at run time). It loads, or compiles, at its first
         call."""
-        order = implicit_solve.STEP_PARTS
-        if self._parts is None or order.index(parts) > order.index(self._parts):
+        if self._parts is None or STEP_PARTS.index(parts) > STEP_PARTS.index(self._parts):
             self._parts = parts
-            self._stepping = implicit_solve.STEP_KERNELS[parts]
+            self._stepping = STEPS[parts]
             self._implicit_step = prebuilt.kernel(self._stepping)
 
     def _views(self):
@@ -609,7 +617,7 @@ class SandEngine:
         alpha = self.low_velocity.ema_alpha if self.low_velocity.method == 'ema' else 1.0
         counters = self._counters
         slots = counters[layout.SLOTS]
-        explicit.smoothed_wrenches(counters[layout.GATHERED], slots, self._plate, self._slot,
+        self._smoothed_wrenches(counters[layout.GATHERED], slots, self._plate, self._slot,
                                    self._table, self._force, alpha, counters[layout.STEPS],
                                    self._ema_force, self._ema_step, self._applied,
                                    self._slot_wrench)
@@ -617,7 +625,7 @@ class SandEngine:
 
     def _scatter(self, slots):
         """Write the wrenches of the first `slots` slots (zero for the other sand bodies)."""
-        mujoco_terms.scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
+        self._scatter_wrenches(slots, self._slot_body, self._slot_wrench, self.body_ids,
                                   self.body_wrenches, self._xfrc, self._xipos,
                                   self._wrench_sum)
 
@@ -633,13 +641,14 @@ class SandEngine:
         self._implicit_step(self._options.timestep, self._implicit_arrays.table)
         if taken:
             d, counters = self.data, self._counters
+            _, report_constraint_forces, return_constraint_rows = self._row_kernels()
             if counters[layout.HANDED_BACK_AT] == counters[layout.STEPS]:  # MuJoCo's
-                constraint_rows.return_constraint_rows(
+                return_constraint_rows(
                     self._constraint_jac, self._constraint_rows, self._constraint_efc, taken,
                     d.efc_J, d.efc_aref, *self._jacobian_index(), self._sparse, self.model.nv)
             else:
-                constraint_rows.report_constraint_forces(self._constraint_rows,
-                                                         self._constraint_efc, taken, d.efc_aref)
+                report_constraint_forces(self._constraint_rows, self._constraint_efc, taken,
+                                         d.efc_aref)
 
     def _load_kernels(self):
         """Load every compiled kernel the engine runs from numba's cache (or compile it) now,
@@ -656,7 +665,7 @@ class SandEngine:
         #: (names of the kernels this engine compiled, wall s it took); ('', 0.0): all cached
         self.compiled = (cold, time.perf_counter() - wall if cold else 0.0)
         if cold:
-            record_cold_start(implicit_solve.implicit_step_plain, cold, self.compiled[1],
+            record_cold_start(prebuilt.dispatcher(STEPS['plain']), cold, self.compiled[1],
                               _cpu_seconds() - cpu)
         self._counters[:] = 0
         self._wrench_sum[:] = 0.0
@@ -664,15 +673,16 @@ class SandEngine:
     def _compile_kernels(self):
         """`_load_kernels`' loads: with a cold cache (a first run) and the implicit method,
         the gather kernel and a share of the kernels the implicit step calls
-        (`implicit_solve.background_kernels`) compile in a second process
+        (`implicit_solve.background_kernels`, where the step is to compile: its module is
+        imported then) compile in a second process
         (`BackgroundCompile`) while this one compiles the step (which then loads that share
         from the cache): on two cores the start-up is about the longer of the two."""
         if self._implicit_method:
             background = [] if ready(self._stepping) else [
                 (kernel, signature) for kernel, signature
-                in implicit_solve.background_kernels(self._parts) if not is_cached(kernel)]
+                in _step_module().background_kernels(self._parts) if not is_cached(kernel)]
             if not ready(self._gathering):
-                background.append((self._gathering, TABLE_SIGNATURE))
+                background.append((prebuilt.dispatcher(self._gathering), TABLE_SIGNATURE))
             with (BackgroundCompile(background) if background
                   else contextlib.nullcontext()) as compiling:
                 self._implicit_step(self._options.timestep, self._implicit_arrays.table)
@@ -684,7 +694,7 @@ class SandEngine:
         else:
             self._explicit()
         if not prebuilt.has(self._gathering):
-            load(self._gathering, TABLE_SIGNATURE)
+            load(prebuilt.dispatcher(self._gathering), TABLE_SIGNATURE)
 
     def mean_wrenches(self):
         """(nb, 6) mean of each sand body's wrench over the steps since the last call (what

@@ -3,7 +3,7 @@
 Conventions: MuJoCo arrays are passed as the views mjData/mjModel expose (world frame,
 z up, SI). A "sand body" is a body a scene names as touching sand; its plates are stored in
 its body frame (`xpos`/`xmat`), grouped into spatial clusters of a few dozen plates with a
-bounding sphere each (`cluster_plates`), so plates above the sand are skipped a cluster at a
+bounding sphere each (`clusters.cluster_plates`), so plates above the sand are skipped a cluster at a
 time. A "slot" is a sand body with at least one plate in the sand this step; slots are
 numbered 0..S-1 in the order bodies are visited, and a slot's plates are consecutive columns
 of the gathered table (`layout`: rows NORMAL ... SPEED) with their RFT force for the current
@@ -22,10 +22,12 @@ from numba import njit
 
 from ..kernel_cache import forget_stale
 from ..rft.force_law import TANGENTIAL  # the leading rule, with the body's speed scale
-from ..rft.kernel import AREA, DIRECTION, NORMAL, NORMAL_SPEED, SCALE, leading_forces
-from .array_table import (float_matrix, float_vector, int8_matrix, int32_matrix, int32_vector,
+from ..rft.kernel import leading_forces
+from ..rft.law_rows import AREA, DIRECTION, NORMAL, NORMAL_SPEED, SCALE
+from .table_readers import (float_matrix, float_vector, int8_matrix, int32_matrix, int32_vector,
                           int_matrix, int_vector)
-from .deformable import OUTSIDE, mark_cell, settle, touch_cell
+from .deformable_codes import OUTSIDE
+from .deformable_kernels import mark_cell, settle, touch_cell
 from .layout import (BASE_INV_DX, BASE_INV_DY, BASE_KIND, BASE_X0, BASE_Y0, DEFORM_RISE,
                      DYNAMIC, GATHER, GATHERED, GRID_INV_DX, GRID_INV_DY, GRID_X0, GRID_Y0,
                      INV_A4, INV_B4, LEADING, LEVER, MAP_INV_DX, MAP_INV_DY, MAP_X0, MAP_Y0,
@@ -37,25 +39,6 @@ from .surface_kernels import (base_height, bed_range, cell_height, grid_range, i
                               tile_plane, window_range)
 
 
-def cluster_plates(centroids, size=32):
-    """Order plates into spatial clusters of at most `size` by recursive halving along the
-    widest axis. Returns (order, cluster_start): plates order[cluster_start[c]:
-    cluster_start[c+1]] form cluster c."""
-    order, starts = [], [0]
-    pending = [np.arange(len(centroids))]
-    while pending:
-        group = pending.pop()
-        if len(group) <= size:
-            order.extend(group)
-            starts.append(len(order))
-            continue
-        points = centroids[group]
-        axis = np.argmax(np.ptp(points, axis=0))
-        ranked = group[np.argsort(points[:, axis], kind='stable')]
-        half = len(ranked) // 2
-        pending.extend([ranked[half:], ranked[:half]])
-    return np.array(order, dtype=np.int64), np.array(starts, dtype=np.int64)
-
 #: The kind of surface (surface.FLAT, SLOPE or GRID) and whether it is deformable sand, of a
 #: gather kernel: `_gather_plates` reads them as globals, which each kernel binds to its own
 #: constants (`_gather_kernel`). None here: `_gather_plates` itself is never run.
@@ -65,7 +48,7 @@ KIND = DEFORM = None
 def _gather_plates(arrays):
     """Find the plates in the sand and their RFT force for the current direction of motion:
     one step (counted in the STEPS counter); on deformable sand, then rules 2-4 for the
-    footprints the bodies left in this step (`deformable.settle`). KIND (surface.FLAT, SLOPE
+    footprints the bodies left in this step (`deformable_kernels.settle`). KIND (surface.FLAT, SLOPE
     or GRID) and DEFORM (deformable sand: a GRID) are constants each gather kernel binds
     (`_gather_kernel`), so that each kind of surface runs a plate loop of its own.
 
@@ -88,7 +71,7 @@ def _gather_plates(arrays):
     grid, the body itself bounded by that plane's highest point over its square instead of
     the blocks. On deformable sand
     (DEFORM) the plates below the surface mark their footprint cells
-    (`deformable.mark_cell`), and the footprints the bodies left are settled after the
+    (`deformable_kernels.mark_cell`), and the footprints the bodies left are settled after the
     plates are gathered (`gather_deformable`); beyond the bed its base (plane, slope or
     grid: `_deformable_base`) gives the depth, and bounds the bodies and clusters that reach
     out there, and a plate there marks nothing.
@@ -437,15 +420,6 @@ def _gather_kernel(name, kind, deform, doc):
     return njit(cache=True, error_model='numpy', fastmath={'contract'})(function)
 
 
-def gather_kernel(kind, deformable=False):
-    """The compiled gather of a surface of kind `kind` (surface.FLAT, SLOPE, GRID), or of
-    deformable sand (a GRID). Each compiles, or loads from numba's cache, at its first use
-    only, so a scene pays for the kernel of its own surface."""
-    if deformable:
-        return gather_deformable
-    return {FLAT: gather_plane, SLOPE: gather_slope, GRID: gather_grid}[kind]
-
-
 @njit(cache=True, error_model='numpy', fastmath=True)
 def _directions(k, table):
     """Rows DIRECTION, MOMENT and SPEED of the plate table from the plates' world velocity
@@ -475,6 +449,6 @@ gather_grid = _gather_kernel('gather_grid', GRID, False,
 gather_deformable = _gather_kernel(
     'gather_deformable', GRID, True,
     '`_gather_plates` on deformable sand (a height grid the plates mark), then rules 2-4 for '
-    'the footprints the bodies left in this step (`deformable.settle`): one call.')
+    'the footprints the bodies left in this step (`deformable_kernels.settle`): one call.')
 
 forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

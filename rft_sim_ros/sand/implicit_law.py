@@ -28,9 +28,9 @@ linearised response is kept as accumulators (`accumulate_slot`) and its twist re
 from numba import njit
 
 from ..kernel_cache import forget_stale
-from ..rft.kernel import DIRECTION
+from ..rft.law_rows import DIRECTION
 from .active_set import FROZEN, STATE
-from .array_table import float_matrix, float_vector, int8_matrix, int_vector
+from .table_readers import float_matrix, float_vector, int8_matrix, int_vector
 from .layout import ACROSS, GATHERED, IMPLICIT, LEVER, REST_SPEED, SPEED
 
 MOVING, RESTING, OFF = 1, 0, 2  # a >= 1, 0 <= a < 1, a < 0 (and FROZEN: anti-cycling)

@@ -30,9 +30,10 @@ import numpy as np
 from numba import njit
 
 from ..kernel_cache import forget_stale
-from ..rft.kernel import DIRECTION
+from ..kernel_names import STEP_PARTS
+from ..rft.law_rows import DIRECTION
 from .active_set import FROZEN, MEMORY_SHIFT, SOLVED, STATE, VISITED, remembered
-from .array_table import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
+from .table_readers import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
                           int32_matrix, int32_vector, int_matrix, int_vector)
 from .constraint_rows import (add_matrix, add_row_forces, constraint_forces, constraint_sets,
                               constraint_start, constraint_terms)
@@ -55,10 +56,6 @@ MAX_ITERATIONS = 16
 #: constraint rows with the sand; CONES, the rows of elliptic cones too. None here: the
 #: template `_implicit_step` is never run itself.
 ROWS = CONES = None
-#: The compiled steps, by the parts they solve (`STEP_KERNELS`): 'plain' (the sand and joint
-#: friction), 'rows' (and MuJoCo's equality, limit and pyramidal contact rows), 'cones' (and
-#: elliptic cones' rows).
-STEP_PARTS = ('plain', 'rows', 'cones')
 
 
 @njit(cache=True, inline='always', fastmath=True)
@@ -486,8 +483,6 @@ implicit_step_cones = _step_kernel('cones')
 #: The compiled implicit step (`_implicit_step`) solving each of STEP_PARTS.
 STEP_KERNELS = {'plain': implicit_step_plain, 'rows': implicit_step_rows,
                 'cones': implicit_step_cones}
-#: numba's text of the compiled steps' argument types (timestep, array table).
-STEP_SIGNATURE = '(float64, int64[:, ::1])'
 _FRICTION = 'Tuple((int64[::1], float64[::1], int64[::1], int8[:, ::1], float64[::1]))'
 _ROWS = ('Tuple((float64[:, ::1], int64[:, ::1], int64[::1], float64[:, ::1], int8[:, ::1], '
          'int64))')

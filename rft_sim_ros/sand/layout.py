@@ -11,7 +11,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from ..rft.kernel import LAW_ROWS
+from ..rft.law_rows import LAW_ROWS
 
 
 #: Rows of the implicit law's per-plate work space (`implicit_solve._implicit_step`), plates
@@ -34,7 +34,7 @@ PLATE_ROWS = LAW_ROWS + 7
 #: 1/b4, lambda x rho of the dynamic term (kg/m^3), whether trailing plates are gathered too
 #: (1/0), and the implicit law's rest speed v_reg (m/s), joint damping and actuator velocity
 #: gains (1/0) implicit; then the surface (`surface.SurfaceData`; its kind is the gather
-#: kernel's, `gather_kernel`): the slope's gradient dh/dx, dh/dy, the grid's node [0, 0]
+#: kernel's, `kernel_names.gather`): the slope's gradient dh/dx, dh/dy, the grid's node [0, 0]
 #: (x, y) m and 1/spacing (1/m); the zeta map: whether there is one (1/0), its cell
 #: [0, 0] corner (x, y) m and 1/cell (1/m); and, for deformable sand, its base beyond the
 #: bed: the base's kind code, and a grid base's node [0, 0] (x, y) m and 1/spacing (1/m)
@@ -138,3 +138,27 @@ ImplicitArrays = namedtuple('ImplicitArrays', [
     'damping', 'mass', 'jac', 'memory', 'work', 'flags', 'xi_new', 'applied',
     'wrench', 'body_wrenches', 'xfrc_applied', 'wrench_sum', *SolveSpace._fields])
 IMPLICIT = ImplicitArrays(*range(len(ImplicitArrays._fields)))
+
+#: MuJoCo's constraint rows in the implicit solve (`constraint_rows`, `elliptic_cones`).
+#: A one-sided row's sets: pushing (MuJoCo's soft constraint in the system) or not.
+INACTIVE, ACTIVE = 0, 1
+#: The kinds of MuJoCo's constraint rows (`take_constraint_rows`' kinds, by mjtConstraint):
+#: left to MuJoCo, two-sided (equalities), one-sided (limits, frictionless and pyramidal
+#: contacts) or a row of an elliptic cone (`elliptic_cones`).
+KEPT, TWO_SIDED, ONE_SIDED, CONE = -1, 0, 1, 2
+#: Columns of a row: MuJoCo's efc_D and efc_aref, its kind (TWO_SIDED ...), its push (N s or
+#: N m s: its term of the system's right-hand side; a row's D (J qvel + dt aref)), the force
+#: the step applies along it (N or N m) and the aref that makes MuJoCo report that force
+#: (`report_constraint_forces`). A cone's rows also hold (`elliptic_cones`): per row its jar
+#: at the last solve's end velocities; its friction coefficient along the row (the contact's
+#: mu on its first, normal row, then its `friction` per tangent row); on its first row its
+#: row count (condim); per row its start J qvel / dt + aref (jar = J qvel+ / dt - start),
+#: the jar its linearisation is made at, a jar a line search tries, the linearisation's
+#: force at jar = 0 (N or N m), and from ROW_HESSIAN that row of the linearisation's Hessian
+#: H (CONE_ROWS columns): f = ROW_LINEAR - H jar.
+(ROW_D, ROW_AREF, ROW_KIND, ROW_PUSH, ROW_FORCE, ROW_REPORT, ROW_JAR, ROW_FRICTION, ROW_DIM,
+ ROW_START, ROW_POINT, ROW_TRIAL, ROW_LINEAR) = range(13)
+#: Rows of a cone at most (condim 6), and where its Hessian's columns begin.
+CONE_ROWS = 6
+ROW_HESSIAN = 13
+ROW_COLUMNS = ROW_HESSIAN + CONE_ROWS

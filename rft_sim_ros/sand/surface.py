@@ -147,9 +147,11 @@ def steepest_squared(grid, spacing):
 
 class Surface:
     """A sand surface. Subclasses define `height` and `data`; `notices`: what reading it
-    decided for the user (one line each)."""
+    decided for the user (one line each); `rigid`: whether it stays as it is (deformable
+    sand, `deformable.DeformableSand`, is not)."""
 
     notices = ()
+    rigid = True
 
     def height(self, x, y):
         """World z of the free surface at world (x, y) (m; arrays broadcast)."""
@@ -260,8 +262,6 @@ class HeightGrid(Surface):
     the edge values continued outside. Its `grid` and the bounds derived from it are
     read-only (`rigid`): the engine reads them as they were when it was built, so another
     surface is another HeightGrid (deformable sand changes its own, bounds included)."""
-
-    rigid = True
 
     def __init__(self, heights, size, center=(0.0, 0.0)):
         grid = np.array(heights, dtype=float)

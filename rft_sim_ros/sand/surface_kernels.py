@@ -1,6 +1,6 @@
 """Compiled look-ups of the sand surface (`surface.SurfaceData`), of deformable sand's base
 beyond its bed, and of the zeta map, inlined into the gather kernels
-(`gather.gather_kernel`); and `grid_heights`, the same look-up for points handed in from
+(`gather`); and `grid_heights`, the same look-up for points handed in from
 Python (`surface.HeightGrid.height`). World frame, m.
 
 The grid is read in node coordinates u = (x - x0) / dx, v = (y - y0) / dy, clamped to the

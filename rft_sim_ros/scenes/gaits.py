@@ -3,7 +3,7 @@
 A gait maps sim time t (s) to position targets (rad) for the joints of a set of
 lateral-plane knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee, ankle, leg by leg;
 for the hexapod that is `rft_sim_ros.scenes.hexapod.JOINT_NAMES`) or as a name -> value dict.
-Pure numpy: the leg geometry is passed in (defaults: the bundled hexapod).
+numpy, and the compiled kernels of `gait_kernels`: the leg geometry is passed in (defaults: the bundled hexapod).
 
 Gaits (`make_gait(name, ...)`):
 - 'none'   `StandGait`: hold the neutral stance.
@@ -15,61 +15,15 @@ from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
-from numba import njit
 
-from rft_sim_ros.kernel_cache import forget_stale
+from rft_sim_ros import prebuilt
+from rft_sim_ros.kernel_names import FOOT_PATH, TRIPOD_TARGETS
 from rft_sim_ros.scenes import hexapod
-from rft_sim_ros.scenes.leg_kinematics import LateralLegs, leg_inverse
+from rft_sim_ros.scenes.leg_kinematics import LateralLegs
 
 
 def _joint_names(legs):
     return tuple(f'{leg}_{joint}' for leg in legs.names for joint in ('knee', 'ankle'))
-
-
-@njit(cache=True)
-def foot_path(phi, beta, length, height):
-    """Foot offsets (ds, dz), m, along the walking direction and up, at phases phi (1-D, in
-    [0, 1)) of a gait cycle with stance fraction beta, stroke `length` and lift `height`: in
-    stance the foot moves back at constant speed from +length/2 to -length/2; in swing it
-    returns on a cubic Hermite curve whose end slopes match the stance speed, lifted by
-    height sin^2(pi s)."""
-    ds = np.empty(phi.shape[0])
-    dz = np.empty(phi.shape[0])
-    slope = -length * (1.0 - beta) / beta  # stance velocity, per unit swing fraction
-    for i in range(phi.shape[0]):
-        if phi[i] < beta:
-            ds[i] = length * (0.5 - phi[i] / beta)
-            dz[i] = 0.0
-        else:
-            s = (phi[i] - beta) / (1.0 - beta)
-            # cubic Hermite from -length/2 to +length/2 with end slopes `slope`
-            ds[i] = (length * (s * s * (3.0 - 2.0 * s) - 0.5)
-                     + slope * s * (1.0 - s) * (1.0 - 2.0 * s))
-            dz[i] = height * np.sin(np.pi * s) ** 2
-    return ds, dz
-
-
-@njit(cache=True)
-def _tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_xyz, side,
-                    mid_length, dactyl_length, dactyl_droop):
-    """Knee and ankle targets (rad), interleaved per leg, `cycles` gait cycles after the
-    start for legs at phase `offsets` (cycles) with stroke and lift times `scale`: the foot
-    path, then the legs' inverse kinematics."""
-    phases = np.empty(offsets.shape[0])
-    for i in range(offsets.shape[0]):
-        phases[i] = (cycles + offsets[i]) % 1.0  # in [0, 1), as np.mod
-    ds, dz = foot_path(phases, beta, scale * length, scale * height)
-    feet_y = np.empty((1, ds.shape[0]))
-    feet_z = np.empty((1, ds.shape[0]))
-    for i in range(ds.shape[0]):
-        feet_y[0, i] = neutral[i, 1] + ds[i]
-        feet_z[0, i] = neutral[i, 2] + dz[i]
-    knee, ankle = leg_inverse(feet_y, feet_z, knee_xyz, side, mid_length, dactyl_length,
-                              dactyl_droop)
-    out = np.empty(2 * ds.shape[0])
-    for i in range(ds.shape[0]):
-        out[2 * i], out[2 * i + 1] = knee[0, i], ankle[0, i]
-    return out
 
 
 def smoothstep(u):
@@ -167,7 +121,8 @@ class TripodGait(GaitClock, StandGait):
         object.__setattr__(self, '_offsets', np.array(
             [float(self.phase_offsets[leg]) for leg in self.legs.names]))
         object.__setattr__(self, '_neutral', self.legs.neutral_feet())
-        legs = self.legs  # the arguments of _tripod_targets after the amplitude, once
+        legs = self.legs  # the arguments of the targets' kernel after the amplitude, once
+        object.__setattr__(self, '_tripod', prebuilt.kernel(TRIPOD_TARGETS))
         object.__setattr__(self, '_path_and_legs', (
             self.stance_fraction, self.step_length_m, self.step_height_m, self._neutral,
             legs.knee_xyz, legs.side.astype(float), legs.mid_length, legs.dactyl_length,
@@ -187,14 +142,15 @@ class TripodGait(GaitClock, StandGait):
 
     def targets(self, t):
         """Joint position targets (rad), shape (2N,), in `joint_names` order, at time t (s)."""
-        return _tripod_targets(self.frequency_hz * (t - self.start_time_s), self._offsets,
-                               self.amplitude(t), *self._path_and_legs)
+        return self._tripod(self.frequency_hz * (t - self.start_time_s), self._offsets,
+                            self.amplitude(t), *self._path_and_legs)
 
     def _path(self, phi, scale):
         """Foot offsets (dy, dz) in m at phases phi (any shape), stroke and lift times scale."""
         phi = np.asarray(phi, dtype=float)
-        ds, dz = foot_path(phi.ravel(), self.stance_fraction, scale * self.step_length_m,
-                           scale * self.step_height_m)
+        ds, dz = prebuilt.kernel(FOOT_PATH)(phi.ravel(), self.stance_fraction,
+                                            scale * self.step_length_m,
+                                            scale * self.step_height_m)
         return ds.reshape(phi.shape), dz.reshape(phi.shape)
 
     def _check_workspace(self):
@@ -219,6 +175,3 @@ def make_gait(name, legs=hexapod.LEGS, **params):
     except KeyError:
         raise ValueError(f'unknown gait {name!r}; choose one of {sorted(GAITS)}') from None
     return cls(legs=legs, **params)
-
-
-forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

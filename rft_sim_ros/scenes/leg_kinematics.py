@@ -1,7 +1,7 @@
 """Kinematics of 2-DOF legs that move in the lateral plane: a knee and an ankle, both turning
 about the body's long axis (x), as on the RFT-SiM crab hexapod (models/hexapod.xml).
 
-Pure numpy. Every quantity is in SI units (m, rad) and, unless stated, in the base_link frame
+numpy, and `gait_kernels.leg_inverse`. Every quantity is in SI units (m, rad) and, unless stated, in the base_link frame
 (+x forward along the body's long axis, +y left, +z up). Functions take arrays with one
 entry per leg.
 
@@ -24,28 +24,9 @@ from dataclasses import dataclass
 from typing import Tuple
 
 import numpy as np
-from numba import njit
 
-from ..kernel_cache import forget_stale
-
-
-@njit(cache=True)
-def leg_inverse(foot_y, foot_z, knee_xyz, side, mid_length, dactyl_length, dactyl_droop):
-    """`LateralLegs.inverse` for (M, N) foot targets (m; N legs): knee, ankle angles (rad).
-    Targets out of reach are clipped to the edge of the workspace."""
-    knee = np.empty(foot_y.shape)
-    ankle = np.empty(foot_y.shape)
-    for m in range(foot_y.shape[0]):
-        for i in range(foot_y.shape[1]):
-            out = side[i] * (foot_y[m, i] - knee_xyz[i, 1])  # outward from the knee axis
-            up = foot_z[m, i] - knee_xyz[i, 2]
-            cos_bend = ((out * out + up * up - mid_length ** 2 - dactyl_length ** 2)
-                        / (2.0 * mid_length * dactyl_length))
-            bend = -np.arccos(min(max(cos_bend, -1.0), 1.0))  # dactyl below the mid line
-            knee[m, i] = np.arctan2(up, out) - np.arctan2(
-                dactyl_length * np.sin(bend), mid_length + dactyl_length * np.cos(bend))
-            ankle[m, i] = bend + dactyl_droop
-    return knee, ankle
+from .. import prebuilt
+from ..kernel_names import LEG_INVERSE
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,7 +98,7 @@ class LateralLegs:
         if foot_y.shape != foot_z.shape:
             foot_y, foot_z = np.broadcast_arrays(foot_y, foot_z)
         shape = foot_y.shape
-        knee, ankle = leg_inverse(foot_y.reshape(-1, len(self.names)),
+        knee, ankle = prebuilt.kernel(LEG_INVERSE)(foot_y.reshape(-1, len(self.names)),
                                   foot_z.reshape(-1, len(self.names)), self.knee_xyz,
                                   self.side.astype(float), self.mid_length,
                                   self.dactyl_length, self.dactyl_droop)
@@ -134,6 +115,3 @@ class LateralLegs:
                 & (reach >= abs(self.mid_length - self.dactyl_length))
                 & (self.knee_range[0] - tol <= knee) & (knee <= self.knee_range[1] + tol)
                 & (self.ankle_range[0] - tol <= ankle) & (ankle <= self.ankle_range[1] + tol))
-
-
-forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -1,25 +1,24 @@
 """The bundled quadruped (models/quadruped/quadruped.urdf.xacro): its leg geometry, leg
 inverse kinematics and a trot gait.
 
-Pure numpy, ROS-free; SI units; base frame +x forward, +z up. Each leg has a hip abduction
+ROS-free; SI units; base frame +x forward, +z up. Each leg has a hip abduction
 (held at 0 by the trot), a hip pitch q1 and a knee q2 about +y; with the thigh (length l1)
 and calf (l2) hanging from the hip-pitch axis, the foot centre sits at
     x = -l1 sin q1 - l2 sin(q1 + q2),   z = -l1 cos q1 - l2 cos(q1 + q2)
 relative to that axis (q1 > 0 swings the thigh back, q2 < 0 folds the calf forward).
 
 `TrotGait` moves the diagonal pairs (fl, rr) and (fr, rl) half a cycle apart along the foot
-path of `rft_sim_ros.scenes.gaits.foot_path` (constant-speed stance stroke, smooth swing with
+path of `gait_kernels.foot_path` (constant-speed stance stroke, smooth swing with
 lift), starting from the standing pose with a smoothstep ramp of stroke and lift, so targets
 are continuous from the pose the robot holds at start.
 """
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from ..kernel_cache import forget_stale
-
-from rft_sim_ros.scenes.gaits import GaitClock, foot_path
+from .. import prebuilt
+from ..kernel_names import FOOT_PATH, TROT_TARGETS
+from .gaits import GaitClock
 
 #: Legs in the order of the model's ros2_control block and joint tree.
 LEGS = ('fl', 'fr', 'rl', 'rr')
@@ -44,26 +43,6 @@ def leg_forward(hip, knee, l1=THIGH_LENGTH, l2=CALF_LENGTH):
             -l1 * np.cos(hip) - l2 * np.cos(hip + knee))
 
 
-@njit(cache=True)
-def _trot_targets(cycles, offsets, scale, beta, length, height, neutral_x, neutral_z, l1, l2):
-    """Joint targets (rad, per leg abduction 0, hip pitch, knee) `cycles` trot cycles after
-    the start, for legs at phase `offsets` with stroke and lift times `scale`: the foot
-    path, then `leg_inverse` (the path is checked to be reachable beforehand)."""
-    phases = np.empty(offsets.shape[0])
-    for i in range(offsets.shape[0]):
-        phases[i] = (cycles + offsets[i]) % 1.0
-    dx, dz = foot_path(phases, beta, scale * length, scale * height)
-    out = np.zeros(3 * offsets.shape[0])
-    for i in range(offsets.shape[0]):
-        x, z = neutral_x + dx[i], neutral_z + dz[i]
-        knee = -np.arccos(min(max((x * x + z * z - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0),
-                              1.0))
-        out[3 * i + 1] = np.arctan2(-x, -z) + np.arctan2(l2 * np.sin(-knee),
-                                                          l1 + l2 * np.cos(knee))
-        out[3 * i + 2] = knee
-    return out
-
-
 def leg_inverse(x, z, l1=THIGH_LENGTH, l2=CALF_LENGTH):
     """Hip pitch and knee (rad, knee <= 0) that put the foot centre at (x, z) m relative to
     the hip-pitch axis; arrays broadcast. Raises ValueError if a target is out of reach."""
@@ -83,7 +62,7 @@ class TrotGait(GaitClock):
     Leg phase phi = frac(frequency_hz (t - start_time_s) + TROT_PHASES[leg]) (`phases`, LEGS
     order; `amplitude` is the ramp's scale, both from gaits.GaitClock); stance while
     phi < stance_fraction: the foot moves back from +step_length_m/2 to -step_length_m/2
-    at the standing foot height; swing returns it lifted by step_height_m (gaits.foot_path).
+    at the standing foot height; swing returns it lifted by step_height_m (gait_kernels.foot_path).
     Before start_time_s the standing pose is held; stroke and lift then grow over
     ramp_time_s. Raises ValueError if a parameter is out of range or a foot target leaves
     the leg's reach or the knee's range.
@@ -105,7 +84,7 @@ class TrotGait(GaitClock):
         object.__setattr__(self, '_neutral', tuple(float(v) for v in leg_forward(
             self.stand_hip, self.stand_knee)))
         phi = np.linspace(0.0, 1.0, 361)
-        dx, dz = foot_path(phi, self.stance_fraction, self.step_length_m, self.step_height_m)
+        dx, dz = prebuilt.kernel(FOOT_PATH)(phi, self.stance_fraction, self.step_length_m, self.step_height_m)
         try:
             _, knee = leg_inverse(self._neutral[0] + dx, self._neutral[1] + dz)
         except ValueError:
@@ -114,14 +93,12 @@ class TrotGait(GaitClock):
             raise ValueError(f'step_length_m={self.step_length_m}, step_height_m='
                              f'{self.step_height_m} move the feet out of reach or past the '
                              f'knee range {KNEE_RANGE} rad')
+        object.__setattr__(self, '_trot', prebuilt.kernel(TROT_TARGETS))
         self.targets(self.start_time_s)  # (its kernel loads or compiles now, not mid-run)
 
     def targets(self, t):
         """Joint position targets (rad), shape (12,), in JOINT_NAMES order, at time t (s)."""
-        return _trot_targets(self.frequency_hz * (t - self.start_time_s), self._offsets,
+        return self._trot(self.frequency_hz * (t - self.start_time_s), self._offsets,
                              self.amplitude(t), self.stance_fraction, self.step_length_m,
                              self.step_height_m, self._neutral[0], self._neutral[1],
                              THIGH_LENGTH, CALF_LENGTH)
-
-
-forget_stale(globals())  # (kernel_cache: drops kernels compiled from older sources)

@@ -1,0 +1,76 @@
+"""The package's compiled kernels that a run calls from Python, by name: the dotted path
+('package.module.function') of each numba kernel the sand engine and the built-in gaits
+call, so that they can choose their kernels and call the prebuilt ones (`prebuilt.kernel`)
+without importing the modules that define them, which import numba (0.3 to 0.5 s of a start,
+and as much again to load its first kernel; `prebuilt.dispatcher` imports one where a run
+needs numba's); and `PREBUILT`, what `rft-sim warmup` builds ahead of time (`prebuild`).
+Plain names and numba's text of argument types: nothing here is compiled."""
+from .sand.array_table import TABLE_SIGNATURE
+from .sand.surface_codes import FLAT, GRID, SLOPE
+
+_SAND = 'rft_sim_ros.sand'
+_GAITS = 'rft_sim_ros.scenes.gait_kernels'
+
+#: The compiled implicit steps (`implicit_solve._implicit_step`), by the parts they solve:
+#: 'plain' (the sand and joint friction), 'rows' (and MuJoCo's equality, limit and
+#: pyramidal contact rows), 'cones' (and elliptic cones' rows).
+STEP_PARTS = ('plain', 'rows', 'cones')
+STEPS = {parts: f'{_SAND}.implicit_solve.implicit_step_{parts}' for parts in STEP_PARTS}
+#: numba's text of the compiled steps' argument types (timestep, array table).
+STEP_SIGNATURE = '(float64, int64[:, ::1])'
+#: The gather kernel of each kind of rigid surface, and of deformable sand
+#: (`gather._gather_plates`).
+GATHERS = {FLAT: f'{_SAND}.gather.gather_plane', SLOPE: f'{_SAND}.gather.gather_slope',
+           GRID: f'{_SAND}.gather.gather_grid'}
+GATHER_DEFORMABLE = f'{_SAND}.gather.gather_deformable'
+#: The plates' forces of the last implicit step (`implicit_law.implicit_plate_forces`).
+PLATE_FORCES = f'{_SAND}.implicit_law.implicit_plate_forces'
+#: MuJoCo's constraint rows taken into the implicit solve and given back
+#: (`constraint_rows`): take, report, return.
+ROWS = tuple(f'{_SAND}.constraint_rows.{name}' for name in (
+    'take_constraint_rows', 'report_constraint_forces', 'return_constraint_rows'))
+#: The explicit methods' wrenches and their scatter into xfrc_applied.
+EXPLICIT = (f'{_SAND}.explicit.smoothed_wrenches', f'{_SAND}.mujoco_terms.scatter_wrenches')
+
+
+#: The built-in gaits' kernels (`scenes.gait_kernels`): the foot path, the lateral legs'
+#: inverse kinematics, the tripod's and the trot's targets.
+FOOT_PATH, LEG_INVERSE, TRIPOD_TARGETS, TROT_TARGETS = (
+    f'{_GAITS}.{name}' for name in ('foot_path', 'leg_inverse', 'tripod_targets', 'trot_targets'))
+
+_F, _I, _B = 'float64', 'int64', 'boolean'  # (numba's text of scalar and array types)
+_F1, _F2, _I1, _I2 = 'float64[::1]', 'float64[:, ::1]', 'int64[::1]', 'int64[:, ::1]'
+_I32 = 'int32[::1]'
+
+#: The kernels that take their arrays as one table (`sand.array_table`), with numba's text
+#: of their argument types.
+TABLE_KERNELS = (*((GATHERS[kind], TABLE_SIGNATURE) for kind in (FLAT, SLOPE, GRID)),
+                 (GATHER_DEFORMABLE, TABLE_SIGNATURE),
+                 *((STEPS[parts], STEP_SIGNATURE) for parts in STEP_PARTS),
+                 (PLATE_FORCES, TABLE_SIGNATURE))
+#: The other kernels a run calls from Python, with the argument types it calls them with
+#: (those of mjData's arrays and the engine's for the constraint rows'; the gaits' own).
+CALLED_KERNELS = (
+    (ROWS[0], f'({_I1}, {_I32}, {_I32}, {_F1}, {_F1}, {_F1}, {_I32}, {_I32}, {_I32}, {_B}, '
+              f'{_F1}, {_F2}, {_I32}, {_I32}, {_F2}, {_I2}, {_I1}, {_F2}, {_I1})'),
+    (ROWS[1], f'({_F2}, {_I1}, {_I}, {_F1})'),
+    (ROWS[2], f'({_F2}, {_F2}, {_I1}, {_I}, {_F1}, {_F1}, {_I32}, {_I32}, {_I32}, {_B}, {_I})'),
+    (FOOT_PATH, f'({_F1}, {_F}, {_F}, {_F})'),
+    (LEG_INVERSE, f'({_F2}, {_F2}, {_F2}, {_F1}, {_F}, {_F}, {_F})'),
+    (TRIPOD_TARGETS, f'({_F}, {_F1}, {_F}, {_F}, {_F}, {_F}, {_F2}, {_F2}, {_F1}, {_F}, {_F}, '
+                     f'{_F})'),
+    (TROT_TARGETS, f'({_F}, {_F1}, {_F}, {_F}, {_F}, {_F}, {_F}, {_F}, {_F}, {_F})'))
+#: What `rft-sim warmup` builds ahead of time (`prebuild`): every kernel above, with its
+#: argument types, which each call's arguments are checked against (`prebuilt.checked`).
+PREBUILT = TABLE_KERNELS + CALLED_KERNELS
+
+
+def gather(kind, deformable=False):
+    """The name of the gather kernel of a surface of kind `kind` (FLAT, SLOPE, GRID), or of
+    deformable sand (a GRID)."""
+    return GATHER_DEFORMABLE if deformable else GATHERS[kind]
+
+
+def function(name):
+    """The function's own name in kernel `name` (what numba's cache and notices call it)."""
+    return name.rpartition('.')[2]
