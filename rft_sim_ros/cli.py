@@ -684,10 +684,8 @@ def joined_values(parser, argv):
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(joined_values(parser, sys.argv[1:] if argv is None else argv))
-    # (`scenes` compiles nothing, and starts in half the time without numba's import)
-    held = contextlib.nullcontext() if args.func is cmd_scenes else held_while_compiling()
     try:
-        with interrupts_never_lost(), held:
+        with interrupts_never_lost(), held_while_compiling():
             return args.func(args)
     except (SceneError, ValueError) as error:
         print(f'rft-sim: error: {error}', file=sys.stderr)

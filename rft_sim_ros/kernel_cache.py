@@ -13,8 +13,9 @@ kernels one engine needs (one gather kernel per kind of surface); `rft-sim warmu
 (`rft_sim_ros.warmup`, beside the CLI) compiles every kernel ahead.
 
 numba checks a cached kernel against its own source file only, but a kernel compiles in
-helpers and constants from other files too (`sand/surface_kernels.py`, `sand/deformable.py`
-and `sand/table_readers.py` into the gather kernels of `sand/gather.py`): an upgrade or an
+helpers and constants from other files too (`sand/surface_kernels.py`,
+`sand/deformable_kernels.py` and `sand/table_readers.py` into the gather kernels of
+`sand/gather.py`): an upgrade or an
 edit that changed only those would load kernels compiled from the old code. So each kernel
 module ends by calling `forget_stale(globals())`, before any of its kernels can load: the
 fingerprint of every source the kernels are compiled from (`kernel_sources`, read as text,

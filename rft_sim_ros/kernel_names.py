@@ -6,15 +6,14 @@ and as much again to load its first kernel; `prebuilt.dispatcher` imports one wh
 needs numba's); and `PREBUILT`, what `rft-sim warmup` builds ahead of time (`prebuild`).
 Plain names and numba's text of argument types: nothing here is compiled."""
 from .sand.array_table import TABLE_SIGNATURE
+from .sand.layout import STEP_PARTS
 from .sand.surface_codes import FLAT, GRID, SLOPE
 
 _SAND = 'rft_sim_ros.sand'
 _GAITS = 'rft_sim_ros.scenes.gait_kernels'
 
-#: The compiled implicit steps (`implicit_solve._implicit_step`), by the parts they solve:
-#: 'plain' (the sand and joint friction), 'rows' (and MuJoCo's equality, limit and
-#: pyramidal contact rows), 'cones' (and elliptic cones' rows).
-STEP_PARTS = ('plain', 'rows', 'cones')
+#: The compiled implicit steps (`implicit_solve._implicit_step`), by the parts they solve
+#: (`sand.layout.STEP_PARTS`).
 STEPS = {parts: f'{_SAND}.implicit_solve.implicit_step_{parts}' for parts in STEP_PARTS}
 #: numba's text of the compiled steps' argument types (timestep, array table).
 STEP_SIGNATURE = '(float64, int64[:, ::1])'
@@ -31,6 +30,8 @@ ROWS = tuple(f'{_SAND}.constraint_rows.{name}' for name in (
     'take_constraint_rows', 'report_constraint_forces', 'return_constraint_rows'))
 #: The explicit methods' wrenches and their scatter into xfrc_applied.
 EXPLICIT = (f'{_SAND}.explicit.smoothed_wrenches', f'{_SAND}.mujoco_terms.scatter_wrenches')
+#: A height grid's heights at points (`sand.surface.HeightGrid.height`).
+GRID_HEIGHTS = f'{_SAND}.surface_kernels.grid_heights'
 
 
 #: The built-in gaits' kernels (`scenes.gait_kernels`): the foot path, the lateral legs'
@@ -49,12 +50,18 @@ TABLE_KERNELS = (*((GATHERS[kind], TABLE_SIGNATURE) for kind in (FLAT, SLOPE, GR
                  *((STEPS[parts], STEP_SIGNATURE) for parts in STEP_PARTS),
                  (PLATE_FORCES, TABLE_SIGNATURE))
 #: The other kernels a run calls from Python, with the argument types it calls them with
-#: (those of mjData's arrays and the engine's for the constraint rows'; the gaits' own).
+#: (those of mjData's arrays and the engine's for the constraint rows' and the explicit
+#: methods'; a grid's read-only heights; the gaits' own).
 CALLED_KERNELS = (
     (ROWS[0], f'({_I1}, {_I32}, {_I32}, {_F1}, {_F1}, {_F1}, {_I32}, {_I32}, {_I32}, {_B}, '
               f'{_F1}, {_F2}, {_I32}, {_I32}, {_F2}, {_I2}, {_I1}, {_F2}, {_I1})'),
     (ROWS[1], f'({_F2}, {_I1}, {_I}, {_F1})'),
     (ROWS[2], f'({_F2}, {_F2}, {_I1}, {_I}, {_F1}, {_F1}, {_I32}, {_I32}, {_I32}, {_B}, {_I})'),
+    (EXPLICIT[0], f'({_I}, {_I}, {_I1}, {_I1}, {_F2}, {_F2}, {_F}, {_I}, {_F2}, {_I1}, {_F2}, '
+                  f'{_F2})'),
+    (EXPLICIT[1], f'({_I}, {_I1}, {_F2}, {_I1}, {_F2}, {_F2}, {_F2}, {_F2})'),
+    (GRID_HEIGHTS, f"(Array(float64, 2, 'C', readonly=True), {_F}, {_F}, {_F}, {_F}, {_F1}, "
+                   f"{_F1}, {_F1})"),
     (FOOT_PATH, f'({_F1}, {_F}, {_F}, {_F})'),
     (LEG_INVERSE, f'({_F2}, {_F2}, {_F2}, {_F1}, {_F}, {_F}, {_F})'),
     (TRIPOD_TARGETS, f'({_F}, {_F1}, {_F}, {_F}, {_F}, {_F}, {_F2}, {_F2}, {_F1}, {_F}, {_F}, '

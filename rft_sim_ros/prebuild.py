@@ -23,8 +23,8 @@ import warnings
 from pathlib import Path
 
 from .kernel_cache import kernel_sources, source_stats, sources_fingerprint, sources_unchanged
-from .prebuilt import (FOLDER, RECORD, dispatcher, extension_file, load, module_name, state,
-                       symbol, toolchain, toolchain_key)
+from .prebuilt import (FOLDER, RECORD, dispatcher, extension_file, load, module_name,
+                       settings_refusal, state, symbol, toolchain, toolchain_key)
 
 
 def _caller(kernel, arity):
@@ -40,11 +40,11 @@ def _caller(kernel, arity):
 @contextlib.contextmanager
 def _host_features():
     """numba's ahead-of-time code generation with the instruction-set features its JIT
-    uses (`get_host_cpu_features`: this machine's, or NUMBA_CPU_FEATURES) instead of none
-    (which lets LLVM take every feature of the CPU's model)."""
-    from numba.core.codegen import AOTCPUCodegen, get_host_cpu_features
+    uses (this machine's, or NUMBA_CPU_FEATURES; `CPUCodegen._get_host_cpu_features`)
+    instead of none (which lets LLVM take every feature of the CPU's model)."""
+    from numba.core.codegen import AOTCPUCodegen
     original = AOTCPUCodegen._customize_tm_features
-    AOTCPUCodegen._customize_tm_features = lambda self: get_host_cpu_features()
+    AOTCPUCodegen._customize_tm_features = lambda self: self._get_host_cpu_features()
     try:
         yield
     finally:
@@ -58,10 +58,13 @@ def build(kernels, folder=FOLDER):
     process that loaded one keeps it). Returns the wall seconds it took. Raises what the
     compiler raised (e.g. no C compiler), or RuntimeError where a source changed while it
     compiled: the previous extension, if any, is then kept."""
-    from numba.core import sigutils
+    from numba.core import config, sigutils
     with warnings.catch_warnings():  # (numba marks pycc as deprecated, without a successor)
         warnings.simplefilter('ignore')
         from numba.pycc import CC
+    refused = settings_refusal()
+    if refused:  # (what a run would refuse the extension for: it would be built with it)
+        raise RuntimeError(f'not built: {refused}')
     start = time.perf_counter()
     tools = toolchain()
     target = Path(folder) / toolchain_key(tools)
@@ -70,7 +73,8 @@ def build(kernels, folder=FOLDER):
     name = module_name(fingerprint)
     with tempfile.TemporaryDirectory(dir=target) as work, _host_features():
         compiler = CC(name)
-        compiler.output_dir, compiler.target_cpu, compiler.verbose = work, 'host', False
+        compiler.output_dir, compiler.verbose = work, False
+        compiler.target_cpu = config.CPU_NAME or 'host'  # (the JIT's: NUMBA_CPU_NAME or this)
         for kernel_name, signature in kernels:
             kernel = dispatcher(kernel_name)
             arguments, _ = sigutils.normalize_signature(signature)

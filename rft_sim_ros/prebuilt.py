@@ -59,11 +59,6 @@ def symbol(name):
     return name.replace('.', '__')
 
 
-def kernel_name(dispatcher):
-    """The dotted name of numba dispatcher `dispatcher` ('package.module.function')."""
-    return f'{dispatcher.py_func.__module__}.{dispatcher.py_func.__name__}'
-
-
 def dispatcher(name):
     """The numba dispatcher of kernel `name` ('package.module.function'): imports its module,
     and so numba."""
@@ -84,20 +79,19 @@ def extension_file(folder, name):
 
 def toolchain():
     """{name: version} of what compiled code depends on besides its sources: numba, numpy,
-    Python, the CPU name and instruction-set features LLVM finds on this machine, and the
-    settings of numba's that change which of them its code uses (NUMBA_CPU_NAME,
-    NUMBA_CPU_FEATURES, NUMBA_ENABLE_AVX), without importing numba: numba's version from its
-    installed distribution, the CPU from llvmlite (0.05 s)."""
+    Python, the CPU name and instruction-set features LLVM finds on this machine, and
+    numba's settings that change the code it generates for them (NUMBA_CPU_NAME,
+    NUMBA_CPU_FEATURES, NUMBA_ENABLE_AVX, as set in the environment), without importing
+    numba: numba's version from its installed distribution, the CPU from llvmlite (0.05 s).
+    """
     from importlib.metadata import version
 
     import llvmlite.binding
-    import numpy
-    return {'numba': version('numba'), 'numpy': numpy.__version__,
-            'python': sys.version.split()[0],
-            'cpu': os.environ.get('NUMBA_CPU_NAME') or llvmlite.binding.get_host_cpu_name(),
-            'cpu_features': (os.environ.get('NUMBA_CPU_FEATURES')
-                             or llvmlite.binding.get_host_cpu_features().flatten()),
-            'numba_enable_avx': os.environ.get('NUMBA_ENABLE_AVX', '')}
+    return {'numba': version('numba'), 'numpy': np.__version__,
+            'python': sys.version.split()[0], 'cpu': llvmlite.binding.get_host_cpu_name(),
+            'cpu_features': llvmlite.binding.get_host_cpu_features().flatten(),
+            **{setting.lower(): os.environ.get(setting, '') for setting in (
+                'NUMBA_CPU_NAME', 'NUMBA_CPU_FEATURES', 'NUMBA_ENABLE_AVX')}}
 
 
 def toolchain_key(tools):
@@ -105,7 +99,7 @@ def toolchain_key(tools):
     return hashlib.sha256(json.dumps(tools, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def _debugging():
+def settings_refusal():
     """Why numba's settings rule the extension out, or '': a debugging setting it was not
     built with (NUMBA_DISABLE_JIT, NUMBA_BOUNDSCHECK: read from the environment as numba reads
     them, so that numba is not imported), or a numba configuration file in the working folder
@@ -138,10 +132,13 @@ def load():
     for the process."""
     if os.environ.get(SWITCH, '1') == '0':
         return {}, f'off ({SWITCH}=0)'
-    debugging = _debugging()
-    if debugging:
-        return {}, f'off ({debugging})'
-    folder = FOLDER / toolchain_key(toolchain())
+    refused = settings_refusal()
+    if refused:
+        return {}, f'off ({refused})'
+    try:
+        folder = FOLDER / toolchain_key(toolchain())
+    except Exception as error:  # (e.g. numba installed without its distribution's record)
+        return {}, f'no toolchain to match: {type(error).__name__}: {error}'
     try:
         kept = json.loads((folder / RECORD).read_text())
     except (OSError, ValueError):
@@ -150,22 +147,39 @@ def load():
     why = _stale(kept)
     if why:
         return {}, f'{why}: `rft-sim warmup` builds them again'
-    name = module_name(kept['fingerprint'])
     try:
+        name = module_name(kept['fingerprint'])
         spec = importlib.util.spec_from_file_location(name, extension_file(folder, name))
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
-    except (ImportError, OSError) as error:
-        return {}, f'not loadable: {error}'
-    return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature)
-            for kernel, signature in kept.get('kernels', {}).items()}, ''
+        return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature)
+                for kernel, signature in kept['kernels'].items()}, ''
+    except Exception as error:  # (a damaged extension or record: numba's kernels run)
+        return {}, f'not loadable: {type(error).__name__}: {error}'
 
 
 #: numba's scalar types a prebuilt kernel may take, and the Python and numpy types numba
 #: types as each (`checked`).
 _SCALARS = {'float64': (float, np.float64), 'int64': (int, np.int64),
             'boolean': (bool, np.bool_)}
-_ARRAY = re.compile(r'(\w+)\[([:, ]*)::1\]')  # a C-contiguous array: float64[:, ::1]
+#: A C-contiguous array in numba's text: float64[:, ::1] (writeable), or
+#: Array(float64, 2, 'C', readonly=True).
+_ARRAY = re.compile(r"(\w+)\[([:, ]*)::1\]")
+_READ_ONLY = re.compile(r"Array\((\w+), (\d), 'C', readonly=True\)")
+
+
+def _arguments(signature):
+    """The argument types in numba's text of a signature, '(type, type, ...)': split at the
+    commas outside brackets and parentheses."""
+    arguments, depth, current = [], 0, ''
+    for char in signature.strip()[1:-1] + ',':
+        depth += (char in '([') - (char in ')]')
+        if char == ',' and depth == 0:
+            arguments.append(current.strip())
+            current = ''
+        else:
+            current += char
+    return [argument for argument in arguments if argument]
 
 
 def checked(function, name, signature):
@@ -177,22 +191,25 @@ def checked(function, name, signature):
     here, per call, on each argument's exact type: for a scalar Python's or numpy's type that
     numba types as it (float or numpy.float64 for float64; int or numpy.int64 for int64;
     bool or numpy.bool_ for boolean), for an array a numpy.ndarray of that dtype and rank,
-    C-contiguous, writeable and aligned. Scalars and C-contiguous arrays only (ValueError
-    otherwise). The check is one generated expression (0.1 to 0.3 us an argument)."""
-    arguments = [part.strip() for part in re.split(r',\s*(?![^\[]*\])', signature.strip('()'))
-                 if part.strip()]
+    C-contiguous, aligned, and writeable or not as built (numba's read-only arrays are
+    another type). Scalars and C-contiguous arrays only (ValueError otherwise). The check is
+    one generated expression (0.1 to 0.3 us an argument)."""
+    arguments = _arguments(signature)
     tests, constants = [], {'function': function, 'name': name, 'dispatcher': dispatcher,
                             'ndarray': np.ndarray}
     for i, argument in enumerate(arguments):
-        array = _ARRAY.fullmatch(argument)
+        writeable, read_only = _ARRAY.fullmatch(argument), _READ_ONLY.fullmatch(argument)
         if argument in _SCALARS:
             constants[f't{i}'], constants[f'u{i}'] = _SCALARS[argument]
             tests.append(f'(type(a{i}) is t{i} or type(a{i}) is u{i})')
-        elif array:
-            constants[f'd{i}'] = np.dtype(array.group(1))
-            rank = array.group(2).count(':') + 1
+        elif writeable or read_only:
+            element = (writeable or read_only).group(1)
+            constants[f'd{i}'] = np.dtype('bool' if element == 'boolean' else element)
+            rank = (writeable.group(2).count(':') + 1 if writeable
+                    else int(read_only.group(2)))
             tests.append(f'(type(a{i}) is ndarray and a{i}.dtype == d{i} and a{i}.ndim == {rank}'
-                         f' and (f := a{i}.flags).c_contiguous and f.writeable and f.aligned)')
+                         f' and (f := a{i}.flags).c_contiguous and f.aligned and '
+                         f'{"" if writeable else "not "}f.writeable)')
         else:
             raise ValueError(f'{name}: argument type {argument!r}: a prebuilt kernel takes '
                              'float64, int64, boolean and C-contiguous arrays')

@@ -3,6 +3,7 @@ Ctrl-C waits for the compile in hand; a KeyboardInterrupt that lands in a callba
 destructor (llvmlite's) is delivered again instead of printed and lost; what an interrupt
 half built is freed without a traceback."""
 import signal
+import subprocess
 import sys
 import time
 
@@ -115,6 +116,22 @@ def test_a_ctrl_c_while_a_run_compiles_becomes_its_stop_request(ctrl_c_raises):
             assert kernel(np.ones(3)) == 3.0  # no exception: the run's handler took it
             assert stop.is_set() and stop.signal == signal.SIGINT
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_the_hold_is_installed_once_the_package_imports_numba_for_its_kernels():
+    """(A run on prebuilt kernels imports no numba: the hold waits for its first kernel
+    module, and is removed with the context.)"""
+    held = "any(isinstance(x, _HoldInterrupts) for x in event._registered['numba:compiler_lock'])"
+    code = ('import sys\n'
+            'from rft_sim_ros.interrupts import _HoldInterrupts, held_while_compiling\n'
+            'with held_while_compiling():\n'
+            "    print('numba' in sys.modules)\n"
+            '    import rft_sim_ros.scenes.gait_kernels\n'
+            '    from numba.core import event\n'
+            f'    print({held})\n'
+            f'print({held})\n')
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert done.stdout.split() == ['False', 'True', 'False'], done.stderr
 
 
 def test_a_lost_ctrl_c_is_delivered_again(reported, ctrl_c_raises):

@@ -80,15 +80,19 @@ def test_a_run_on_prebuilt_kernels_gives_numbas_results_to_the_bit(built, use):
     assert len(jit_forces) > 50 and jit_forces[:, 2].sum() > 0.0
 
 
-@pytest.mark.parametrize('scene', ['plate_drop', 'hexapod', 'quadruped'])
-def test_a_run_on_prebuilt_kernels_imports_no_numba(built, scene):
+@pytest.mark.parametrize('scene, overrides', [
+    ('plate_drop', {}), ('hexapod', {}), ('quadruped', {}),
+    ('plate_drop', {'rft.low_velocity.method': 'ema'}),
+    ('plate_drop', {'sand.deformable.enabled': True})])
+def test_a_run_on_prebuilt_kernels_imports_no_numba(built, scene, overrides):
     run = ('import sys\n'
            'from pathlib import Path\n'
            'from rft_sim_ros import prebuilt\n'
            f'prebuilt.FOLDER = Path({str(built)!r})\n'
            'from rft_sim_ros.scenes.config import load_scene\n'
            'from rft_sim_ros.sim.runner import run_scene\n'
-           f'summary = run_scene(load_scene({scene!r}), duration=0.05, progress=False)\n'
+           f'summary = run_scene(load_scene({scene!r}, {overrides!r}), duration=0.05, '
+           'progress=False)\n'
            "print(summary['stable'], 'numba' in sys.modules, summary['machine']['kernels'])\n")
     done = subprocess.run([sys.executable, '-c', run], capture_output=True, text=True,
                           env=dict(os.environ, **{prebuilt.SWITCH: '1'}), check=True)
@@ -143,7 +147,7 @@ def _copy(built, tmp_path, **changes):
 
 
 @pytest.mark.parametrize('name', ['numba', 'numpy', 'python', 'cpu', 'cpu_features',
-                                  'numba_enable_avx'])
+                                  'numba_cpu_name', 'numba_cpu_features', 'numba_enable_avx'])
 def test_an_extension_built_with_another_toolchain_is_not_used(built, use, monkeypatch, name):
     use(built)
     assert prebuilt.has(_PLANE)
@@ -181,6 +185,22 @@ def test_numbas_debugging_settings_turn_it_off(built, use, monkeypatch, setting)
     monkeypatch.setenv(f'NUMBA_{setting}', '0')
     prebuilt.load.cache_clear()
     assert prebuilt.state() == 'prebuilt kernels: in use'
+
+
+def test_numbas_cpu_settings_make_another_toolchain(monkeypatch):
+    here = prebuilt.toolchain()
+    for setting in ('NUMBA_CPU_NAME', 'NUMBA_CPU_FEATURES', 'NUMBA_ENABLE_AVX'):
+        with monkeypatch.context() as patched:
+            patched.setenv(setting, 'generic' if setting == 'NUMBA_CPU_NAME' else '0')
+            other = prebuilt.toolchain()
+            assert other != here and other['cpu_features'] == here['cpu_features']
+
+
+def test_no_extension_is_built_under_the_settings_a_run_refuses(monkeypatch, tmp_path):
+    monkeypatch.setenv('NUMBA_BOUNDSCHECK', '1')
+    with pytest.raises(RuntimeError, match='not built: NUMBA_BOUNDSCHECK is set'):
+        build(PREBUILT[:1], tmp_path)
+    assert not any(tmp_path.iterdir())
 
 
 def test_a_numba_configuration_file_turns_it_off(built, use, monkeypatch, tmp_path):

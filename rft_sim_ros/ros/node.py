@@ -19,7 +19,8 @@ wall clock.
 Start-up (`rft_sim_ros.ros.startup`): this module imports rclpy and the node's light
 modules only, so the node is on the graph and answers before the simulation's modules are
 imported (seconds on a busy machine); the scene is read
-(the simulation's modules imported: MuJoCo, numba, the engine) and the simulation built (its
+(the simulation's modules imported: MuJoCo, the engine, numba where the kernels are not
+prebuilt) and the simulation built (its
 kernels compiled on a cold cache) in a worker thread while the dynamic parameters, the
 services and /diagnostics already answer; a bad scene or parameter stops the node once
 read; the topics, the subscriptions and the action come once it is built, and it starts
@@ -76,8 +77,9 @@ def read_scene(robot, robot_description, assignments, keyframe):
     """The SceneConfig the node's parameters ask for: `robot` {scene, model, sand_bodies:
     the parameters}, `robot_description` (XML or ''), `assignments` (scene_overrides) and
     `keyframe` (`robot_source.load_node_scene`); raises SceneError or ValueError. Called
-    in the start-up thread: it imports the simulation's side of the node (MuJoCo, numba, the
-    sand engine, the runtime: seconds on a busy two-core machine), so the node is on the graph
+    in the start-up thread: it imports the simulation's side of the node (MuJoCo, the sand
+    engine, the runtime, numba where the kernels are not prebuilt: up to seconds on a busy
+    two-core machine), so the node is on the graph
     and answers meanwhile, and the executor thread, which never imports them itself, finds
     them imported once the scene is read."""
     from rft_sim_ros.ros import runtime, terrain  # noqa: F401  (for `_serve`: see above)

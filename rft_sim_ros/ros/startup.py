@@ -1,8 +1,9 @@
 """Start-up of the `rft_sim` node (ROS-free): the scene is read and the simulation built off
 the executor.
 
-Reading the scene needs the simulation's modules (MuJoCo, numba, the sand engine: seconds
-of imports on a busy two-core machine), and building a `Simulation` compiles its sand
+Reading the scene needs the simulation's modules (MuJoCo, the sand engine, and numba where
+the kernels are not prebuilt: up to seconds of imports on a busy two-core machine), and
+building a `Simulation` compiles its sand
 kernels when numba's cache lacks them (a first start after an install or an upgrade: a
 minute or more). The node serves ROS meanwhile: it is on the graph (its module imports
 none of the simulation's), and its parameters, its services and /diagnostics answer at

@@ -22,11 +22,12 @@ from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, 
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
-from ..kernel_names import EXPLICIT, PLATE_FORCES, ROWS, STEP_PARTS, STEPS, function
+from ..kernel_names import EXPLICIT, PLATE_FORCES, ROWS, STEPS, function
 from . import layout
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .clusters import cluster_plates
 from .deformable import no_bed_arrays
+from .layout import STEP_PARTS
 from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
@@ -40,7 +41,7 @@ def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False, parts
     """The names (`kernel_names`) of the compiled kernels an engine with low-velocity
     `method` ('implicit'; any other: the explicit methods' kernels) on a surface of
     `surface_kind` (deformable or not) runs; with the implicit method, its step solving
-    `parts` (`kernel_names.STEP_PARTS`, `step_parts`)."""
+    `parts` (`layout.STEP_PARTS`, `step_parts`)."""
     gathering = kernel_names.gather(surface_kind, deformable)
     if method != 'implicit':
         return (gathering, *EXPLICIT)
@@ -64,7 +65,7 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts
 
 
 def step_parts(model, rows_expected=False):
-    """Which compiled implicit step (`kernel_names.STEP_PARTS`) an engine of MuJoCo
+    """Which compiled implicit step (`layout.STEP_PARTS`) an engine of MuJoCo
     `model` loads: 'plain' where the model cannot make a constraint row (no equality, no
     limited joint or tendon, no tendon friction and no rigid contact: `can_collide`) and rows
     are not `rows_expected`; 'cones' where it can and its contacts use elliptic cones; 'rows'
@@ -210,10 +211,10 @@ class SandEngine:
         self._gather = prebuilt.kernel(self._gathering)
         # per-plate forces of an implicit step, where asked for (`active_plates`)
         self._plate_forces = prebuilt.kernel(PLATE_FORCES)
-        # numba's kernels of the explicit methods and of MuJoCo's constraint rows, where the
+        # the kernels of the explicit methods, and of MuJoCo's constraint rows where the
         # engine calls them (`_row_kernels`)
         self._smoothed_wrenches, self._scatter_wrenches = (
-            (None, None) if self._implicit_method else map(prebuilt.dispatcher, EXPLICIT))
+            (None, None) if self._implicit_method else map(prebuilt.kernel, EXPLICIT))
         self._rows_kernels = None  # (`_row_kernels`)
         self.zeta_map = zeta_map
         self._zeta_factors = (np.ones((1, 1)) if zeta_map is None
@@ -452,7 +453,7 @@ class SandEngine:
         return taken
 
     def _solve_at_least(self, parts):
-        """Step with the compiled implicit step that solves `parts` (`implicit_solve.STEP_PARTS`)
+        """Step with the compiled implicit step that solves `parts` (`layout.STEP_PARTS`)
         from now on, where the one loaded solves less: the model made rows that `step_parts`
         did not foresee (its options changed at run time). It loads, or compiles, at its first
         call."""
@@ -606,9 +607,10 @@ class SandEngine:
 
     @property
     def kernels(self):
-        """One line: whether this engine's step calls the prebuilt table kernels (its gather,
-        and its implicit step) or numba's, and why (`prebuilt.state`)."""
-        stepping = (self._stepping,) if self._implicit_method else ()
+        """One line: whether this engine's step calls the prebuilt kernels (its gather, and
+        its implicit step or the explicit methods' kernels) or numba's, and why
+        (`prebuilt.state`)."""
+        stepping = (self._stepping,) if self._implicit_method else EXPLICIT
         return prebuilt.state(self._gathering, *stepping)
 
     def _explicit(self):

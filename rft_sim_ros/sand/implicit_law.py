@@ -114,7 +114,7 @@ def implicit_plate_forces(arrays):
     """`plate_forces` of the plates the last implicit step gathered (counter GATHERED), of
     the engine's implicit array table (`layout.ImplicitArrays`; settings REST_SPEED, m/s),
     into its `applied` (3, n; N, world axes, on the body). A table kernel
-    (`sand.engine.TABLE_KERNELS`)."""
+    (`kernel_names.TABLE_KERNELS`)."""
     ids = IMPLICIT
     plate_forces(int_vector(arrays, ids.counters)[GATHERED], int_vector(arrays, ids.out_slot),
                  float_matrix(arrays, ids.table), float_matrix(arrays, ids.force),

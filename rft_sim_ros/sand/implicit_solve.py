@@ -30,7 +30,6 @@ import numpy as np
 from numba import njit
 
 from ..kernel_cache import forget_stale
-from ..kernel_names import STEP_PARTS
 from ..rft.law_rows import DIRECTION
 from .active_set import FROZEN, MEMORY_SHIFT, SOLVED, STATE, VISITED, remembered
 from .table_readers import (byte_vector, float_matrix, float_vector, int8_matrix, int8_vector,
@@ -44,7 +43,8 @@ from .implicit_law import (MOVING, OFF, RESTING, accumulate_slot, across_damper,
 from .joint_friction import friction_finish, friction_sets, friction_start, friction_terms
 from .layout import (ACROSS, ACTUATORS, COEF_ACROSS, COEF_ALONG, COEF_MOVING, CONSTRAINT_ROWS,
                      DAMPER, GATHERED, HANDED_BACK, HANDED_BACK_AT, IMPLICIT, LEVER, MAGNITUDE,
-                     REST_SPEED, SLOTS, SOLVES, SPEED, STEPS, UNSETTLED, WANTED, SolveSpace)
+                     REST_SPEED, SLOTS, SOLVES, SPEED, STEP_PARTS, STEPS, UNSETTLED, WANTED,
+                     SolveSpace)
 from .mujoco_terms import implicit_damping, implicit_mass, prepare_solve, scatter_wrenches
 from .tree_solve import checked_solve, copy_into, translational_inverse_masses
 

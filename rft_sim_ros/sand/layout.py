@@ -13,6 +13,11 @@ import numpy as np
 
 from ..rft.law_rows import LAW_ROWS
 
+#: The parts the compiled implicit steps solve, one step each (`implicit_solve`): 'plain'
+#: (the sand and joint friction), 'rows' (and MuJoCo's equality, limit and pyramidal contact
+#: rows), 'cones' (and elliptic cones' rows).
+STEP_PARTS = ('plain', 'rows', 'cones')
+
 
 #: Rows of the implicit law's per-plate work space (`implicit_solve._implicit_step`), plates
 #: along the second axis: |G|, across damper c (N s/m), the set coefficients.

@@ -389,12 +389,14 @@ class HeightGrid(Surface):
         """The bilinear height the gather kernels read (`surface_kernels.grid_heights`),
         compiled: a Python caller (metrics, scenarios) sampling thousands of points at the
         publish rate pays microseconds, not a numpy pass per operation."""
-        from .surface_kernels import grid_heights  # (numba, imported when first used)
+        from .. import prebuilt  # (the kernel prebuilt, or numba's: imported when first used)
+        from ..kernel_names import GRID_HEIGHTS
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         out = np.empty(x.shape)
-        grid_heights(self.grid, self.origin[0], self.origin[1], 1.0 / self.spacing[0],
-                     1.0 / self.spacing[1], np.ascontiguousarray(x).ravel(),
-                     np.ascontiguousarray(y).ravel(), out.reshape(-1))
+        prebuilt.kernel(GRID_HEIGHTS)(  # (the points copied: C-contiguous and writeable)
+            self.grid, float(self.origin[0]), float(self.origin[1]), 1.0 / self.spacing[0],
+            1.0 / self.spacing[1], np.array(x, float).reshape(-1),
+            np.array(y, float).reshape(-1), out.reshape(-1))
         return out if out.ndim else float(out)  # (a point in, a number out, as on a plane)
 
     def bounds(self, x0, x1, y0, y1):

@@ -1,9 +1,10 @@
 """The compiled kernels of the built-in gaits (numba, cached): the foot path of a gait cycle
 (`foot_path`), the lateral legs' inverse kinematics (`leg_inverse`, `leg_kinematics`), and
 the targets of the hexapod's tripod (`tripod_targets`, `gaits`) and the quadruped's trot
-(`trot_targets`, `quadruped`) at a time. Apart from the gaits, which call them through
-`prebuilt.kernel` (`kernel_names.GAIT_KERNELS`), so that a run whose kernels are prebuilt
-does not import numba. SI units (m, rad), base_link frame."""
+(`trot_targets`, `quadruped`) at a time. A module of their own, which the gaits do not
+import: they call them by name through `prebuilt.kernel` (`kernel_names.FOOT_PATH` ...), so
+that a run whose kernels are prebuilt does not import numba. SI units (m, rad), base_link
+frame."""
 import numpy as np
 from numba import njit
 
