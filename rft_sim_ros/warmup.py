@@ -1,6 +1,6 @@
 """`rft-sim warmup`: every compiled kernel of the package into numba's on-disk cache ahead of
-a first run, by short runs of the scenes and settings that use them; then the engine's table
-kernels built ahead of time for this machine (`prebuild`, `prebuilt`).
+a first run, by short runs of the scenes and settings that use them; then the kernels a run
+calls built ahead of time for this machine (`prebuild`, `prebuilt`).
 
 This sits beside the CLI, above the simulation it runs; the cache bookkeeping the kernel
 modules themselves need (`kernel_cache`) sits below them and imports none of the package.
@@ -61,7 +61,7 @@ def warm_up(log=print):
     """Compile (or load) every kernel: short runs of the scenes and settings that use them,
     with the gather kernels of the other surfaces and the implicit step with elliptic cones
     compiled meanwhile in a second process.
-    Then builds the prebuilt table kernels (`prebuild`); where that fails (e.g. no C
+    Then builds the prebuilt kernels (`prebuild`); where that fails (e.g. no C
     compiler), says why and goes on: runs then load them from numba's cache, as before.
     Returns (the qualified names still not cached (none, unless a kernel went unused),
     one line on the prebuilt kernels: `prebuilt.state`, or why the build failed)."""
@@ -89,12 +89,12 @@ def warm_up(log=print):
         run('plate_drop', {'sand.deformable.enabled': True})  # and deformable sand's
     down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
     plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
-    log('warmup: the table kernels, ahead of time for this CPU')
+    log('warmup: the kernels a run calls, ahead of time for this CPU')
     return uncached(), prebuild()
 
 
 def prebuild():
-    """Build the prebuilt table kernels in a second process (`python -m rft_sim_ros.prebuild`:
+    """Build the prebuilt kernels in a second process (`python -m rft_sim_ros.prebuild`:
     it loads the kernels from numba's cache, which this process has compiled some of); one
     line: what it printed (`prebuilt.state`), or why it failed (e.g. no C compiler: runs then
     load the kernels from numba's cache)."""
