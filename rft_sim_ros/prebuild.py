@@ -23,8 +23,8 @@ import warnings
 from pathlib import Path
 
 from .kernel_cache import kernel_sources, source_stats, sources_fingerprint, sources_unchanged
-from .prebuilt import (FOLDER, RECORD, dispatcher, extension_file, load, module_name,
-                       settings_refusal, state, symbol, toolchain, toolchain_key)
+from .prebuilt import (FOLDER, RECORD, checked, dispatcher, extension_file, load,
+                       module_name, settings_refusal, state, symbol, toolchain, toolchain_key)
 
 
 def _caller(kernel, arity):
@@ -65,6 +65,8 @@ def build(kernels, folder=FOLDER):
     refused = settings_refusal()
     if refused:  # (what a run would refuse the extension for: it would be built with it)
         raise RuntimeError(f'not built: {refused}')
+    for kernel_name, signature in kernels:  # (each a signature the calls can be checked by)
+        checked(None, kernel_name, signature)
     start = time.perf_counter()
     tools = toolchain()
     target = Path(folder) / toolchain_key(tools)

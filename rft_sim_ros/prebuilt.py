@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from .kernel_cache import PACKAGE, sources_fingerprint, sources_unchanged
+from .kernel_names import PREBUILT
 
 #: The folder of the built extensions, one subfolder per `toolchain_key`.
 FOLDER = PACKAGE / '_prebuilt'
@@ -52,6 +53,10 @@ RECORD = 'build.json'
 SWITCH = 'RFT_SIM_PREBUILT'
 #: numba's configuration file, read from the working folder.
 CONFIG_FILE = '.numba_config.yaml'
+#: numba's environment settings that change the machine code it generates: another value,
+#: another extension (`toolchain`).
+CODE_SETTINGS = ('NUMBA_CPU_NAME', 'NUMBA_CPU_FEATURES', 'NUMBA_ENABLE_AVX', 'NUMBA_OPT',
+                 'NUMBA_LOOP_VECTORIZE', 'NUMBA_SLP_VECTORIZE')
 
 
 def symbol(name):
@@ -80,18 +85,16 @@ def extension_file(folder, name):
 def toolchain():
     """{name: version} of what compiled code depends on besides its sources: numba, numpy,
     Python, the CPU name and instruction-set features LLVM finds on this machine, and
-    numba's settings that change the code it generates for them (NUMBA_CPU_NAME,
-    NUMBA_CPU_FEATURES, NUMBA_ENABLE_AVX, as set in the environment), without importing
-    numba: numba's version from its installed distribution, the CPU from llvmlite (0.05 s).
-    """
+    numba's settings in the environment that change the code it generates (`CODE_SETTINGS`;
+    None where unset, which numba tells from set and empty), without importing numba:
+    numba's version from its installed distribution, the CPU from llvmlite (0.05 s)."""
     from importlib.metadata import version
 
     import llvmlite.binding
     return {'numba': version('numba'), 'numpy': np.__version__,
             'python': sys.version.split()[0], 'cpu': llvmlite.binding.get_host_cpu_name(),
             'cpu_features': llvmlite.binding.get_host_cpu_features().flatten(),
-            **{setting.lower(): os.environ.get(setting, '') for setting in (
-                'NUMBA_CPU_NAME', 'NUMBA_CPU_FEATURES', 'NUMBA_ENABLE_AVX')}}
+            **{setting.lower(): os.environ.get(setting) for setting in CODE_SETTINGS}}
 
 
 def toolchain_key(tools):
@@ -144,6 +147,8 @@ def load():
     except (OSError, ValueError):
         return {}, ('not built for this numba, numpy, Python and CPU (`rft-sim warmup` '
                     'builds them)')
+    if not isinstance(kept, dict):
+        return {}, f'not loadable: {RECORD} holds no record'
     why = _stale(kept)
     if why:
         return {}, f'{why}: `rft-sim warmup` builds them again'
@@ -152,8 +157,10 @@ def load():
         spec = importlib.util.spec_from_file_location(name, extension_file(folder, name))
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
+        current = dict(PREBUILT)  # (a kernel now called with other types: numba's)
         return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature)
-                for kernel, signature in kept['kernels'].items()}, ''
+                for kernel, signature in kept['kernels'].items()
+                if current.get(kernel) == signature}, ''
     except Exception as error:  # (a damaged extension or record: numba's kernels run)
         return {}, f'not loadable: {type(error).__name__}: {error}'
 

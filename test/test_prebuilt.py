@@ -187,13 +187,22 @@ def test_numbas_debugging_settings_turn_it_off(built, use, monkeypatch, setting)
     assert prebuilt.state() == 'prebuilt kernels: in use'
 
 
-def test_numbas_cpu_settings_make_another_toolchain(monkeypatch):
+def test_numbas_code_settings_make_another_toolchain(monkeypatch):
+    for setting in prebuilt.CODE_SETTINGS:
+        monkeypatch.delenv(setting, raising=False)
     here = prebuilt.toolchain()
-    for setting in ('NUMBA_CPU_NAME', 'NUMBA_CPU_FEATURES', 'NUMBA_ENABLE_AVX'):
-        with monkeypatch.context() as patched:
-            patched.setenv(setting, 'generic' if setting == 'NUMBA_CPU_NAME' else '0')
-            other = prebuilt.toolchain()
-            assert other != here and other['cpu_features'] == here['cpu_features']
+    for setting in prebuilt.CODE_SETTINGS:
+        for value in ('', '0'):  # (set but empty is not unset: empty NUMBA_CPU_NAME is generic)
+            with monkeypatch.context() as patched:
+                patched.setenv(setting, value)
+                other = prebuilt.toolchain()
+                assert other != here and other['cpu_features'] == here['cpu_features']
+
+
+def test_a_kernel_now_called_with_other_types_is_not_taken_from_the_extension(built, use,
+                                                                             tmp_path):
+    use(_copy(built, tmp_path, kernels=dict(PREBUILT, **{FOOT_PATH: '(float32[::1],)'})))
+    assert not prebuilt.has(FOOT_PATH) and prebuilt.has(_PLANE)
 
 
 def test_no_extension_is_built_under_the_settings_a_run_refuses(monkeypatch, tmp_path):

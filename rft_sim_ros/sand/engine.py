@@ -159,6 +159,8 @@ class LowVelocity:
             raise ValueError(f'low_velocity.rest_speed must be > 0 m/s, got {self.rest_speed}')
         if not 0 < self.ema_alpha <= 1:
             raise ValueError(f'low_velocity.ema_alpha must be in (0, 1], got {self.ema_alpha}')
+        for name in ('rest_speed', 'ema_alpha'):  # (numbers, as the kernels take them: floats)
+            object.__setattr__(self, name, float(getattr(self, name)))
 
 
 class SandEngine:

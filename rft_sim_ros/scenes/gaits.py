@@ -40,11 +40,13 @@ class GaitClock:
     def check_values(self, *others):
         """Raise ValueError unless frequency_hz > 0, 0 < stance_fraction < 1, step_height_m
         and ramp_time_s >= 0, and these, step_length_m, start_time_s and the attributes
-        named in `others` are finite."""
+        named in `others` are finite; then makes each a float (as the gaits' kernels take
+        them: `prebuilt.checked`)."""
         for key in ('frequency_hz', 'stance_fraction', 'step_length_m', 'step_height_m',
                     'start_time_s', 'ramp_time_s', *others):
             if not math.isfinite(getattr(self, key)):
                 raise ValueError(f'{key} must be finite, got {getattr(self, key)}')
+            object.__setattr__(self, key, float(getattr(self, key)))
         if self.frequency_hz <= 0.0:
             raise ValueError(f'frequency_hz must be > 0, got {self.frequency_hz}')
         if not 0.0 < self.stance_fraction < 1.0:
