@@ -149,7 +149,11 @@ def when_kernels_import(hook):
         hook()
     else:
         _KERNEL_MODULE_HOOKS.append(hook)
-    return lambda: hook in _KERNEL_MODULE_HOOKS and _KERNEL_MODULE_HOOKS.remove(hook)
+
+    def withdraw():
+        if hook in _KERNEL_MODULE_HOOKS:
+            _KERNEL_MODULE_HOOKS.remove(hook)
+    return withdraw
 
 
 def forget_stale(namespace, fingerprint=None):

@@ -46,6 +46,13 @@ def test_plate_drop_from_10_cm_stops_at_the_energy_balance_depth_and_rests():
     assert summary['implicit_unsettled_steps'] == 0
 
 
+def test_a_drop_that_ends_before_the_plate_reaches_the_sand_compares_nothing():
+    """(0.05 s of a 10 cm fall: the plate is still in the air, 8.8 cm above the sand.)"""
+    metrics = run_scene(load_scene('plate_drop'), duration=0.05, progress=False)['metrics']
+    assert metrics['max_sinkage_m'] < 0.0
+    assert metrics['expected_max_sinkage_m'] is None and metrics['max_sinkage_error'] is None
+
+
 def test_expected_values_use_the_zeta_the_plate_met():
     """A zeta map of factor 0.5 under the plate: the press's slope is 0.5 zeta A, as
     expected; a drop whose zeta changes after the impact: the expected impact depth is the

@@ -19,10 +19,10 @@ import numpy as np
 
 from .. import kernel_names, prebuilt
 from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, record_cold_start
+from ..kernel_names import EXPLICIT, PLATE_FORCES, ROWS, STEPS, function
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
-from ..kernel_names import EXPLICIT, PLATE_FORCES, ROWS, STEPS, function
 from . import layout
 from .array_table import TABLE_SIGNATURE, ArrayTable
 from .clusters import cluster_plates
@@ -112,12 +112,6 @@ def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False, 
     key = _uncached_key(engine_kernels(method, surface_kind, deformable, parts))
     record = last_cold_start(prebuilt.dispatcher(STEPS['plain']), key) if key else None
     return None if record is None else record['wall_s']
-
-
-def _step_module():
-    """The module of the compiled implicit steps (`implicit_solve`; imports numba)."""
-    from . import implicit_solve
-    return implicit_solve
 
 
 def _cpu_seconds():
@@ -682,9 +676,11 @@ class SandEngine:
         (`BackgroundCompile`) while this one compiles the step (which then loads that share
         from the cache): on two cores the start-up is about the longer of the two."""
         if self._implicit_method:
-            background = [] if ready(self._stepping) else [
-                (kernel, signature) for kernel, signature
-                in _step_module().background_kernels(self._parts) if not is_cached(kernel)]
+            background = []
+            if not ready(self._stepping):  # (a compile: numba's, and the step's module)
+                from .implicit_solve import background_kernels
+                background = [(kernel, signature) for kernel, signature
+                              in background_kernels(self._parts) if not is_cached(kernel)]
             if not ready(self._gathering):
                 background.append((prebuilt.dispatcher(self._gathering), TABLE_SIGNATURE))
             with (BackgroundCompile(background) if background

@@ -9,7 +9,10 @@ sand's crater starts there too), and its depth is measured from that surface. Th
 depths use the zeta the plate met (`SandEngine.zeta_at` under its centre: a zeta map's
 factor included): where the impact stops it for the impact, at the end for the static
 depth. The impact's energy balance holds only where the surface under the plate is level
-(a slope meets one edge first): elsewhere expected_max_sinkage_m and max_sinkage_error are None.
+(a slope meets one edge first): elsewhere expected_max_sinkage_m and max_sinkage_error are None,
+as they are for a run that ended before the plate reached the sand (a duration shorter than
+its fall: nothing to compare, and max_sinkage_m is then negative, the plate's height above
+the sand).
 The static depth m g / (zeta A) holds wherever the surface under the plate is planar.
 """
 import numpy as np
@@ -76,7 +79,8 @@ class Scenario(BaseScenario):
             if stopped.size:
                 impact = int(touched[0] + stopped[0])
         expected = (expected_impact_depth(self.mass, self.side ** 2, self.zetas[impact],
-                                          self.drop_height, gravity) if self.level else None)
+                                          self.drop_height, gravity)
+                    if self.level and touched.size else None)
         tail = max(1, int(round(0.5 / sim.timestep)))
         return {
             'max_sinkage_m': float(depth.max()),
