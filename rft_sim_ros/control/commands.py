@@ -152,11 +152,6 @@ def check_joint_names(names, known, empty):
                                               f'{", ".join(known)}')
 
 
-#: `_Spline.cubic` of a single held knot (shared, read-only).
-_CUBIC_KNOT = np.array([True])
-_CUBIC_KNOT.flags.writeable = False
-
-
 class _Spline:
     """Piecewise linear / cubic Hermite target path through knots (times strictly increasing).
 
@@ -169,12 +164,6 @@ class _Spline:
         self.positions = positions
         self.velocities = velocities
         self.cubic = cubic
-
-    @classmethod
-    def hold(cls, time, positions):
-        """Hold `positions` (a float array, taken over) from `time` on."""
-        p = positions.reshape(1, -1)
-        return cls([time], p, np.zeros(p.shape), _CUBIC_KNOT)
 
     def sample(self, t):
         times = self.times
@@ -194,6 +183,17 @@ class _Spline:
         velocity = ((6 * s**2 - 6 * s) * p0 + (3 * s**2 - 4 * s + 1) * m0
                     + (-6 * s**2 + 6 * s) * p1 + (3 * s**2 - 2 * s) * m1) / duration
         return Targets(position, velocity)
+
+
+class _Hold:
+    """Targets held at `positions` ((J,) float array, taken over), velocity 0: what a
+    position command, a built-in gait's tick or the start sets."""
+
+    def __init__(self, positions):
+        self.positions = positions
+
+    def sample(self, t):
+        return Targets(self.positions.copy(), np.zeros(self.positions.shape[0]))
 
 
 class _Ramp:
@@ -263,7 +263,7 @@ class CommandHandler:
             raise ValueError(f'need {len(self.joint_names)} finite initial positions, '
                              f'got {initial_positions!r}')
         self._index = {name: i for i, name in enumerate(self.joint_names)}
-        self._active = _Spline.hold(0.0, initial)
+        self._active = _Hold(initial)
         self._pending = None
         self._efforts = None
         self._hybrid = None
@@ -296,7 +296,7 @@ class CommandHandler:
         order), and is held as it is (the caller must not change it afterwards)."""
         self._pending = None
         self._efforts = self._hybrid = None
-        self._active = _Spline.hold(now, positions)
+        self._active = _Hold(positions)
 
     def set_velocities(self, velocities, now):
         """Move every joint's target at `velocities` (all joints, `joint_names` order; rad/s or
@@ -343,7 +343,7 @@ class CommandHandler:
         `now`; a later trajectory starts from there (as joint_trajectory_controller starts
         from the current state), not from the targets held before the efforts."""
         if self._efforts is not None or self._hybrid is not None:
-            self._active = _Spline.hold(now, np.asarray(positions, dtype=float))
+            self._active = _Hold(np.asarray(positions, dtype=float))
 
     @property
     def efforts(self):

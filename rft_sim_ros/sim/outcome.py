@@ -92,6 +92,7 @@ class LowestPoints:
         self._ellipsoid = is_[_ELLIPSOID][:, 0]
         self._half = np.where(other, np.where(is_[_BOX], size, aabb[:, 3:]), 0.0)
         self._centre = np.where(other & ~is_[_BOX], aabb[:, :3], 0.0)
+        self._mesh = is_[_MESH][:, 0]
         self._vertices = {i: mesh_vertices(model, g) for i, g in enumerate(self.geoms)
                           if kind[i] == _MESH}
 
@@ -112,10 +113,9 @@ class LowestPoints:
             stretched = shell ** 2 * down[ellipsoids]
             support[ellipsoids] += stretched / np.sqrt(
                 np.einsum('gi,gi->g', stretched, down[ellipsoids]))[:, None]
-        for j, i in enumerate(which):
-            vertices = self._vertices.get(int(i))
-            if vertices is not None:
-                support[j] = vertices[np.argmax(vertices @ down[j])]
+        for j in np.flatnonzero(self._mesh[which]).tolist():
+            vertices = self._vertices[int(which[j])]
+            support[j] = vertices[np.argmax(vertices @ down[j])]
         return data.geom_xpos[self.geoms[which]] + np.einsum('gij,gj->gi', rotation, support)
 
 

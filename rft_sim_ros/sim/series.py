@@ -25,7 +25,7 @@ import numpy as np
 def roll_pitch_yaw(quaternion_wxyz):
     """(roll, pitch, yaw) rad of a unit quaternion (w, x, y, z): the rotation R = Rz(yaw)
     Ry(pitch) Rx(roll) (fixed axes x, y, z; REP 103), pitch in [-pi/2, pi/2]."""
-    w, x, y, z = (float(v) for v in quaternion_wxyz)
+    w, x, y, z = np.asarray(quaternion_wxyz, dtype=float).tolist()
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
@@ -69,11 +69,16 @@ class SeriesRows:
     """Makes the time-series rows of a Simulation's states (module docstring)."""
 
     def __init__(self, sim):
-        # a leg's sinkage: its sand bodies' (the depths' rows); the other bodies of its
-        # branch (a shin, sim/outcome.py watches them) are not its feet
+        # a leg's sinkage: the deepest of its sand bodies (the depths' rows); the other
+        # bodies of its branch (a shin, sim/outcome.py watches them) are not its feet. Each
+        # leg holds a sand body (build.legs_of): its rows are one run of `_leg_depths`, from
+        # `_leg_starts`, so that one reduction gives every leg's
         index = {name: i for i, name in enumerate(sim.sand_bodies)}
-        self._legs = [(f'sinkage_m_{leg}', [index[b] for b in bodies if b in index])
-                      for leg, bodies in sim.legs.items()]
+        rows = [[index[b] for b in bodies if b in index] for bodies in sim.legs.values()]
+        self._sinkage_columns = [f'sinkage_m_{leg}' for leg in sim.legs]
+        self._force_columns = [f'force_z_N_{leg}' for leg in sim.legs]
+        self._leg_depths = np.array([i for leg in rows for i in leg], dtype=int)
+        self._leg_starts = np.cumsum([0] + [len(leg) for leg in rows[:-1]])
         hinge = [int(sim.model.jnt_type[sim.model.joint(name).id]) == mujoco.mjtJoint.mjJNT_HINGE
                  for name in sim.joint_names]
         self._joints = [joint_columns(name, h) for name, h in zip(sim.joint_names, hinge)]
@@ -82,16 +87,18 @@ class SeriesRows:
         """The row ({column: value}) of `state` (SimState); depths: (sand bodies,) m, each
         body's deepest plate below the surface (`GenericMetrics.depths`)."""
         roll, pitch, yaw = roll_pitch_yaw(state.base_quaternion_wxyz)
-        row = {'time_s': state.time,
-               'base_x_m': state.base_position[0], 'base_y_m': state.base_position[1],
-               'base_z_m': state.base_position[2],
+        x, y, z = np.asarray(state.base_position).tolist()
+        row = {'time_s': state.time, 'base_x_m': x, 'base_y_m': y, 'base_z_m': z,
                'base_roll_rad': roll, 'base_pitch_rad': pitch, 'base_yaw_rad': yaw,
                'base_speed_mps': state.base_speed,
                'plates_active': state.plates_active}
-        row.update({f'force_z_N_{leg.name}': leg.force[2] for leg in state.legs})
-        row.update({column: float(np.max(depths[bodies])) for column, bodies in self._legs})
-        for (position, effort), q, tau in zip(self._joints, state.joint_positions,
-                                             state.joint_efforts):
+        row.update(zip(self._force_columns, [leg.force[2] for leg in state.legs]))
+        if self._sinkage_columns:
+            row.update(zip(self._sinkage_columns, np.maximum.reduceat(
+                depths[self._leg_depths], self._leg_starts).tolist()))
+        for (position, effort), q, tau in zip(self._joints,
+                                             np.asarray(state.joint_positions).tolist(),
+                                             np.asarray(state.joint_efforts).tolist()):
             row[position] = q
             row[effort] = tau
         return row
