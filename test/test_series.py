@@ -2,11 +2,13 @@
 against the states and metrics of the same run."""
 import csv
 import json
+from types import SimpleNamespace
 
 import pytest
 
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.runner import run_scene
+from rft_sim_ros.sim.series import SeriesRows
 
 
 @pytest.fixture(scope='module')
@@ -49,3 +51,11 @@ def test_sinkage_per_leg_is_its_deepest_body_and_attitude_stays_level(hexapod_ru
         assert sinkage[0] == 0.0                          # dropped from above the sand
     for angle in ('roll', 'pitch'):                     # a symmetric drop lands level
         assert max(abs(row[f'base_{angle}_rad']) for row in rows) < 0.05
+
+
+def test_a_leg_without_a_sand_body_is_refused():
+    """A leg whose bodies carry no plates has no sinkage: refused when the rows are set
+    up, not read off another leg's body."""
+    sim = SimpleNamespace(sand_bodies=('A', 'C'), legs={'a': ('A',), 'x': ('O',), 'c': ('C',)})
+    with pytest.raises(ValueError, match=r"legs without a sand body have no sinkage: \['x'\]"):
+        SeriesRows(sim)

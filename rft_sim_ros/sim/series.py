@@ -66,15 +66,19 @@ def model_name(model):
 
 
 class SeriesRows:
-    """Makes the time-series rows of a Simulation's states (module docstring)."""
+    """Makes the time-series rows of a Simulation's states (module docstring): those its
+    `state` makes, whose legs are in the order of its `legs`."""
 
     def __init__(self, sim):
         # a leg's sinkage: the deepest of its sand bodies (the depths' rows); the other
         # bodies of its branch (a shin, sim/outcome.py watches them) are not its feet. Each
-        # leg holds a sand body (build.legs_of): its rows are one run of `_leg_depths`, from
-        # `_leg_starts`, so that one reduction gives every leg's
+        # leg's rows are one run of `_leg_depths`, from `_leg_starts`, so that one reduction
+        # gives every leg's sinkage
         index = {name: i for i, name in enumerate(sim.sand_bodies)}
         rows = [[index[b] for b in bodies if b in index] for bodies in sim.legs.values()]
+        bare = [leg for leg, run in zip(sim.legs, rows) if not run]
+        if bare:  # (build.legs_of gives every leg a sand body)
+            raise ValueError(f'legs without a sand body have no sinkage: {bare}')
         self._sinkage_columns = [f'sinkage_m_{leg}' for leg in sim.legs]
         self._force_columns = [f'force_z_N_{leg}' for leg in sim.legs]
         self._leg_depths = np.array([i for leg in rows for i in leg], dtype=int)
