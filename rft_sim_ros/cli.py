@@ -41,6 +41,7 @@ import shutil
 import signal
 import sys
 import threading
+import time
 from collections import Counter
 from pathlib import Path
 
@@ -264,9 +265,11 @@ def cmd_run(args):
                 if video:
                     from .render.recorder import VideoRecorder
                     recorders.append(VideoRecorder(out / VIDEO_FILE, scene))
+                started = time.perf_counter()
                 summary = run_scene(scene, out, duration=args.duration,
                                     progress=not args.quiet, recorders=recorders,
                                     schedule=schedule, stop=stop, log=say)
+                elapsed = time.perf_counter() - started
             except (SceneError, ValueError):  # refused before it ran (the model does not load)
                 if created is not None:
                     shutil.rmtree(created, ignore_errors=True)
@@ -280,7 +283,7 @@ def cmd_run(args):
     if args.json:
         print(json.dumps(significant(run_report(summary)), indent=2))
     elif not args.quiet:
-        print('\n'.join(human_summary(summary, out)))
+        print('\n'.join(human_summary(summary, out, elapsed)))
     if summary.get('scenario_traceback'):
         print(f'rft-sim: error: {summary["reason"]} (traceback: '
               f'{out / summary["scenario_traceback"]})', file=sys.stderr)
@@ -310,19 +313,22 @@ def run_report(summary):
 SHOWN_METRICS = 4
 
 
-def human_summary(summary, out):
-    """The few lines `rft-sim run` prints at the end: how the run ended, what happened to
-    the robot (the summary's outcome words, where it has them), its key metrics (the
-    scenario's first SHOWN_METRICS, else the base's displacement and final speed), and where
-    its files are."""
+def human_summary(summary, out, elapsed=None):
+    """The few lines `rft-sim run` prints at the end: how the run ended (its real-time
+    factor, and `elapsed`, s, the whole run's wall time where given: the model's set-up and
+    the outputs written, the figure's included), what happened to the robot (the summary's
+    outcome words, where it has them), its key metrics (the scenario's first SHOWN_METRICS,
+    else the base's displacement and final speed), and where its files are."""
     if summary['interrupted']:
         ended = 'interrupted'
     elif summary['stable']:
         ended = 'stable'
     else:
         ended = 'NOT STABLE'
+    whole = '' if elapsed is None else f'; {elapsed:.3g} s in all, set-up and files included'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
-             f'{summary["wall_time_s"]:.3g} s (real-time factor {summary["real_time_factor"]:.3g})']
+             f'{summary["wall_time_s"]:.3g} s (real-time factor '
+             f'{summary["real_time_factor"]:.3g}{whole})']
     if summary['reason']:
         lines.append(f'  reason: {summary["reason"]}')
     words = (summary.get('outcome') or {}).get('words')
