@@ -3,7 +3,9 @@ ticks (the scenario's control, the servo targets, the outcome watch, the diverge
 check), the scenario's observations and each published state (the state, the run's metrics, the time-series row, the
 recorders: a bag, as `rft-sim run` writes). A run of the scene (`run_scene` with its bag,
 no figure) in this process, each part timed by a wrapper around the function that does it
-(about a microsecond a call on a 2-core VM: parts called at every step read a little high);
+(about a microsecond a call on a 2-core VM: parts called at every step read a little high),
+from the run's first step to its end, wherever the function is called (the outcome watch
+also looks once for the run's outcome, and at each /diagnostics the bag records);
 microseconds per step of the run, the median of `runs` runs. What is left of the loop
 (`rest`) is the loop's own bookkeeping.
 
@@ -62,23 +64,29 @@ def _timed(function, totals, part):
 @contextlib.contextmanager
 def _wrapped(totals, marks):
     """PARTS wrapped to add their wall time (s) to `totals`, and each new Simulation's
-    scenario control; `marks` takes a copy of `totals` once a Simulation is made (its
-    spawn's settling steps come before the run's loop). Everything as it was afterwards."""
+    scenario methods (SCENARIO); `marks` takes a copy of `totals` at the run's first step
+    (the Simulation's start-up, its spawn's settling steps included, and the initial state
+    come before it). Everything as it was afterwards."""
     with contextlib.ExitStack() as stack:
         for part, owner, name in PARTS:
             original = owner.__dict__[name] if isinstance(owner, type) else getattr(owner, name)
             stack.callback(setattr, owner, name, original)
             setattr(owner, name, _timed(original, totals, part))
-        make = Simulation.__init__
+        make, step = Simulation.__init__, Simulation.step
 
         def init(sim, *args, **kwargs):
             make(sim, *args, **kwargs)
             for name, part in SCENARIO.items():
                 setattr(sim.scenario, name, _timed(getattr(sim.scenario, name), totals, part))
-            marks.update(totals)
+
+        def first_step(sim, *args, **kwargs):
+            if not marks:
+                marks.update(totals)
+            return step(sim, *args, **kwargs)
 
         stack.callback(setattr, Simulation, '__init__', make)
-        Simulation.__init__ = init
+        stack.callback(setattr, Simulation, 'step', step)
+        Simulation.__init__, Simulation.step = init, first_step
         yield
 
 
