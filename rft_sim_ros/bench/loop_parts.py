@@ -1,7 +1,7 @@
 """Where a run's loop spends its time, part by part: the sand engine's step, the control
 ticks (the scenario's control, the servo targets, the outcome watch, the divergence
-check), the scenario's observations and each published state (the state, the run's metrics, the time-series row, the
-recorders: a bag, as `rft-sim run` writes). A run of the scene (`run_scene` with its bag,
+check), the scenario's observations and each published state (the state, the run's
+metrics, the time-series row, the recorders: a bag, as `rft-sim run` writes). A run of the scene (`run_scene` with its bag,
 no figure) in this process, each part timed by a wrapper around the function that does it
 (about a microsecond a call on a 2-core VM: parts called at every step read a little high),
 from the run's first step to its end, wherever the function is called (the outcome watch
@@ -22,7 +22,7 @@ from pathlib import Path
 from ..control.commands import CommandHandler
 from ..ros.recording import BagRecorder
 from ..sand.engine import SandEngine
-from ..scenes.config import load_scene
+from ..scenes.config import SceneError, load_scene
 from ..sim import runner
 from ..sim.metrics import GenericMetrics
 from ..sim.outcome import OutcomeWatch
@@ -48,6 +48,9 @@ PARTS = (
 #: The parts that, with the rest, add up to the loop (the indented ones are in a tick).
 _TOP = ('sand engine step', 'control ticks', 'scenario observations', 'published state',
         'run metrics', 'time-series row', 'recorders')
+#: The rows `main` prints, in order: each top part, a tick's parts under the ticks.
+_SHOWN = ('loop', 'sand engine step', 'control ticks', SCENARIO['control'],
+          *[part for part, _, _ in PARTS if part.startswith('  ')], *_TOP[2:], 'rest')
 
 
 def _timed(function, totals, part):
@@ -117,12 +120,14 @@ def main(argv=None):
         print(__doc__.strip().splitlines()[-1].strip())
         return 2
     runs = int(argv[1]) if len(argv) > 1 else 3
-    parts = loop_parts(argv[0], runs)
+    try:
+        parts = loop_parts(argv[0], runs)
+    except SceneError as error:
+        print(f'loop_parts: error: {error}', file=sys.stderr)
+        return 2
     print(machine_line(machine_info()))
     print(f'{argv[0]}: us per step, medians of {runs} runs')
-    for part in ('loop', *[p for p, _, _ in PARTS[:2]], SCENARIO['control'],
-                 *[p for p, _, _ in PARTS[2:5]], SCENARIO['observe'],
-                 *[p for p, _, _ in PARTS[5:]], 'rest'):
+    for part in _SHOWN:
         print(f'{part:22s} {parts[part]:8.1f}')
     return 0
 
