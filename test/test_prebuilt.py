@@ -99,6 +99,22 @@ def test_a_run_on_prebuilt_kernels_imports_no_numba(built, scene, overrides):
     assert done.stdout.split('\n')[-2] == 'True False prebuilt kernels: in use', done.stderr
 
 
+def test_the_gaits_call_the_prebuilt_kernels_with_what_they_were_built_for(built):
+    """The gaits the gait node makes (`make_gait`) import no numba: the standing gait's
+    leg inverse is given columns of the neutral feet, which it hands on C-ordered."""
+    run = ('import sys\n'
+           'from pathlib import Path\n'
+           'from rft_sim_ros import prebuilt\n'
+           f'prebuilt.FOLDER = Path({str(built)!r})\n'
+           'from rft_sim_ros.scenes.gaits import make_gait\n'
+           "for name in ('none', 'tripod'):\n"
+           '    make_gait(name).targets(1.3)\n'
+           "print('numba' in sys.modules)\n")
+    done = subprocess.run([sys.executable, '-c', run], capture_output=True, text=True,
+                          env=dict(os.environ, **{prebuilt.SWITCH: '1'}), check=True)
+    assert done.stdout.split('\n')[-2] == 'False', done.stderr
+
+
 def test_a_prebuilt_kernel_given_other_types_runs_numbas(built, use):
     use(built)
     path = prebuilt.kernel(FOOT_PATH)
@@ -119,8 +135,11 @@ def test_a_prebuilt_kernel_given_other_types_runs_numbas(built, use):
 def test_the_kernels_called_from_python_are_built_for_the_types_runs_call_them_with():
     from numba.core import sigutils
     from rft_sim_ros.sim.runner import run_scene
-    for scene in ('hexapod', 'quadruped'):  # (the prebuilt kernels are off in tests)
-        run_scene(load_scene(scene), duration=0.01, progress=False, plots=False)
+    from rft_sim_ros.sand.surface import HeightGrid
+    for scene, overrides in (('hexapod', {}), ('quadruped', {}),  # (prebuilt: off in tests)
+                             ('plate_drop', {'rft.low_velocity.method': 'ema'})):
+        run_scene(load_scene(scene, overrides), duration=0.01, progress=False, plots=False)
+    HeightGrid(np.zeros((4, 5)), (0.4, 0.3)).height(np.zeros(3), np.ones(3))
     for name, signature in CALLED_KERNELS:
         arguments, _ = sigutils.normalize_signature(signature)
         assert tuple(arguments) in prebuilt.dispatcher(name).overloads, name

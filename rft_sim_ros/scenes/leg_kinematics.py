@@ -94,14 +94,15 @@ class LateralLegs:
         arm onto the foot. Targets out of reach are clipped to the edge of the workspace;
         see `reachable`.
         """
-        foot_y, foot_z = np.asarray(foot_y, dtype=float), np.asarray(foot_z, dtype=float)
-        if foot_y.shape != foot_z.shape:
-            foot_y, foot_z = np.broadcast_arrays(foot_y, foot_z)
-        shape = foot_y.shape
-        knee, ankle = prebuilt.kernel(LEG_INVERSE)(foot_y.reshape(-1, len(self.names)),
-                                  foot_z.reshape(-1, len(self.names)), self.knee_xyz,
-                                  self.side.astype(float), self.mid_length,
-                                  self.dactyl_length, self.dactyl_droop)
+        foot_y, foot_z = np.broadcast_arrays(np.asarray(foot_y, dtype=float),
+                                             np.asarray(foot_z, dtype=float))
+        shape, legs = foot_y.shape, len(self.names)
+        # (C-ordered copies: a column of feet, or a broadcast, is strided, which the kernel's
+        # prebuilt function does not take: numba would compile it for that)
+        knee, ankle = prebuilt.kernel(LEG_INVERSE)(
+            np.array(foot_y, order='C').reshape(-1, legs),
+            np.array(foot_z, order='C').reshape(-1, legs), self.knee_xyz,
+            self.side.astype(float), self.mid_length, self.dactyl_length, self.dactyl_droop)
         return knee.reshape(shape), ankle.reshape(shape)
 
     def reachable(self, foot_y, foot_z):
