@@ -313,10 +313,10 @@ def run_report(summary):
 SHOWN_METRICS = 4
 
 
-def human_summary(summary, out, elapsed=None):
+def human_summary(summary, out, elapsed):
     """The few lines `rft-sim run` prints at the end: how the run ended (its real-time
-    factor, and `elapsed`, s, the whole run's wall time where given: the model's set-up and
-    the outputs written, the figure's included), what happened to the robot (the summary's
+    factor, and `elapsed`, s, the whole run's wall time: the model's set-up and the outputs
+    written, the figure's included), what happened to the robot (the summary's
     outcome words, where it has them), its key metrics (the scenario's first SHOWN_METRICS,
     else the base's displacement and final speed), and where its files are."""
     if summary['interrupted']:
@@ -325,10 +325,10 @@ def human_summary(summary, out, elapsed=None):
         ended = 'stable'
     else:
         ended = 'NOT STABLE'
-    whole = '' if elapsed is None else f'; {elapsed:.3g} s in all, set-up and files included'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
              f'{summary["wall_time_s"]:.3g} s (real-time factor '
-             f'{summary["real_time_factor"]:.3g}{whole})']
+             f'{summary["real_time_factor"]:.3g}; {elapsed:.3g} s in all, set-up and files '
+             'included)']
     if summary['reason']:
         lines.append(f'  reason: {summary["reason"]}')
     words = (summary.get('outcome') or {}).get('words')

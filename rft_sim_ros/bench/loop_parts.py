@@ -1,8 +1,9 @@
 """Where a run's loop spends its time, part by part: the sand engine's step, the control
 ticks (the scenario's control, the servo targets, the outcome watch, the divergence
 check), the scenario's observations and each published state (the state, the run's
-metrics, the time-series row, the recorders: a bag, as `rft-sim run` writes). A run of the scene (`run_scene` with its bag,
-no figure) in this process, each part timed by a wrapper around the function that does it
+metrics, the time-series row, the recorders: a bag, as `rft-sim run` writes). A run of the
+scene (`run_scene` with its bag, no figure) in this process, each part timed by a wrapper
+around the function that does it
 (about a microsecond a call on a 2-core VM: parts called at every step read a little high),
 from the run's first step to its end, wherever the function is called (the outcome watch
 also looks once for the run's outcome, and at each /diagnostics the bag records);

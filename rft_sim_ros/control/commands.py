@@ -36,8 +36,8 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
 
 Every command is validated first; a bad one is rejected with a `CommandResult` naming the
 problem, counted per `Reason`, and changes nothing (`CommandResult.check` turns a rejection
-into a `CommandRejected` exception, for scripts that must stop on it). Times are sim time in s; positions in
-rad (or m), velocities in rad/s (or m/s), in the joint's own unit.
+into a `CommandRejected` exception, for scripts that must stop on it). Times are sim time
+in s; positions in rad (or m), velocities in rad/s (or m/s), in the joint's own unit.
 """
 import bisect
 import enum
@@ -187,7 +187,8 @@ class _Spline:
 
 class _Hold:
     """Targets held at `positions` ((J,) float array, taken over), velocity 0: what a
-    position command, a built-in gait's tick or the start sets."""
+    position command, a built-in gait's tick, the start, or the joints' positions tracked in
+    effort and hybrid modes (`track`) set."""
 
     def __init__(self, positions):
         self.positions = positions

@@ -3,8 +3,8 @@
 Conventions: MuJoCo arrays are passed as the views mjData/mjModel expose (world frame,
 z up, SI). A "sand body" is a body a scene names as touching sand; its plates are stored in
 its body frame (`xpos`/`xmat`), grouped into spatial clusters of a few dozen plates with a
-bounding sphere each (`clusters.cluster_plates`), so plates above the sand are skipped a cluster at a
-time. A "slot" is a sand body with at least one plate in the sand this step; slots are
+bounding sphere each (`clusters.cluster_plates`), so plates above the sand are skipped a
+cluster at a time. A "slot" is a sand body with at least one plate in the sand this step; slots are
 numbered 0..S-1 in the order bodies are visited, and a slot's plates are consecutive columns
 of the gathered table (`layout`: rows NORMAL ... SPEED) with their RFT force for the current
 direction of motion (`rft.kernel.leading_forces`).

@@ -1,7 +1,9 @@
 """The layout the sand kernels share: the rows of the gathered-plate table, the engine's
 settings and counters (one float64 and one int64 vector, by index), the implicit law's
-per-plate work rows and flags, and the named arrays each kernel takes (`GatherArrays`,
-`ImplicitArrays`, `SolveSpace`), which the engine (`engine.SandEngine`) allocates once.
+per-plate work rows and flags, the columns of MuJoCo's constraint rows the implicit step
+takes, the parts a compiled implicit step solves (`STEP_PARTS`), and the named arrays each
+kernel takes (`GatherArrays`, `ImplicitArrays`, `SolveSpace`), which the engine
+(`engine.SandEngine`) allocates once.
 
 Conventions: plates run along the second axis of every per-plate table (column k: the k-th
 plate gathered this step); world frame, z up, SI. Nothing here is compiled: the kernels

@@ -37,9 +37,9 @@ def foot_path(phi, beta, length, height):
 @njit(cache=True)
 def tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_xyz, side,
                     mid_length, dactyl_length, dactyl_droop):
-    """The tripod gait's (`gaits.TripodGait`) knee and ankle targets (rad), interleaved per leg, `cycles` gait cycles after the
-    start for legs at phase `offsets` (cycles) with stroke and lift times `scale`: the foot
-    path, then the legs' inverse kinematics."""
+    """The tripod gait's (`gaits.TripodGait`) knee and ankle targets (rad), interleaved per
+    leg, `cycles` gait cycles after the start for legs at phase `offsets` (cycles) with
+    stroke and lift times `scale`: the foot path, then the legs' inverse kinematics."""
     phases = np.empty(offsets.shape[0])
     for i in range(offsets.shape[0]):
         phases[i] = (cycles + offsets[i]) % 1.0  # in [0, 1), as np.mod
@@ -59,8 +59,8 @@ def tripod_targets(cycles, offsets, scale, beta, length, height, neutral, knee_x
 
 @njit(cache=True)
 def leg_inverse(foot_y, foot_z, knee_xyz, side, mid_length, dactyl_length, dactyl_droop):
-    """`leg_kinematics.LateralLegs.inverse` for (M, N) foot targets (m; N legs): knee, ankle angles (rad).
-    Targets out of reach are clipped to the edge of the workspace."""
+    """`leg_kinematics.LateralLegs.inverse` for (M, N) foot targets (m; N legs): knee and
+    ankle angles (rad). Targets out of reach are clipped to the edge of the workspace."""
     knee = np.empty(foot_y.shape)
     ankle = np.empty(foot_y.shape)
     for m in range(foot_y.shape[0]):
@@ -78,9 +78,10 @@ def leg_inverse(foot_y, foot_z, knee_xyz, side, mid_length, dactyl_length, dacty
 
 @njit(cache=True)
 def trot_targets(cycles, offsets, scale, beta, length, height, neutral_x, neutral_z, l1, l2):
-    """The trot's (`quadruped.TrotGait`) joint targets (rad, per leg abduction 0, hip pitch, knee) `cycles` trot cycles after
-    the start, for legs at phase `offsets` with stroke and lift times `scale`: the foot
-    path, then the legs' inverse kinematics (`quadruped.leg_inverse`; the path is checked to be reachable beforehand)."""
+    """The trot's (`quadruped.TrotGait`) joint targets (rad, per leg abduction 0, hip
+    pitch, knee) `cycles` trot cycles after the start, for legs at phase `offsets` with
+    stroke and lift times `scale`: the foot path, then the legs' inverse kinematics
+    (`quadruped.leg_inverse`; the path is checked to be reachable beforehand)."""
     phases = np.empty(offsets.shape[0])
     for i in range(offsets.shape[0]):
         phases[i] = (cycles + offsets[i]) % 1.0

@@ -1,9 +1,10 @@
 """Built-in gaits: functions of sim time that return joint position targets.
 
 A gait maps sim time t (s) to position targets (rad) for the joints of a set of
-lateral-plane knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee, ankle, leg by leg;
-for the hexapod that is `rft_sim_ros.scenes.hexapod.JOINT_NAMES`) or as a name -> value dict.
-numpy, and the compiled kernels of `gait_kernels`: the leg geometry is passed in (defaults: the bundled hexapod).
+lateral-plane knee-ankle legs (`LateralLegs`), as an array in `joint_names` order (knee,
+ankle, leg by leg; for the hexapod that is `rft_sim_ros.scenes.hexapod.JOINT_NAMES`) or as a
+name -> value dict. numpy, and the compiled kernels of `gait_kernels`: the leg geometry is
+passed in (defaults: the bundled hexapod).
 
 Gaits (`make_gait(name, ...)`):
 - 'none'   `StandGait`: hold the neutral stance.

@@ -1,9 +1,9 @@
 """Kinematics of 2-DOF legs that move in the lateral plane: a knee and an ankle, both turning
 about the body's long axis (x), as on the RFT-SiM crab hexapod (models/hexapod.xml).
 
-numpy, and `gait_kernels.leg_inverse`. Every quantity is in SI units (m, rad) and, unless stated, in the base_link frame
-(+x forward along the body's long axis, +y left, +z up). Functions take arrays with one
-entry per leg.
+numpy, and `gait_kernels.leg_inverse`. Every quantity is in SI units (m, rad) and, unless
+stated, in the base_link frame (+x forward along the body's long axis, +y left, +z up).
+Functions take arrays with one entry per leg.
 
 Leg model; all joint angles zero is the model's zero pose (the leg stretched out sideways):
 - the knee axis is parallel to x through `knee_xyz`;

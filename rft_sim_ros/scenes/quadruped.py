@@ -84,7 +84,8 @@ class TrotGait(GaitClock):
         object.__setattr__(self, '_neutral', tuple(float(v) for v in leg_forward(
             self.stand_hip, self.stand_knee)))
         phi = np.linspace(0.0, 1.0, 361)
-        dx, dz = prebuilt.kernel(FOOT_PATH)(phi, self.stance_fraction, self.step_length_m, self.step_height_m)
+        dx, dz = prebuilt.kernel(FOOT_PATH)(phi, self.stance_fraction, self.step_length_m,
+                                            self.step_height_m)
         try:
             _, knee = leg_inverse(self._neutral[0] + dx, self._neutral[1] + dz)
         except ValueError:
