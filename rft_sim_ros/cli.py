@@ -429,7 +429,7 @@ def cmd_render(args):
         raise UsageError(f'{out} exists: choose another --out, or --force to replace it')
     check_offscreen()
     say_if_cold(scene)
-    from .render.replay import render_bag
+    from .ros.bag_video import render_bag
     from .sim.simulation import Simulation
     frames = render_bag(bag, Simulation(scene), out, VideoSettings.from_scene(scene),
                         log=lambda line: print(f'rft-sim: {line}', file=sys.stderr))

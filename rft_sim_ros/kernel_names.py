@@ -4,23 +4,26 @@ call, so that they can choose their kernels and call the prebuilt ones (`prebuil
 without importing the modules that define them, which import numba (0.3 to 0.5 s of a start,
 and as much again to load its first kernel; `prebuilt.dispatcher` imports one where a run
 needs numba's); and `PREBUILT`, what `rft-sim warmup` builds ahead of time (`prebuild`).
-Plain names and numba's text of argument types: nothing here is compiled."""
-from .sand.array_table import TABLE_SIGNATURE
-from .sand.layout import STEP_PARTS
-from .sand.surface_codes import FLAT, GRID, SLOPE
-
+Plain names and numba's text of argument types: nothing here is compiled, and nothing of the
+package is imported (the engine and the gaits import this, through `prebuilt` too: it sits
+below them)."""
 _SAND = 'rft_sim_ros.sand'
 _GAITS = 'rft_sim_ros.scenes.gait_kernels'
 
-#: The compiled implicit steps (`implicit_solve._implicit_step`), by the parts they solve
-#: (`sand.layout.STEP_PARTS`).
+#: The parts the compiled implicit steps solve, one step each (`sand.implicit_solve`):
+#: 'plain' (the sand and joint friction), 'rows' (and MuJoCo's equality, limit and pyramidal
+#: contact rows), 'cones' (and elliptic cones' rows); each solves what the ones before it do.
+STEP_PARTS = ('plain', 'rows', 'cones')
+#: The compiled implicit steps (`implicit_solve._implicit_step`), by the parts they solve.
 STEPS = {parts: f'{_SAND}.implicit_solve.implicit_step_{parts}' for parts in STEP_PARTS}
+#: numba's text of the argument types of a kernel taking its arrays as one table
+#: (`sand.array_table`: its int64 table).
+TABLE_SIGNATURE = '(int64[:, ::1],)'
 #: numba's text of the compiled steps' argument types (timestep, array table).
 STEP_SIGNATURE = '(float64, int64[:, ::1])'
-#: The gather kernel of each kind of rigid surface, and of deformable sand
-#: (`gather._gather_plates`).
-GATHERS = {FLAT: f'{_SAND}.gather.gather_plane', SLOPE: f'{_SAND}.gather.gather_slope',
-           GRID: f'{_SAND}.gather.gather_grid'}
+#: The gather kernel of each kind of rigid surface, by its name (`sand.surface_codes.KINDS`),
+#: and of deformable sand (`gather._gather_plates`).
+GATHERS = {kind: f'{_SAND}.gather.gather_{kind}' for kind in ('plane', 'slope', 'grid')}
 GATHER_DEFORMABLE = f'{_SAND}.gather.gather_deformable'
 #: The plates' forces of the last implicit step (`implicit_law.implicit_plate_forces`).
 PLATE_FORCES = f'{_SAND}.implicit_law.implicit_plate_forces'
@@ -45,7 +48,7 @@ _I32 = 'int32[::1]'
 
 #: The kernels that take their arrays as one table (`sand.array_table`), with numba's text
 #: of their argument types.
-TABLE_KERNELS = (*((GATHERS[kind], TABLE_SIGNATURE) for kind in (FLAT, SLOPE, GRID)),
+TABLE_KERNELS = (*((gathering, TABLE_SIGNATURE) for gathering in GATHERS.values()),
                  (GATHER_DEFORMABLE, TABLE_SIGNATURE),
                  *((STEPS[parts], STEP_SIGNATURE) for parts in STEP_PARTS),
                  (PLATE_FORCES, TABLE_SIGNATURE))
@@ -73,8 +76,8 @@ PREBUILT = TABLE_KERNELS + CALLED_KERNELS
 
 
 def gather(kind, deformable=False):
-    """The name of the gather kernel of a surface of kind `kind` (FLAT, SLOPE, GRID), or of
-    deformable sand (a GRID)."""
+    """The name of the gather kernel of a surface of kind `kind` ('plane', 'slope', 'grid':
+    `sand.surface_codes.KINDS`), or of deformable sand (on a 'grid')."""
     return GATHER_DEFORMABLE if deformable else GATHERS[kind]
 
 

@@ -23,7 +23,7 @@ import warnings
 from pathlib import Path
 
 from .kernel_cache import kernel_sources, source_stats, sources_fingerprint, sources_unchanged
-from .prebuilt import (FOLDER, RECORD, checked, dispatcher, extension_file, load,
+from .prebuilt import (FOLDER, RECORD, checked, dispatcher, extension_file, generated, load,
                        module_name, settings_refusal, state, symbol, toolchain, toolchain_key)
 
 
@@ -32,9 +32,7 @@ def _caller(kernel, arity):
     them (what the extension exports, compiled for one signature: numba compiles an exported
     function of named arguments only, not *args)."""
     names = ', '.join(f'a{i}' for i in range(arity))
-    namespace = {'kernel': kernel}
-    exec(f'def call({names}):\n    return kernel({names})\n', namespace)
-    return namespace['call']
+    return generated(names, f'return kernel({names})', {'kernel': kernel})
 
 
 @contextlib.contextmanager

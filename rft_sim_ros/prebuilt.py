@@ -128,11 +128,18 @@ def _stale(kept):
     return ''
 
 
+#: {kernel name: why}: the prebuilt kernels of the loaded extension that this process has
+#: called with arguments of other types than they were built for, so that numba's
+#: dispatcher ran them (`checked`): the first such call's argument, as `state` says it.
+FALLBACKS = {}
+
+
 @functools.lru_cache(maxsize=None)
 def load():
     """({kernel name: its prebuilt function, `checked`}, why there are none: '' when
     loaded), for this process's `toolchain()` in `FOLDER`. Cached: the first answer holds
-    for the process."""
+    for the process (a new answer forgets the `FALLBACKS` of the last)."""
+    FALLBACKS.clear()
     if os.environ.get(SWITCH, '1') == '0':
         return {}, f'off ({SWITCH}=0)'
     refused = settings_refusal()
@@ -192,7 +199,8 @@ def _arguments(signature):
 def checked(function, name, signature):
     """`function` (kernel `name`'s prebuilt function, compiled for `signature`, numba's text
     of its argument types) called only with arguments numba would type as that signature,
-    and kernel `name`'s numba dispatcher (`dispatcher`) with any others. A function compiled
+    and kernel `name`'s numba dispatcher (`dispatcher`) with any others, the first such call
+    recorded in `FALLBACKS` (which argument did not match). A function compiled
     ahead does not check its arguments (numba's unboxing of an array checks only its item
     size: given another dtype, rank or layout it reads the wrong memory): the check is made
     here, per call, on each argument's exact type: for a scalar Python's or numpy's type that
@@ -202,8 +210,7 @@ def checked(function, name, signature):
     another type). Scalars and C-contiguous arrays only (ValueError otherwise). The check is
     one generated expression (0.1 to 0.3 us an argument)."""
     arguments = _arguments(signature)
-    tests, constants = [], {'function': function, 'name': name, 'dispatcher': dispatcher,
-                            'ndarray': np.ndarray}
+    tests, constants = [], {'function': function, 'ndarray': np.ndarray}
     for i, argument in enumerate(arguments):
         writeable, read_only = _ARRAY.fullmatch(argument), _READ_ONLY.fullmatch(argument)
         if argument in _SCALARS:
@@ -221,14 +228,52 @@ def checked(function, name, signature):
             raise ValueError(f'{name}: argument type {argument!r}: a prebuilt kernel takes '
                              'float64, int64, boolean and C-contiguous arrays')
     names = ', '.join(f'a{i}' for i in range(len(arguments)))
-    exec(f'def call({names}):\n'
-         f'    if {" and ".join(tests) or "True"}:\n'
-         f'        return function({names})\n'
-         f'    return dispatcher(name)({names})\n', constants)
-    call = constants['call']
+    matches = [generated(f'a{i}', f'return {test}', constants)
+               for i, test in enumerate(tests)]
+    constants['fallback'] = _fallback(name, arguments, matches)
+    call = generated(names, f'if {" and ".join(tests) or "True"}:\n'
+                            f'        return function({names})\n'
+                            f'    return fallback({names})', constants)
     call.__name__ = call.__qualname__ = name.rpartition('.')[2]
     call.__doc__ = f'The prebuilt {name}{signature}, its arguments checked (`prebuilt.checked`).'
     return call
+
+
+def generated(arguments, body, constants):
+    """A function of `arguments` (their names, one text: 'a0, a1') whose `body` (its
+    statements, one text, lines after the first indented by 4) reads the names of
+    `constants` (a dict) as its globals: what `checked` and `prebuild` generate, a call of
+    named arguments (which numba compiles, and checks cost least in; not *args)."""
+    exec(f'def call({arguments}):\n    {body}\n', constants)
+    return constants.pop('call')
+
+
+def _fallback(name, arguments, matches):
+    """The numba dispatcher call of kernel `name` for arguments its prebuilt function was not
+    built for (`checked`): the first one recorded in FALLBACKS, as the first argument that
+    does not match its type (`arguments`, numba's text of each; `matches`, a test of each)."""
+    def call(*values):
+        if name not in FALLBACKS:
+            wrong = next((i for i, (match, value) in enumerate(zip(matches, values))
+                          if not match(value)), None)
+            FALLBACKS[name] = ('called with other arguments' if wrong is None else
+                               f'argument {wrong + 1} is {_described(values[wrong])}, '
+                               f'built for {arguments[wrong]}')
+        return dispatcher(name)(*values)
+    return call
+
+
+def _described(value):
+    """`value`'s type as a fallback says it: an array's dtype, rank and what of its layout
+    a prebuilt kernel refuses, or another type's name."""
+    if not isinstance(value, np.ndarray):
+        return f'a {type(value).__module__.replace("builtins", "Python")} {type(value).__name__}'
+    flags = value.flags
+    refused = [text for text, holds in (('not C-contiguous', flags.c_contiguous),
+                                        ('not aligned', flags.aligned),
+                                        ('read-only', flags.writeable)) if not holds]
+    return f'a {value.ndim}-D {value.dtype} array' + (f' ({", ".join(refused)})' if refused
+                                                       else '')
 
 
 def kernel(name):
@@ -247,10 +292,13 @@ def has(name):
 def state(*names):
     """One line: whether runs use the prebuilt kernels, and why not; given kernels' names,
     whether those are all prebuilt (an extension built before one of them was made one
-    lacks it)."""
+    lacks it); and which prebuilt kernels this process has called with other types, so that
+    numba's ran (`FALLBACKS`), whatever `names`."""
     functions, why = load()
     if not functions and why:
         return f'prebuilt kernels: {why}'
     lacking = [name.rpartition('.')[2] for name in names if not has(name)]
-    return (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
+    line = (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
             'them)' if lacking else 'prebuilt kernels: in use')
+    return line + ''.join(f"; numba's for {name.rpartition('.')[2]} ({why})"
+                          for name, why in FALLBACKS.items())

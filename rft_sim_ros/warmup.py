@@ -16,13 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from .kernel_cache import KERNEL_MODULES, PACKAGE, BackgroundCompile, is_cached, module_kernels
-from .prebuilt import SWITCH, load
+from .kernel_names import GATHER_DEFORMABLE, GATHERS, STEPS, TABLE_KERNELS
+from .prebuilt import SWITCH, dispatcher, load
 from .rft.kernel import plate_forces_compiled
-from .sand import gather, implicit_solve
-from .sand.array_table import TABLE_SIGNATURE
-from .kernel_names import STEP_SIGNATURE
 from .scenes.config import load_scene
 from .sim.simulation import Simulation
+
+
+#: The table kernels (`kernel_names.TABLE_KERNELS`) that none of `warm_up`'s runs steps
+#: with: the other surfaces' gathers and the implicit step with elliptic cones, compiled in
+#: a second process while the runs compile theirs.
+BACKGROUND = (GATHERS['slope'], GATHERS['grid'], GATHER_DEFORMABLE, STEPS['cones'])
 
 
 def cached_kernels():
@@ -65,9 +69,8 @@ def warm_up(log=print):
     compiler), says why and goes on: runs then load them from numba's cache, as before.
     Returns (the qualified names still not cached (none, unless a kernel went unused),
     one line on the prebuilt kernels: `prebuilt.state`, or why the build failed)."""
-    others = [(kernel, TABLE_SIGNATURE) for kernel in (
-        gather.gather_slope, gather.gather_grid, gather.gather_deformable)]
-    others.append((implicit_solve.implicit_step_cones, STEP_SIGNATURE))
+    signatures = dict(TABLE_KERNELS)
+    others = [(dispatcher(name), signatures[name]) for name in BACKGROUND]
 
     def run(scene, overrides):
         log(f'warmup: {scene} {overrides or ""}'.rstrip())

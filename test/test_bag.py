@@ -13,7 +13,7 @@ from rft_sim_ros.ros.bag import (BagWriter, TopicInfo, _CycleRecords, _Rosbag2Wr
 from rft_sim_ros.ros import cdr
 from rft_sim_ros.ros.cdr import StateEncoder
 from rft_sim_ros.ros.factory import RosbagsFactory
-from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
+from rft_sim_ros.stamps import seconds_to_ns, split_ns
 from ros_test_support import make_state, make_terrain_update, messages_equal
 
 LEGS = ('L1', 'R1', 'L2')

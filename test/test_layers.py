@@ -1,5 +1,6 @@
 """The package's imports point one way: no module imports, however indirectly, a module that
-imports it back (a circle), and only `rft_sim_ros/ros/` imports rclpy.
+imports it back (a circle), nor does any of the package's parts (its subpackages and
+top-level modules: docs/code.md's layers), and only `rft_sim_ros/ros/` imports rclpy.
 
 The graph is read from the sources (every `import` statement, at top level or inside a
 function: a function-level import is still a dependency, only a later one), not by importing."""
@@ -91,6 +92,22 @@ def circles(graph):
     return found
 
 
+def part_graph(graph):
+    """{part: set of the parts it imports}: `graph` (an `import_graph`) between the package's
+    parts, each subpackage or top-level module (rft_sim_ros.X, its modules' edges
+    together), with the package's own __init__ and the edges within a part left out."""
+    def part(module):
+        return '.'.join(module.split('.')[:2])
+
+    parts = {}
+    for module, imported in graph.items():
+        if module != 'rft_sim_ros':
+            parts.setdefault(part(module), set()).update(
+                part(target) for target in imported
+                if target != 'rft_sim_ros' and part(target) != part(module))
+    return parts
+
+
 def test_the_graph_is_read_from_every_module_and_its_function_level_imports():
     graph = import_graph()
     assert len(graph) > 50
@@ -108,9 +125,34 @@ def test_no_module_imports_itself_back():
     assert circles(import_graph()) == []
 
 
+def test_parts_are_joined_with_their_modules_edges():
+    graph = {'rft_sim_ros': set(), 'rft_sim_ros.a.x': {'rft_sim_ros.b', 'rft_sim_ros.a.y'},
+             'rft_sim_ros.a.y': {'rft_sim_ros'}, 'rft_sim_ros.b': {'rft_sim_ros.c.z'},
+             'rft_sim_ros.c.z': {'rft_sim_ros.a.y'}}
+    assert part_graph(graph) == {'rft_sim_ros.a': {'rft_sim_ros.b'},
+                                 'rft_sim_ros.b': {'rft_sim_ros.c'},
+                                 'rft_sim_ros.c': {'rft_sim_ros.a'}}
+    assert circles(part_graph(graph)) == [['rft_sim_ros.a', 'rft_sim_ros.b', 'rft_sim_ros.c']]
+
+
+def test_no_part_of_the_package_imports_itself_back():
+    """A subpackage's module may import a module of another part that imports a third
+    module of the first: no circle of modules, but the parts are no longer layers (docs/code.md
+    says which way they point)."""
+    parts = part_graph(import_graph())
+    assert 'rft_sim_ros.sand' in parts['rft_sim_ros.sim']  # (the parts were read)
+    assert circles(parts) == []
+
+
 def test_the_kernel_cache_bookkeeping_imports_nothing_of_the_package():
     """Every kernel module imports it at its top: it must sit below all of them."""
     assert import_graph()['rft_sim_ros.kernel_cache'] == set()
+
+
+def test_the_kernels_names_import_nothing_of_the_package():
+    """The engine and the gaits name their kernels there (and `prebuilt` loads them by those
+    names): it must sit below them."""
+    assert import_graph()['rft_sim_ros.kernel_names'] == set()
 
 
 def test_only_the_ros_package_imports_rclpy():

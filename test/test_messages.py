@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from rft_sim_ros.ros import messages, topics
 from rft_sim_ros.ros.factory import (MessageFactory, RclpyFactory, RosbagsFactory,
                                      jazzy_typestore)
-from rft_sim_ros.ros.stamps import ros_time_to_seconds, seconds_to_ns, split_ns
+from rft_sim_ros.stamps import ros_time_to_seconds, seconds_to_ns, split_ns
 from rft_sim_ros.sim.state import ActivePlates, LegWrench, SimState
 from rft_sim_ros.units import zeta_to_si
 from ros_test_support import make_state, make_terrain_update, messages_equal, rotation_from_xyzw

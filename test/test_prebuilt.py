@@ -18,12 +18,11 @@ from rft_sim_ros.kernel_names import CALLED_KERNELS, FOOT_PATH, GATHERS, PREBUIL
 from rft_sim_ros.prebuild import build
 from rft_sim_ros.sand import gather
 from rft_sim_ros.sand.array_table import ArrayTable
-from rft_sim_ros.sand.surface import FLAT, SLOPE
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.scenes.gait_kernels import foot_path
 from rft_sim_ros.sim.simulation import Simulation
 
-_PLANE = GATHERS[FLAT]
+_PLANE = GATHERS['plane']
 
 
 def _c_compiler():
@@ -126,8 +125,26 @@ def test_a_prebuilt_kernel_given_other_types_runs_numbas(built, use):
     # memory: numba's kernel takes them, as a call from Python always has
     read_only = phases.copy()
     read_only.flags.writeable = False
-    for other in (phases.astype(np.float32), np.repeat(phases, 2)[::2], read_only):
+    assert prebuilt.state() == 'prebuilt kernels: in use'
+    sim = Simulation(load_scene('plate_drop'))
+    for other, why in ((phases.astype(np.float32), 'a 1-D float32 array'),
+                       (np.repeat(phases, 2)[::2], 'a 1-D float64 array (not C-contiguous)'),
+                       (read_only, 'a 1-D float64 array (read-only)')):
         assert all(np.allclose(a, b) for a, b in zip(path(other, 0.5, 0.05, 0.02), expected))
+        # the first such call is said, by the state line and once by a run
+        said = f'argument 1 is {why}, built for float64[::1]'
+        assert prebuilt.state() == f"prebuilt kernels: in use; numba's for foot_path ({said})"
+        assert sim.run_warnings() == [
+            f'the prebuilt kernel foot_path was called with other types than it was built for '
+            f"({said}): numba's kernel runs those calls, with the same results, after it "
+            'compiles or loads']
+        assert sim.run_warnings() == []
+        prebuilt.load.cache_clear()  # (a new extension: its calls recorded afresh)
+        path = prebuilt.kernel(FOOT_PATH)
+        assert prebuilt.state() == 'prebuilt kernels: in use'
+        sim = Simulation(load_scene('plate_drop'))
+    path(phases, np.float32(0.5), 1, 0.02)
+    assert prebuilt.FALLBACKS == {FOOT_PATH: 'argument 2 is a numpy float32, built for float64'}
     with pytest.raises(TypeError):  # (the wrong number of arguments)
         path(phases, 0.5, 0.05)
 
@@ -283,9 +300,9 @@ def test_the_building_process_says_why_it_failed_on_one_line(monkeypatch, capsys
 
 def test_an_engine_says_which_of_its_kernels_are_not_prebuilt(built, use, tmp_path):
     use(_copy(built, tmp_path, kernels=dict(
-        (name, signature) for name, signature in PREBUILT if name != GATHERS[SLOPE])))
+        (name, signature) for name, signature in PREBUILT if name != GATHERS['slope'])))
     slope = Simulation(load_scene('plate_drop', {'sand.surface.type': 'slope'})).engine
-    assert not prebuilt.has(GATHERS[SLOPE])  # (not in this extension)
+    assert not prebuilt.has(GATHERS['slope'])  # (not in this extension)
     assert slope.kernels == ('prebuilt kernels: not built for gather_slope (`rft-sim warmup` '
                              'builds them)')
     paper = Simulation(load_scene('plate_drop', {'rft.coupling': 'paper',

@@ -13,7 +13,7 @@ from rft_sim_ros.ros.bag import BagWriter, bag_topics, read_messages
 from rft_sim_ros.ros.recording import BagRecorder
 from rft_sim_ros.ros.runtime import SimRuntime
 from rft_sim_ros.ros.terrain import TerrainFeed
-from rft_sim_ros.ros.stamps import seconds_to_ns
+from rft_sim_ros.stamps import seconds_to_ns
 from rft_sim_ros.sim.runner import run_scene
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.sim.simulation import Simulation

@@ -197,7 +197,7 @@ def test_the_bag_packs_imu_and_contacts_as_rosbags_serialises_them():
     from types import SimpleNamespace
     from rft_sim_ros.ros.bag import _CycleRecords
     from rft_sim_ros.ros.cdr import StateEncoder
-    from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
+    from rft_sim_ros.stamps import seconds_to_ns, split_ns
     sim = Simulation(load_scene('quadruped', overrides={
         'params.gait': 'none', 'sensors.imu': True, 'sensors.contacts': True,
         'sensors.imu_topic': '/base/imu', 'sensors.imu_noise.accel_std': 0.02}))

@@ -1,4 +1,4 @@
-"""The implicit step compiled three times (`implicit_solve.STEP_KERNELS`): each variant calls
+"""The implicit step compiled three times (`kernel_names.STEPS`): each variant calls
 only the kernels of the parts it solves, the engine loads the one its model needs (and the
 one that solves more where a model makes rows it did not foresee), the scene's notice checks
 the variant its engine loads, and a cold start's second process compiles kernels the step
@@ -11,6 +11,8 @@ from numba.core.analysis import dead_branch_prune
 from numba.core.compiler import run_frontend
 from numba.core.ir_utils import simplify_CFG
 
+from rft_sim_ros.kernel_names import STEP_PARTS, STEPS
+from rft_sim_ros.prebuilt import dispatcher
 from rft_sim_ros.sand import implicit_solve
 from rft_sim_ros.sand.engine import SandEngine, can_collide, step_parts
 from rft_sim_ros.sand.geoms import body_plates
@@ -40,14 +42,14 @@ def _called(function):
 @pytest.mark.parametrize('parts, absent, present', [
     ('plain', ROWS | CONES, set()), ('rows', CONES, ROWS), ('cones', set(), ROWS | CONES)])
 def test_each_step_calls_the_kernels_of_its_parts_only(parts, absent, present):
-    called = _called(implicit_solve.STEP_KERNELS[parts].py_func)
+    called = _called(dispatcher(STEPS[parts]).py_func)
     assert {'accumulate_slot', 'checked_solve', 'friction_terms'} <= called
     assert not called & absent and present <= called
 
 
-@pytest.mark.parametrize('parts', implicit_solve.STEP_PARTS)
+@pytest.mark.parametrize('parts', STEP_PARTS)
 def test_the_second_process_compiles_kernels_its_step_calls(parts):
-    called = _called(implicit_solve.STEP_KERNELS[parts].py_func)
+    called = _called(dispatcher(STEPS[parts]).py_func)
     share = {kernel.py_func.__name__ for kernel, _ in implicit_solve.background_kernels(parts)}
     assert share and share <= called
 

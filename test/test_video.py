@@ -96,7 +96,7 @@ def test_a_run_with_video_writes_a_decodable_h264_of_its_frames_showing_the_robo
 @needs_rendering
 def test_the_video_rendered_from_the_runs_bag_matches_the_runs_own(tmp_path):
     from rft_sim_ros.render.frames import VideoSettings
-    from rft_sim_ros.render.replay import render_bag
+    from rft_sim_ros.ros.bag_video import render_bag
     from rft_sim_ros.sim.simulation import Simulation
     scene = _scene(drop_height=0.05)
     _run_with_video(tmp_path, scene, duration=0.25, bag=True)

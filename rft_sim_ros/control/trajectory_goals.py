@@ -31,7 +31,7 @@ from typing import NamedTuple, Optional, Sequence
 
 import numpy as np
 
-from ..ros.stamps import seconds_to_ns
+from ..stamps import seconds_to_ns
 from .commands import Reason, Targets, TrajectoryCommand
 
 #: A tolerance of this value erases the default (control_msgs/JointTolerance).

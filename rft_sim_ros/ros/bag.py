@@ -13,7 +13,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
 from rft_sim_ros.ros import cdr, messages, topics
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
-from rft_sim_ros.ros.stamps import seconds_to_ns, split_ns
+from rft_sim_ros.stamps import seconds_to_ns, split_ns
 
 #: The distribution whose message definitions the bags hold (metadata `ros_distro`).
 ROS_DISTRO = 'jazzy'

@@ -23,7 +23,7 @@ from rft_sim_ros.ros import messages, topics
 from rft_sim_ros.ros.entry import run_node
 from rft_sim_ros.ros.factory import RclpyFactory
 from rft_sim_ros.ros.gait_trajectory import GaitTrajectories
-from rft_sim_ros.ros.stamps import NS_PER_S
+from rft_sim_ros.stamps import NS_PER_S
 from rft_sim_ros.scenes.gaits import make_gait
 
 QUEUE_DEPTH = 10

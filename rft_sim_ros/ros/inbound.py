@@ -3,7 +3,7 @@
 Duck-typed: works on rclpy messages and on rosbags messages alike. Nothing is validated
 here; `CommandHandler` checks every value and rejects bad commands with a reason.
 """
-from rft_sim_ros.ros.stamps import ros_time_to_seconds
+from rft_sim_ros.stamps import ros_time_to_seconds
 from rft_sim_ros.control.commands import TrajectoryCommand, TrajectoryPoint
 from rft_sim_ros.control.trajectory_goals import GoalRequest, JointTolerance
 

@@ -36,7 +36,7 @@ import yaml
 from rft_sim_ros.control.commands import CommandRejected, TrajectoryCommand, TrajectoryPoint
 from rft_sim_ros.control.joint_state_commands import read_joint_state_command
 from rft_sim_ros.ros import inbound, topics
-from rft_sim_ros.ros.stamps import NS_PER_S
+from rft_sim_ros.stamps import NS_PER_S
 
 #: Message types a bag's command topics carry.
 _TRAJECTORY, _ARRAY, _JOINT_STATE = (topics.JOINT_TRAJECTORY_TYPE, topics.FLOAT64_ARRAY_TYPE,

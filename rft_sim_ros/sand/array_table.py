@@ -20,8 +20,6 @@ import numpy as np
 CODES = {np.dtype(np.float64): 0, np.dtype(np.int64): 1, np.dtype(np.int32): 2,
           np.dtype(np.int8): 3, np.dtype(np.uint8): 4, np.dtype(np.bool_): 4}
 ADDRESS, CODE, RANK, ROWS, COLUMNS = range(5)  # the table's columns
-#: numba's text of the argument types of a kernel taking one table (its int64 table).
-TABLE_SIGNATURE = '(int64[:, ::1],)'
 
 
 class ArrayTable:

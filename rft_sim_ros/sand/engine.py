@@ -19,16 +19,17 @@ import numpy as np
 
 from .. import kernel_names, prebuilt
 from ..kernel_cache import BackgroundCompile, is_cached, last_cold_start, load, record_cold_start
-from ..kernel_names import EXPLICIT, PLATE_FORCES, ROWS, STEPS, function
+from ..kernel_names import (EXPLICIT, PLATE_FORCES, ROWS, STEP_PARTS, STEPS, TABLE_SIGNATURE,
+                            function)
 from ..rft.coefficients import normalisation as find_normalisation
 from ..rft.plates import Plates
 from ..units import validated_zeta, zeta_to_si
 from . import layout
-from .array_table import TABLE_SIGNATURE, ArrayTable
+from .array_table import ArrayTable
 from .clusters import cluster_plates
 from .deformable import no_bed_arrays
-from .layout import STEP_PARTS
-from .surface import FLAT, GRID, Plane, tile_planes, window_extremes, window_span
+from .surface import GRID, Plane, tile_planes, window_extremes, window_span
+from .surface_codes import KINDS
 
 LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 
@@ -37,11 +38,11 @@ LOW_VELOCITY_METHODS = ('implicit', 'ema', 'none')
 CONSTRAINT_ROOM = 16
 
 
-def engine_kernels(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
+def engine_kernels(method='implicit', surface_kind='plane', deformable=False, parts='rows'):
     """The names (`kernel_names`) of the compiled kernels an engine with low-velocity
     `method` ('implicit'; any other: the explicit methods' kernels) on a surface of
-    `surface_kind` (deformable or not) runs; with the implicit method, its step solving
-    `parts` (`layout.STEP_PARTS`, `step_parts`)."""
+    `surface_kind` ('plane', 'slope', 'grid': `surface.KINDS`; deformable or not) runs; with
+    the implicit method, its step solving `parts` (`kernel_names.STEP_PARTS`, `step_parts`)."""
     gathering = kernel_names.gather(surface_kind, deformable)
     if method != 'implicit':
         return (gathering, *EXPLICIT)
@@ -56,7 +57,7 @@ def ready(name):
     return prebuilt.has(name) or is_cached(prebuilt.dispatcher(name))
 
 
-def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
+def kernels_cached(method='implicit', surface_kind='plane', deformable=False, parts='rows'):
     """Whether the `engine_kernels` of these arguments are all `ready`, so that building
     such an engine compiles nothing (otherwise it compiles them: a first run after install,
     or after an upgrade)."""
@@ -65,7 +66,7 @@ def kernels_cached(method='implicit', surface_kind=FLAT, deformable=False, parts
 
 
 def step_parts(model, rows_expected=False):
-    """Which compiled implicit step (`layout.STEP_PARTS`) an engine of MuJoCo
+    """Which compiled implicit step (`kernel_names.STEP_PARTS`) an engine of MuJoCo
     `model` loads: 'plain' where the model cannot make a constraint row (no equality, no
     limited joint or tendon, no tendon friction and no rigid contact: `can_collide`) and rows
     are not `rows_expected`; 'cones' where it can and its contacts use elliptic cones; 'rows'
@@ -104,7 +105,8 @@ def _uncached_key(kernels):
     return ' '.join(sorted(function(name) for name in kernels if not ready(name)))
 
 
-def cold_start_estimate(method='implicit', surface_kind=FLAT, deformable=False, parts='rows'):
+def cold_start_estimate(method='implicit', surface_kind='plane', deformable=False,
+                        parts='rows'):
     """Wall seconds the last start that compiled what the cache now lacks of the
     `engine_kernels` of these arguments took with this cache (measured on this machine by
     `SandEngine._load_kernels`, kept by `kernel_cache.record_cold_start`); None when no start
@@ -203,7 +205,7 @@ class SandEngine:
         self.surface = Plane(surface_height) if surface is None else surface
         self.deformable = not self.surface.rigid
         self._set_surface(self.surface)
-        self._gathering = kernel_names.gather(self.surface.data.kind, self.deformable)
+        self._gathering = kernel_names.gather(KINDS[self.surface.data.kind], self.deformable)
         self._gather = prebuilt.kernel(self._gathering)
         # per-plate forces of an implicit step, where asked for (`active_plates`)
         self._plate_forces = prebuilt.kernel(PLATE_FORCES)
@@ -449,7 +451,7 @@ class SandEngine:
         return taken
 
     def _solve_at_least(self, parts):
-        """Step with the compiled implicit step that solves `parts` (`layout.STEP_PARTS`)
+        """Step with the compiled implicit step that solves `parts` (`kernel_names.STEP_PARTS`)
         from now on, where the one loaded solves less: the model made rows that `step_parts`
         did not foresee (its options changed at run time). It loads, or compiles, at its first
         call."""
@@ -656,7 +658,7 @@ class SandEngine:
         are scratch). Where any of them had to compile, the time that took is recorded in
         the cache (`kernel_cache.record_cold_start`): the next notice that they compile
         quotes it (`cold_start_estimate`)."""
-        cold = _uncached_key(engine_kernels(self.low_velocity.method, self.surface.data.kind,
+        cold = _uncached_key(engine_kernels(self.low_velocity.method, KINDS[self.surface.data.kind],
                                             self.deformable, self._parts))
         wall, cpu = time.perf_counter(), _cpu_seconds()
         self._compile_kernels()

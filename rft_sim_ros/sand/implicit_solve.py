@@ -4,7 +4,7 @@ constraint rows (`constraint_rows`, `elliptic_cones`) together for the end-of-st
 velocities, in the one call the engine makes per step (`_implicit_step`), from the arrays
 the gather kernel left.
 
-It is a template compiled three times (`STEP_KERNELS`): without MuJoCo's rows
+It is a template compiled three times (`kernel_names.STEPS`): without MuJoCo's rows
 (`implicit_step_plain`: a body with no joint limits, equalities or contacts of its own),
 with them (`implicit_step_rows`) and with elliptic cones' rows too (`implicit_step_cones`).
 Each compiles only the kernels it calls (the others' branches are pruned on the constants
@@ -43,8 +43,7 @@ from .implicit_law import (MOVING, OFF, RESTING, accumulate_slot, across_damper,
 from .joint_friction import friction_finish, friction_sets, friction_start, friction_terms
 from .layout import (ACROSS, ACTUATORS, COEF_ACROSS, COEF_ALONG, COEF_MOVING, CONSTRAINT_ROWS,
                      DAMPER, GATHERED, HANDED_BACK, HANDED_BACK_AT, IMPLICIT, LEVER, MAGNITUDE,
-                     REST_SPEED, SLOTS, SOLVES, SPEED, STEP_PARTS, STEPS, UNSETTLED, WANTED,
-                     SolveSpace)
+                     REST_SPEED, SLOTS, SOLVES, SPEED, STEPS, UNSETTLED, WANTED, SolveSpace)
 from .mujoco_terms import implicit_damping, implicit_mass, prepare_solve, scatter_wrenches
 from .tree_solve import checked_solve, copy_into, translational_inverse_masses
 
@@ -470,8 +469,8 @@ def _bound(template, name, constants):
 
 
 def _step_kernel(parts):
-    """The implicit step compiled for `parts` (one of STEP_PARTS): only what it solves
-    compiles (docs/speed.md)."""
+    """The implicit step compiled for `parts` (one of `kernel_names.STEP_PARTS`): only what
+    it solves compiles (docs/speed.md)."""
     constants = {'ROWS': parts != 'plain', 'CONES': parts == 'cones'}
     return njit(cache=True, error_model='numpy', fastmath=True)(
         _bound(_implicit_step, f'implicit_step_{parts}', constants))
@@ -480,15 +479,12 @@ def _step_kernel(parts):
 implicit_step_plain = _step_kernel('plain')
 implicit_step_rows = _step_kernel('rows')
 implicit_step_cones = _step_kernel('cones')
-#: The compiled implicit step (`_implicit_step`) solving each of STEP_PARTS.
-STEP_KERNELS = {'plain': implicit_step_plain, 'rows': implicit_step_rows,
-                'cones': implicit_step_cones}
 _FRICTION = 'Tuple((int64[::1], float64[::1], int64[::1], int8[:, ::1], float64[::1]))'
 _ROWS = ('Tuple((float64[:, ::1], int64[:, ::1], int64[::1], float64[:, ::1], int8[:, ::1], '
          'int64))')
-#: Kernels the compiled steps call, the least of STEP_PARTS whose step calls them, and the
-#: argument types (numba's text) the steps call them with (`background_kernels`), in the
-#: order a step's compile reaches them.
+#: Kernels the compiled steps call, the least of `kernel_names.STEP_PARTS` whose step calls
+#: them, and the argument types (numba's text) the steps call them with
+#: (`background_kernels`), in the order a step's compile reaches them.
 _CALLED = (
     (prepare_solve, 'plain', '(int64, int64[::1], int64[::1], float64[:, ::1], '
      'float64[:, ::1], float64[:, ::1], int32[::1], int32[::1], int32[::1], int32[::1], '
@@ -530,14 +526,15 @@ _CALLED = (
 
 
 def background_kernels(parts):
-    """[(kernel, signature)]: the kernels that the step solving `parts` (one of STEP_PARTS)
-    calls, with the argument types it calls them with, for a cold start to compile in a
-    second process (`kernel_cache.BackgroundCompile`) while this one compiles the step: in
-    the reverse of the order the step's compile reaches them, so that the two meet in the
-    middle (this process then loads the rest from the cache, and the second compiles nothing
-    twice but the kernel they meet at: on two cores each does about half; the engine has the
-    second compile the gather kernel after them, while this one compiles the step's own
-    code)."""
+    """[(kernel, signature)]: the kernels that the step solving `parts` (one of
+    `kernel_names.STEP_PARTS`) calls, with the argument types it calls them with, for a cold
+    start to compile in a second process (`kernel_cache.BackgroundCompile`) while this one
+    compiles the step: in the reverse of the order the step's compile reaches them, so that
+    the two meet in the middle (this process then loads the rest from the cache, and the
+    second compiles nothing twice but the kernel they meet at: on two cores each does about
+    half; the engine has the second compile the gather kernel after them, while this one
+    compiles the step's own code)."""
+    from ..kernel_names import STEP_PARTS  # (here: the names are compiled into no kernel)
     level = STEP_PARTS.index(parts)
     return [(kernel, signature) for kernel, least, signature in reversed(_CALLED)
             if STEP_PARTS.index(least) <= level]

@@ -1,9 +1,8 @@
 """The layout the sand kernels share: the rows of the gathered-plate table, the engine's
 settings and counters (one float64 and one int64 vector, by index), the implicit law's
 per-plate work rows and flags, the columns of MuJoCo's constraint rows the implicit step
-takes, the parts a compiled implicit step solves (`STEP_PARTS`), and the named arrays each
-kernel takes (`GatherArrays`, `ImplicitArrays`, `SolveSpace`), which the engine
-(`engine.SandEngine`) allocates once.
+takes, and the named arrays each kernel takes (`GatherArrays`, `ImplicitArrays`,
+`SolveSpace`), which the engine (`engine.SandEngine`) allocates once.
 
 Conventions: plates run along the second axis of every per-plate table (column k: the k-th
 plate gathered this step); world frame, z up, SI. Nothing here is compiled: the kernels
@@ -14,12 +13,6 @@ from collections import namedtuple
 import numpy as np
 
 from ..rft.law_rows import LAW_ROWS
-
-#: The parts the compiled implicit steps solve, one step each (`implicit_solve`): 'plain'
-#: (the sand and joint friction), 'rows' (and MuJoCo's equality, limit and pyramidal contact
-#: rows), 'cones' (and elliptic cones' rows).
-STEP_PARTS = ('plain', 'rows', 'cones')
-
 
 #: Rows of the implicit law's per-plate work space (`implicit_solve._implicit_step`), plates
 #: along the second axis: |G|, across damper c (N s/m), the set coefficients.

@@ -6,5 +6,8 @@ in)."""
 #: Kind codes read by the kernels: an infinite level plane, an infinite inclined plane, a
 #: height grid.
 FLAT, SLOPE, GRID = 0, 1, 2
+#: The name of each kind code (KINDS[code]): what its gather kernel is named by
+#: (`kernel_names.GATHERS`).
+KINDS = ('plane', 'slope', 'grid')
 #: Nodes per side of a block of a grid's block maximum and minimum.
 BLOCK = 8

@@ -21,11 +21,14 @@ import traceback
 import mujoco
 import numpy as np
 
+from .. import prebuilt
 from ..control.commands import CommandHandler
+from ..kernel_names import function
 from ..robot.joints import JointInterfaces
 from ..robot.pose import REST_HOLD_S, REST_SPEED, SETTLE_LIMIT_S, align_to, lift_to
 from ..sand.engine import cold_start_estimate, kernels_cached
-from ..sand.surface import GRID, SURFACE_KINDS
+from ..sand.surface import SURFACE_KINDS
+from ..sand.surface_codes import KINDS
 from ..scenes.config import SceneError
 from ..scenes.scenarios import failure_line, load_scenario, rows_expected, scenario_files
 from .build import (base_id, choose_sand_bodies, compile_model, deformable_bed, ground_to_sand,
@@ -60,15 +63,15 @@ _INSTABILITY_WARNINGS = np.array([mujoco.mjtWarning.mjWARN_BADQACC,
 
 
 def kernel_key(scene):
-    """(low-velocity kernels, surface kind code, deformable, step parts): what selects the
+    """(low-velocity kernels, surface kind, deformable, step parts): what selects the
     compiled sand kernels a `scene` (SceneConfig) steps with (`engine.kernels_cached`), and
     nothing else: 'implicit' or 'explicit' (the 'ema' and 'none' methods share one set);
-    deformable sand has one gather kernel whatever surface its bed lies on (GRID); the
-    implicit step without or with MuJoCo's constraint rows, as its scenario expects
-    (`scenarios.rows_expected`; a model with elliptic cones loads a third, said by a notice
-    of the run)."""
+    the surface's kind ('plane', 'slope', 'grid': `surface_codes.KINDS`; deformable sand has
+    one gather kernel whatever surface its bed lies on: 'grid'); the implicit step without
+    or with MuJoCo's constraint rows, as its scenario expects (`scenarios.rows_expected`; a
+    model with elliptic cones loads a third, said by a notice of the run)."""
     deformable = bool(scene.deformable.get('enabled'))
-    kind = GRID if deformable else SURFACE_KINDS[scene.surface.get('type', 'plane')]
+    kind = 'grid' if deformable else KINDS[SURFACE_KINDS[scene.surface.get('type', 'plane')]]
     method = 'implicit' if scene.low_velocity['method'] == 'implicit' else 'explicit'
     return method, kind, deformable, 'rows' if rows_expected(scene) else 'plain'
 
@@ -216,6 +219,7 @@ class Simulation:
         self._steps_before = self.steps  # (the outcome counts from here)
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
+        self._fallbacks_said = set()  # (`prebuilt.FALLBACKS` said: `run_warnings`)
         self._next_entry_check = 0.0  # sim time, s
         self._pose()
         self.scenario.initialize(self)
@@ -466,8 +470,18 @@ class Simulation:
     def run_warnings(self):
         """What a run says once (and again after each reset), the first time it happens:
         plates in the sand outside the deformable bed, a body without plates reaching into
-        the sand (`sand_entry`). A list of lines, mostly empty; called at the publish rate."""
-        return [line for line in (self._left_bed_warning(), self._entry_warning()) if line]
+        the sand (`sand_entry`), a prebuilt kernel this process called with other types than
+        it was built for (`prebuilt.FALLBACKS`: numba's ran). A list of lines, mostly empty;
+        called at the publish rate."""
+        return [line for line in (self._left_bed_warning(), self._entry_warning(),
+                                  *self._fallback_warnings()) if line]
+
+    def _fallback_warnings(self):
+        new = [name for name in prebuilt.FALLBACKS if name not in self._fallbacks_said]
+        self._fallbacks_said.update(new)
+        return [f'the prebuilt kernel {function(name)} was called with other types than it '
+                f'was built for ({prebuilt.FALLBACKS[name]}): numba\'s kernel runs those '
+                'calls, with the same results, after it compiles or loads' for name in new]
 
     def _left_bed_warning(self):
         sand = self.engine.surface

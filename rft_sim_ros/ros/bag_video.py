@@ -1,32 +1,33 @@
-"""A run's video made again from its rosbag2, without simulating: `render_bag`.
+"""A run's video made again from its rosbag2, without simulating: `render_bag` (the
+renderer's pieces, `render`, driven by the bag's messages).
 
 The bag is one `rft-sim run` wrote (DIR/bag) or one `ros2 bag record` made of the node's
 topics. The scene it ran (its summary.json's `scene_config`, or one given) builds the
 Simulation only for its model and sand, which is not stepped past its start; each publish
 cycle of the bag (messages of one header stamp, sim time) then poses the drawn copy
-(`stage.Stage`): the joints from /joint_states, the base from /odom (the root's free joint
-set so that the base body lies where /odom says), deformable sand from /rft/terrain (the
+(`render.stage.Stage`): the joints from /joint_states, the base from /odom (the root's free
+joint set so that the base body lies where /odom says), deformable sand from /rft/terrain (the
 whole bed first, then its changed nodes), the legs' forces from /rft/<leg>/wrench at their
 points on /tf, the plates from /rft/plates where the bag has them (drawn in the bag's
 colours), zeta from /diagnostics. Frames are rendered at the video's rate as in
-`recorder`. Joints the bag does not name (unnamed, ball joints) stay where the scene starts
-them.
+`render.recorder`. Joints the bag does not name (unnamed, ball joints) stay where the scene
+starts them.
 """
 import numpy as np
 import mujoco
 
+from ..render.decorations import Plates
+from ..render.encoder import Mp4Writer
+from ..render.frames import FramePainter
+from ..render.recorder import overlay
+from ..render.stage import Stage
 from ..robot.sand_bodies import free_root_joint
-from ..ros import topics
-from ..ros.bag import read_messages
-from .decorations import Plates
-from .encoder import Mp4Writer
-from .frames import FramePainter
-from .recorder import overlay
-from .stage import Stage
+from . import topics
+from .bag import read_messages
 
 
 class BagPoser:
-    """Poses `stage` (stage.Stage) from the node's messages; `base`: the base body's name."""
+    """Poses `stage` (render.stage.Stage) from the node's messages; `base`: the base body's name."""
 
     def __init__(self, stage, base):
         model = stage.model
