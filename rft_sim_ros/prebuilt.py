@@ -38,12 +38,14 @@ import json
 import os
 import re
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .kernel_cache import PACKAGE, sources_fingerprint, sources_unchanged
 from .kernel_names import PREBUILT
+from .kernel_names import function as function_name
 
 #: The folder of the built extensions, one subfolder per `toolchain_key`.
 FOLDER = PACKAGE / '_prebuilt'
@@ -128,18 +130,25 @@ def _stale(kept):
     return ''
 
 
-#: {kernel name: why}: the prebuilt kernels of the loaded extension that this process has
-#: called with arguments of other types than they were built for, so that numba's
-#: dispatcher ran them (`checked`): the first such call's argument, as `state` says it.
-FALLBACKS = {}
+@dataclass
+class Fallback:
+    """A prebuilt kernel's calls with arguments of other types than it was built for, which
+    numba's dispatcher ran (`checked`): why the first did not match (`why`: the argument, as
+    `state` says it), and how many there have been (`calls`)."""
+    why: str
+    calls: int = 0
+
+
+_fallbacks = {}  # {kernel name: Fallback} of the loaded extension's kernels (`fallbacks`)
 
 
 @functools.lru_cache(maxsize=None)
 def load():
     """({kernel name: its prebuilt function, `checked`}, why there are none: '' when
     loaded), for this process's `toolchain()` in `FOLDER`. Cached: the first answer holds
-    for the process (a new answer forgets the `FALLBACKS` of the last)."""
-    FALLBACKS.clear()
+    for the process (a new answer has `fallbacks` of its own)."""
+    global _fallbacks
+    _fallbacks = {}
     if os.environ.get(SWITCH, '1') == '0':
         return {}, f'off ({SWITCH}=0)'
     refused = settings_refusal()
@@ -165,7 +174,7 @@ def load():
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         current = dict(PREBUILT)  # (a kernel now called with other types: numba's)
-        return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature)
+        return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature, _fallbacks)
                 for kernel, signature in kept['kernels'].items()
                 if current.get(kernel) == signature}, ''
     except Exception as error:  # (a damaged extension or record: numba's kernels run)
@@ -196,11 +205,12 @@ def _arguments(signature):
     return [argument for argument in arguments if argument]
 
 
-def checked(function, name, signature):
+def checked(function, name, signature, fallbacks=None):
     """`function` (kernel `name`'s prebuilt function, compiled for `signature`, numba's text
     of its argument types) called only with arguments numba would type as that signature,
-    and kernel `name`'s numba dispatcher (`dispatcher`) with any others, the first such call
-    recorded in `FALLBACKS` (which argument did not match). A function compiled
+    and kernel `name`'s numba dispatcher (`dispatcher`) with any others, counted in
+    `fallbacks` ({kernel name: Fallback}, with which argument of the first did not match;
+    None: not kept). A function compiled
     ahead does not check its arguments (numba's unboxing of an array checks only its item
     size: given another dtype, rank or layout it reads the wrong memory): the check is made
     here, per call, on each argument's exact type: for a scalar Python's or numpy's type that
@@ -230,11 +240,12 @@ def checked(function, name, signature):
     names = ', '.join(f'a{i}' for i in range(len(arguments)))
     matches = [generated(f'a{i}', f'return {test}', constants)
                for i, test in enumerate(tests)]
-    constants['fallback'] = _fallback(name, arguments, matches)
+    constants['fallback'] = _fallback(name, arguments, matches,
+                                      {} if fallbacks is None else fallbacks)
     call = generated(names, f'if {" and ".join(tests) or "True"}:\n'
                             f'        return function({names})\n'
                             f'    return fallback({names})', constants)
-    call.__name__ = call.__qualname__ = name.rpartition('.')[2]
+    call.__name__ = call.__qualname__ = function_name(name)
     call.__doc__ = f'The prebuilt {name}{signature}, its arguments checked (`prebuilt.checked`).'
     return call
 
@@ -248,31 +259,37 @@ def generated(arguments, body, constants):
     return constants.pop('call')
 
 
-def _fallback(name, arguments, matches):
+def _fallback(name, arguments, matches, fallbacks):
     """The numba dispatcher call of kernel `name` for arguments its prebuilt function was not
-    built for (`checked`): the first one recorded in FALLBACKS, as the first argument that
+    built for (`checked`), counted in `fallbacks`, the first with the first argument that
     does not match its type (`arguments`, numba's text of each; `matches`, a test of each)."""
     def call(*values):
-        if name not in FALLBACKS:
+        fallback = fallbacks.get(name)
+        if fallback is None:
             wrong = next((i for i, (match, value) in enumerate(zip(matches, values))
                           if not match(value)), None)
-            FALLBACKS[name] = ('called with other arguments' if wrong is None else
-                               f'argument {wrong + 1} is {_described(values[wrong])}, '
-                               f'built for {arguments[wrong]}')
+            fallback = fallbacks[name] = Fallback(
+                'called with other arguments' if wrong is None else
+                f'argument {wrong + 1} is {_described(values[wrong], arguments[wrong])}, '
+                f'built for {arguments[wrong]}')
+        fallback.calls += 1
         return dispatcher(name)(*values)
     return call
 
 
-def _described(value):
-    """`value`'s type as a fallback says it: an array's dtype, rank and what of its layout
-    a prebuilt kernel refuses, or another type's name."""
+def _described(value, built_for):
+    """`value`'s type as a fallback says it, against `built_for` (numba's text of the type
+    it was built for): an array's dtype and rank, its class where it is numpy's subclass, and
+    what of its layout does not match; or another type's module and name."""
+    kind = type(value)
     if not isinstance(value, np.ndarray):
-        return f'a {type(value).__module__.replace("builtins", "Python")} {type(value).__name__}'
-    flags = value.flags
-    refused = [text for text, holds in (('not C-contiguous', flags.c_contiguous),
-                                        ('not aligned', flags.aligned),
-                                        ('read-only', flags.writeable)) if not holds]
-    return f'a {value.ndim}-D {value.dtype} array' + (f' ({", ".join(refused)})' if refused
+        return f'a {kind.__module__.replace("builtins", "Python")} {kind.__name__}'
+    flags, read_only = value.flags, bool(_READ_ONLY.fullmatch(built_for))
+    notes = [text for text, off in (
+        (f'a {kind.__name__}', kind is not np.ndarray),
+        ('not C-contiguous', not flags.c_contiguous), ('not aligned', not flags.aligned),
+        ('writeable' if read_only else 'read-only', flags.writeable == read_only)) if off]
+    return f'a {value.ndim}-D {value.dtype} array' + (f' ({", ".join(notes)})' if notes
                                                        else '')
 
 
@@ -289,16 +306,33 @@ def has(name):
     return name in load()[0]
 
 
-def state(*names):
+def fallbacks():
+    """{kernel name: Fallback}: the loaded extension's kernels that this process has called
+    with arguments of other types than they were built for, so that numba's dispatcher ran
+    those calls (`checked`)."""
+    load()
+    return _fallbacks
+
+
+def fallback_calls():
+    """{kernel name: calls so far} of `fallbacks`: what later calls are told from (`state`'s
+    `since`)."""
+    return {name: fallback.calls for name, fallback in fallbacks().items()}
+
+
+def state(*names, since=None):
     """One line: whether runs use the prebuilt kernels, and why not; given kernels' names,
     whether those are all prebuilt (an extension built before one of them was made one
-    lacks it); and which prebuilt kernels this process has called with other types, so that
-    numba's ran (`FALLBACKS`), whatever `names`."""
+    lacks it); and which prebuilt kernels this process called with other types, so that
+    numba's ran (`fallbacks`), whatever `names`: all, or those called so since `since` (a
+    `fallback_calls()`)."""
     functions, why = load()
     if not functions and why:
         return f'prebuilt kernels: {why}'
-    lacking = [name.rpartition('.')[2] for name in names if not has(name)]
+    lacking = [function_name(name) for name in names if not has(name)]
     line = (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
             'them)' if lacking else 'prebuilt kernels: in use')
-    return line + ''.join(f"; numba's for {name.rpartition('.')[2]} ({why})"
-                          for name, why in FALLBACKS.items())
+    since = since or {}
+    return line + ''.join(f"; numba's for {function_name(name)} ({fallback.why})"
+                          for name, fallback in fallbacks().items()
+                          if fallback.calls > since.get(name, 0))

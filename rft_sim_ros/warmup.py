@@ -23,9 +23,9 @@ from .scenes.config import load_scene
 from .sim.simulation import Simulation
 
 
-#: The table kernels (`kernel_names.TABLE_KERNELS`) that none of `warm_up`'s runs steps
+#: The table kernels (`kernel_names.TABLE_KERNELS`) that `warm_up`'s first runs do not step
 #: with: the other surfaces' gathers and the implicit step with elliptic cones, compiled in
-#: a second process while the runs compile theirs.
+#: a second process while those runs compile theirs (the runs after load them).
 BACKGROUND = (GATHERS['slope'], GATHERS['grid'], GATHER_DEFORMABLE, STEPS['cones'])
 
 

@@ -135,6 +135,26 @@ def test_parts_are_joined_with_their_modules_edges():
     assert circles(part_graph(graph)) == [['rft_sim_ros.a', 'rft_sim_ros.b', 'rft_sim_ros.c']]
 
 
+#: The package's parts by layer, top to bottom (docs/code.md): a part imports only parts of
+#: the layers below its own.
+LAYERS = (('__main__',), ('cli',), ('bench',), ('validation',), ('study', 'warmup', 'prebuild'),
+          ('ros',), ('render',), ('sim',), ('scenes',), ('control', 'robot'), ('sand',),
+          ('rft',), ('prebuilt', 'interrupts'),
+          ('kernel_names', 'kernel_cache', 'units', 'stamps', 'resources', 'native_threads'))
+
+
+def test_each_part_imports_only_the_layers_below_its_own():
+    """What docs/code.md says of the layers: every part is in one (a new part must be
+    placed), and every import between parts points down."""
+    rank = {f'rft_sim_ros.{part}': level for level, parts in enumerate(LAYERS)
+            for part in parts}
+    graph = part_graph(import_graph())
+    assert sorted(set(graph) - set(rank)) == []
+    upward = sorted((part, target) for part, targets in graph.items() for target in targets
+                    if rank[target] <= rank[part])
+    assert upward == []
+
+
 def test_no_part_of_the_package_imports_itself_back():
     """A subpackage's module may import a module of another part that imports a third
     module of the first: no circle of modules, but the parts are no longer layers (docs/code.md

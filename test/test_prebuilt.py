@@ -18,6 +18,8 @@ from rft_sim_ros.kernel_names import CALLED_KERNELS, FOOT_PATH, GATHERS, PREBUIL
 from rft_sim_ros.prebuild import build
 from rft_sim_ros.sand import gather
 from rft_sim_ros.sand.array_table import ArrayTable
+from rft_sim_ros.sand.surface import SURFACE_KINDS
+from rft_sim_ros.sand.surface_codes import FLAT, GRID, KINDS, SLOPE
 from rft_sim_ros.scenes.config import load_scene
 from rft_sim_ros.scenes.gait_kernels import foot_path
 from rft_sim_ros.sim.simulation import Simulation
@@ -125,28 +127,69 @@ def test_a_prebuilt_kernel_given_other_types_runs_numbas(built, use):
     # memory: numba's kernel takes them, as a call from Python always has
     read_only = phases.copy()
     read_only.flags.writeable = False
-    assert prebuilt.state() == 'prebuilt kernels: in use'
-    sim = Simulation(load_scene('plate_drop'))
-    for other, why in ((phases.astype(np.float32), 'a 1-D float32 array'),
-                       (np.repeat(phases, 2)[::2], 'a 1-D float64 array (not C-contiguous)'),
-                       (read_only, 'a 1-D float64 array (read-only)')):
+    for other in (phases.astype(np.float32), np.repeat(phases, 2)[::2], read_only,
+                  phases.view(np.recarray)):
         assert all(np.allclose(a, b) for a, b in zip(path(other, 0.5, 0.05, 0.02), expected))
-        # the first such call is said, by the state line and once by a run
-        said = f'argument 1 is {why}, built for float64[::1]'
-        assert prebuilt.state() == f"prebuilt kernels: in use; numba's for foot_path ({said})"
-        assert sim.run_warnings() == [
-            f'the prebuilt kernel foot_path was called with other types than it was built for '
-            f"({said}): numba's kernel runs those calls, with the same results, after it "
-            'compiles or loads']
-        assert sim.run_warnings() == []
-        prebuilt.load.cache_clear()  # (a new extension: its calls recorded afresh)
-        path = prebuilt.kernel(FOOT_PATH)
-        assert prebuilt.state() == 'prebuilt kernels: in use'
-        sim = Simulation(load_scene('plate_drop'))
-    path(phases, np.float32(0.5), 1, 0.02)
-    assert prebuilt.FALLBACKS == {FOOT_PATH: 'argument 2 is a numpy float32, built for float64'}
     with pytest.raises(TypeError):  # (the wrong number of arguments)
         path(phases, 0.5, 0.05)
+
+
+@pytest.mark.parametrize('other, why', [
+    (lambda p: (p.astype(np.float32), 0.5), 'argument 1 is a 1-D float32 array'),
+    (lambda p: (np.repeat(p, 2)[::2], 0.5), 'argument 1 is a 1-D float64 array (not C-contiguous)'),
+    (lambda p: (p.view(np.recarray), 0.5), 'argument 1 is a 1-D float64 array (a recarray)'),
+    (lambda p: (p, np.float32(0.5)), 'argument 2 is a numpy float32'),
+    (lambda p: (p, 1), 'argument 2 is a Python int')])
+def test_a_prebuilt_kernel_given_other_types_says_so(built, use, other, why):
+    """The first such call of a kernel is said, with its argument: by the state line (an
+    engine's: since it was made) and once by a run; later ones count, and keep it."""
+    use(built)
+    path = prebuilt.kernel(FOOT_PATH)
+    before = Simulation(load_scene('plate_drop'))
+    phases = np.linspace(0.0, 0.99, 7)
+    given = (*other(phases), 0.05, 0.02)
+    assert prebuilt.state() == before.engine.kernels == 'prebuilt kernels: in use'
+    path(*given)
+    said = f'{why}, built for {"float64[::1]" if why.startswith("argument 1") else "float64"}'
+    assert prebuilt.state() == f"prebuilt kernels: in use; numba's for foot_path ({said})"
+    assert before.engine.kernels == prebuilt.state()
+    assert before.run_warnings() == [
+        f'the prebuilt kernel foot_path was called with other types than it was built for '
+        f"({said}): numba's kernel runs those calls, with the same results, after it "
+        'compiles or loads']
+    assert before.run_warnings() == []
+    after = Simulation(load_scene('plate_drop'))  # (its engine and its run: no such call yet)
+    assert after.engine.kernels == 'prebuilt kernels: in use' and after.run_warnings() == []
+    path(phases.astype(np.int64), 0.5, 0.05, 0.02)  # (another: counted, the first kept)
+    assert prebuilt.fallbacks()[FOOT_PATH] == prebuilt.Fallback(said, 2)
+    assert after.engine.kernels == prebuilt.state() and len(after.run_warnings()) == 1
+    path(*given)
+    assert before.run_warnings() == [] and after.run_warnings() == []  # (said once a start)
+    after.reset()
+    path(*given)
+    assert len(after.run_warnings()) == 1
+    prebuilt.load.cache_clear()  # (another extension: its own record, none yet)
+    assert prebuilt.state() == 'prebuilt kernels: in use' and prebuilt.fallbacks() == {}
+    path(*given)  # (a function of the last one: not this one's)
+    assert prebuilt.fallbacks() == {}
+
+
+def test_each_kind_of_surface_names_its_gather_kernel():
+    """The engine finds its gather by its surface's kind code's name (`surface_codes.KINDS`)."""
+    assert (KINDS[FLAT], KINDS[SLOPE], KINDS[GRID]) == ('plane', 'slope', 'grid')
+    assert tuple(GATHERS) == KINDS
+    for code, kind in enumerate(KINDS):  # (each gather bound to its kind's code)
+        assert prebuilt.dispatcher(GATHERS[kind]).py_func.__globals__['KIND'] == code
+    assert all(KINDS[SURFACE_KINDS[kind]] == kind for kind in KINDS)  # (a scene's type)
+
+
+def test_a_fallback_says_what_of_an_array_did_not_match():
+    read_only, wanted = np.zeros((2, 3)), "Array(float64, 2, 'C', readonly=True)"
+    assert prebuilt._described(read_only, wanted) == 'a 2-D float64 array (writeable)'
+    read_only.flags.writeable = False
+    assert prebuilt._described(read_only[:, ::2], 'float64[:, ::1]') == (
+        'a 2-D float64 array (not C-contiguous, read-only)')
+    assert prebuilt._described(np.float64(1.0), 'int64') == 'a numpy float64'
 
 
 def test_the_kernels_called_from_python_are_built_for_the_types_runs_call_them_with():

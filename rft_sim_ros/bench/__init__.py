@@ -10,6 +10,7 @@ machinery: speed-up over one worker, locally and on Ray, and the overhead per ru
 import tempfile
 from pathlib import Path
 
+from .. import prebuilt
 from ..sim.runner import load_average, machine_info
 from . import pareto, report, scaling, startup, step_cost
 
@@ -58,5 +59,6 @@ def run_bench(out, quick=False, log=print, workers=None):
     sweeps = pareto.QUICK_SWEEPS if quick else pareto.SWEEPS
     results['speed_against_error'] = pareto.speed_against_error(sweeps, log, workers)
     results['load_average_at_end'] = load_average()
+    results['machine']['kernels'] = prebuilt.state()  # (with any kernel given other types)
     report.write(Path(out), results)
     return results

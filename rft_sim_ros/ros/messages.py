@@ -68,8 +68,9 @@ class RunStatus:
         (`CommandHandler.rejections`).
     paused: True while the simulation is paused (sim time stands still).
     outcome: the run's outcome so far (`Simulation.outcome`; None: not given).
-    kernels: which sand kernels run, the prebuilt ones or numba's (`SandEngine.kernels`), beside
-        the real-time factor they give ('': not said).
+    kernels: which sand kernels run, the prebuilt ones or numba's, and which prebuilt kernels
+        were given other types, so that numba's ran them (`SandEngine.kernels`), beside the
+        real-time factor they give ('': not said).
     """
     scene: str
     real_time_factor: float

@@ -41,7 +41,7 @@ CONSTRAINT_ROOM = 16
 def engine_kernels(method='implicit', surface_kind='plane', deformable=False, parts='rows'):
     """The names (`kernel_names`) of the compiled kernels an engine with low-velocity
     `method` ('implicit'; any other: the explicit methods' kernels) on a surface of
-    `surface_kind` ('plane', 'slope', 'grid': `surface.KINDS`; deformable or not) runs; with
+    `surface_kind` ('plane', 'slope', 'grid': `surface_codes.KINDS`; deformable or not) runs; with
     the implicit method, its step solving `parts` (`kernel_names.STEP_PARTS`, `step_parts`)."""
     gathering = kernel_names.gather(surface_kind, deformable)
     if method != 'implicit':
@@ -260,6 +260,7 @@ class SandEngine:
         self._sum_since = 0  # the STEPS counter when the sum restarted
         self._views()
         self._load_kernels()
+        self._fallbacks_from = prebuilt.fallback_calls()  # (`kernels`)
 
     def _set_surface(self, surface):
         """Write the surface's `surface.SurfaceData` into the kernels' settings and keep its
@@ -606,10 +607,11 @@ class SandEngine:
     @property
     def kernels(self):
         """One line: whether this engine's step calls the prebuilt kernels (its gather, and
-        its implicit step or the explicit methods' kernels) or numba's, and why
-        (`prebuilt.state`)."""
+        its implicit step or the explicit methods' kernels) or numba's, and why; and which
+        prebuilt kernels this process has called with other types since the engine was
+        made, the gaits' too, so that numba's ran them (`prebuilt.state`)."""
         stepping = (self._stepping,) if self._implicit_method else EXPLICIT
-        return prebuilt.state(self._gathering, *stepping)
+        return prebuilt.state(self._gathering, *stepping, since=self._fallbacks_from)
 
     def _explicit(self):
         """Explicit sand wrenches ('ema' or 'none': explicit.smoothed_wrenches) of the plates

@@ -1,5 +1,6 @@
 """The numbers the sand surfaces (`surface`) and their compiled look-ups (`surface_kernels`)
-share: the kind code a kernel branches on and the side of a grid's blocks. Apart from both so
+share: the kind code a kernel branches on (and its name, which names its gather kernel) and
+the side of a grid's blocks. Apart from both so
 that each can import them (the surfaces call the compiled look-ups; the look-ups compile these
 in)."""
 

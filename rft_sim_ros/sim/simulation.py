@@ -219,7 +219,8 @@ class Simulation:
         self._steps_before = self.steps  # (the outcome counts from here)
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
-        self._fallbacks_said = set()  # (`prebuilt.FALLBACKS` said: `run_warnings`)
+        # prebuilt kernels given other types: calls before this start, and those said since
+        self._fallbacks_from, self._fallbacks_said = prebuilt.fallback_calls(), set()
         self._next_entry_check = 0.0  # sim time, s
         self._pose()
         self.scenario.initialize(self)
@@ -470,18 +471,22 @@ class Simulation:
     def run_warnings(self):
         """What a run says once (and again after each reset), the first time it happens:
         plates in the sand outside the deformable bed, a body without plates reaching into
-        the sand (`sand_entry`), a prebuilt kernel this process called with other types than
-        it was built for (`prebuilt.FALLBACKS`: numba's ran). A list of lines, mostly empty;
-        called at the publish rate."""
+        the sand (`sand_entry`), a prebuilt kernel called with other types than it was built
+        for (`prebuilt.fallbacks`: numba's ran it). A list of lines, mostly empty; called at
+        the publish rate."""
         return [line for line in (self._left_bed_warning(), self._entry_warning(),
                                   *self._fallback_warnings()) if line]
 
     def _fallback_warnings(self):
-        new = [name for name in prebuilt.FALLBACKS if name not in self._fallbacks_said]
+        """A line for each prebuilt kernel called with other types than it was built for
+        since this start, once (`run_warnings`)."""
+        new = {name: fallback for name, fallback in prebuilt.fallbacks().items()
+               if fallback.calls > self._fallbacks_from.get(name, 0)
+               and name not in self._fallbacks_said}
         self._fallbacks_said.update(new)
         return [f'the prebuilt kernel {function(name)} was called with other types than it '
-                f'was built for ({prebuilt.FALLBACKS[name]}): numba\'s kernel runs those '
-                'calls, with the same results, after it compiles or loads' for name in new]
+                f'was built for ({fallback.why}): numba\'s kernel runs those calls, with the '
+                'same results, after it compiles or loads' for name, fallback in new.items()]
 
     def _left_bed_warning(self):
         sand = self.engine.surface
