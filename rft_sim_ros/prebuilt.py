@@ -38,7 +38,6 @@ import json
 import os
 import re
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -130,25 +129,17 @@ def _stale(kept):
     return ''
 
 
-@dataclass
-class Fallback:
-    """A prebuilt kernel's calls with arguments of other types than it was built for, which
-    numba's dispatcher ran (`checked`): why the first did not match (`why`: the argument, as
-    `state` says it), and how many there have been (`calls`)."""
-    why: str
-    calls: int = 0
-
-
-_fallbacks = {}  # {kernel name: Fallback} of the loaded extension's kernels (`fallbacks`)
+#: {(kernel name, why): calls}: this process's calls of prebuilt kernels with arguments of
+#: other types than they were built for, which numba's dispatcher ran (`checked`); why: the
+#: first argument that did not match, as `fallbacks_since` says it.
+_FALLBACKS = {}
 
 
 @functools.lru_cache(maxsize=None)
 def load():
     """({kernel name: its prebuilt function, `checked`}, why there are none: '' when
     loaded), for this process's `toolchain()` in `FOLDER`. Cached: the first answer holds
-    for the process (a new answer has `fallbacks` of its own)."""
-    global _fallbacks
-    _fallbacks = {}
+    for the process."""
     if os.environ.get(SWITCH, '1') == '0':
         return {}, f'off ({SWITCH}=0)'
     refused = settings_refusal()
@@ -174,7 +165,7 @@ def load():
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         current = dict(PREBUILT)  # (a kernel now called with other types: numba's)
-        return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature, _fallbacks)
+        return {kernel: checked(getattr(module, symbol(kernel)), kernel, signature)
                 for kernel, signature in kept['kernels'].items()
                 if current.get(kernel) == signature}, ''
     except Exception as error:  # (a damaged extension or record: numba's kernels run)
@@ -205,12 +196,11 @@ def _arguments(signature):
     return [argument for argument in arguments if argument]
 
 
-def checked(function, name, signature, fallbacks=None):
+def checked(function, name, signature):
     """`function` (kernel `name`'s prebuilt function, compiled for `signature`, numba's text
     of its argument types) called only with arguments numba would type as that signature,
-    and kernel `name`'s numba dispatcher (`dispatcher`) with any others, counted in
-    `fallbacks` ({kernel name: Fallback}, with which argument of the first did not match;
-    None: not kept). A function compiled
+    and kernel `name`'s numba dispatcher (`dispatcher`) with any others, each such call
+    counted with the argument that did not match (`fallbacks_since`). A function compiled
     ahead does not check its arguments (numba's unboxing of an array checks only its item
     size: given another dtype, rank or layout it reads the wrong memory): the check is made
     here, per call, on each argument's exact type: for a scalar Python's or numpy's type that
@@ -240,8 +230,7 @@ def checked(function, name, signature, fallbacks=None):
     names = ', '.join(f'a{i}' for i in range(len(arguments)))
     matches = [generated(f'a{i}', f'return {test}', constants)
                for i, test in enumerate(tests)]
-    constants['fallback'] = _fallback(name, arguments, matches,
-                                      {} if fallbacks is None else fallbacks)
+    constants['fallback'] = _fallback(name, arguments, matches)
     call = generated(names, f'if {" and ".join(tests) or "True"}:\n'
                             f'        return function({names})\n'
                             f'    return fallback({names})', constants)
@@ -259,20 +248,17 @@ def generated(arguments, body, constants):
     return constants.pop('call')
 
 
-def _fallback(name, arguments, matches, fallbacks):
+def _fallback(name, arguments, matches):
     """The numba dispatcher call of kernel `name` for arguments its prebuilt function was not
-    built for (`checked`), counted in `fallbacks`, the first with the first argument that
-    does not match its type (`arguments`, numba's text of each; `matches`, a test of each)."""
+    built for (`checked`), counted in _FALLBACKS with the first argument that does not match
+    its type (`arguments`, numba's text of each; `matches`, a test of each)."""
     def call(*values):
-        fallback = fallbacks.get(name)
-        if fallback is None:
-            wrong = next((i for i, (match, value) in enumerate(zip(matches, values))
-                          if not match(value)), None)
-            fallback = fallbacks[name] = Fallback(
-                'called with other arguments' if wrong is None else
-                f'argument {wrong + 1} is {_described(values[wrong], arguments[wrong])}, '
-                f'built for {arguments[wrong]}')
-        fallback.calls += 1
+        wrong = next((i for i, (match, value) in enumerate(zip(matches, values))
+                      if not match(value)), None)
+        why = ('called with other arguments' if wrong is None else
+               f'argument {wrong + 1} is {_described(values[wrong], arguments[wrong])}, '
+               f'built for {arguments[wrong]}')
+        _FALLBACKS[name, why] = _FALLBACKS.get((name, why), 0) + 1
         return dispatcher(name)(*values)
     return call
 
@@ -306,33 +292,35 @@ def has(name):
     return name in load()[0]
 
 
-def fallbacks():
-    """{kernel name: Fallback}: the loaded extension's kernels that this process has called
-    with arguments of other types than they were built for, so that numba's dispatcher ran
-    those calls (`checked`)."""
-    load()
-    return _fallbacks
-
-
 def fallback_calls():
-    """{kernel name: calls so far} of `fallbacks`: what later calls are told from (`state`'s
-    `since`)."""
-    return {name: fallback.calls for name, fallback in fallbacks().items()}
+    """{(kernel name, why): calls so far} of the prebuilt kernels this process has called
+    with arguments of other types than they were built for, so that numba's dispatcher ran
+    them (`checked`; why: the first argument that did not match): a copy, which later calls
+    are told from (`fallbacks_since`)."""
+    return dict(_FALLBACKS)
 
 
-def state(*names, since=None):
+def fallbacks_since(since=None):
+    """[(kernel name, why)] of the calls `fallback_calls` counts that came after `since` (a
+    `fallback_calls()`; None: all), in the order they first came."""
+    since = since or {}
+    return [key for key, calls in _FALLBACKS.items() if calls > since.get(key, 0)]
+
+
+def fallback_line(since=None):
+    """'; numba's for KERNEL (why)' for each of `fallbacks_since(since)`, or '': what a state
+    line (`state`) adds."""
+    return ''.join(f"; numba's for {function_name(name)} ({why})"
+                   for name, why in fallbacks_since(since))
+
+
+def state(*names):
     """One line: whether runs use the prebuilt kernels, and why not; given kernels' names,
     whether those are all prebuilt (an extension built before one of them was made one
-    lacks it); and which prebuilt kernels this process called with other types, so that
-    numba's ran (`fallbacks`), whatever `names`: all, or those called so since `since` (a
-    `fallback_calls()`)."""
+    lacks it)."""
     functions, why = load()
     if not functions and why:
         return f'prebuilt kernels: {why}'
     lacking = [function_name(name) for name in names if not has(name)]
-    line = (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
+    return (f'prebuilt kernels: not built for {", ".join(lacking)} (`rft-sim warmup` builds '
             'them)' if lacking else 'prebuilt kernels: in use')
-    since = since or {}
-    return line + ''.join(f"; numba's for {function_name(name)} ({fallback.why})"
-                          for name, fallback in fallbacks().items()
-                          if fallback.calls > since.get(name, 0))

@@ -141,37 +141,40 @@ def test_a_prebuilt_kernel_given_other_types_runs_numbas(built, use):
     (lambda p: (p, np.float32(0.5)), 'argument 2 is a numpy float32'),
     (lambda p: (p, 1), 'argument 2 is a Python int')])
 def test_a_prebuilt_kernel_given_other_types_says_so(built, use, other, why):
-    """The first such call of a kernel is said, with its argument: by the state line (an
-    engine's: since it was made) and once by a run; later ones count, and keep it."""
+    """Such a call is said, with the argument that did not match: by the state line of a
+    simulation made before it (`Simulation.kernels`: a run's summary, /diagnostics) and by
+    its run, once a start for each argument; a simulation made after says nothing of it."""
     use(built)
     path = prebuilt.kernel(FOOT_PATH)
     before = Simulation(load_scene('plate_drop'))
     phases = np.linspace(0.0, 0.99, 7)
     given = (*other(phases), 0.05, 0.02)
-    assert prebuilt.state() == before.engine.kernels == 'prebuilt kernels: in use'
+    assert before.kernels == 'prebuilt kernels: in use' and before.run_warnings() == []
     path(*given)
     said = f'{why}, built for {"float64[::1]" if why.startswith("argument 1") else "float64"}'
-    assert prebuilt.state() == f"prebuilt kernels: in use; numba's for foot_path ({said})"
-    assert before.engine.kernels == prebuilt.state()
+    assert before.kernels == f"prebuilt kernels: in use; numba's for foot_path ({said})"
     assert before.run_warnings() == [
         f'the prebuilt kernel foot_path was called with other types than it was built for '
         f"({said}): numba's kernel runs those calls, with the same results, after it "
         'compiles or loads']
     assert before.run_warnings() == []
-    after = Simulation(load_scene('plate_drop'))  # (its engine and its run: no such call yet)
-    assert after.engine.kernels == 'prebuilt kernels: in use' and after.run_warnings() == []
-    path(phases.astype(np.int64), 0.5, 0.05, 0.02)  # (another: counted, the first kept)
-    assert prebuilt.fallbacks()[FOOT_PATH] == prebuilt.Fallback(said, 2)
-    assert after.engine.kernels == prebuilt.state() and len(after.run_warnings()) == 1
-    path(*given)
-    assert before.run_warnings() == [] and after.run_warnings() == []  # (said once a start)
-    after.reset()
+    after = Simulation(load_scene('plate_drop'))
+    assert after.kernels == 'prebuilt kernels: in use' and after.run_warnings() == []
+    path(*given)  # (again: said by the run made after it, once)
+    assert len(after.run_warnings()) == 1 and before.run_warnings() == []
+    path(phases.astype(np.int64), 0.5, 0.05, 0.02)  # (another argument: said too)
+    other_said = 'argument 1 is a 1-D int64 array, built for float64[::1]'
+    first, *fallbacks = after.kernels.split('; ')  # (in the order the process first saw them)
+    assert first == 'prebuilt kernels: in use' and sorted(fallbacks) == sorted(
+        f"numba's for foot_path ({reason})" for reason in (said, other_said))
+    assert [other_said in line for line in after.run_warnings()] == [True]
+    after.reset()  # (a new start: said again)
+    assert after.run_warnings() == []
     path(*given)
     assert len(after.run_warnings()) == 1
-    prebuilt.load.cache_clear()  # (another extension: its own record, none yet)
-    assert prebuilt.state() == 'prebuilt kernels: in use' and prebuilt.fallbacks() == {}
-    path(*given)  # (a function of the last one: not this one's)
-    assert prebuilt.fallbacks() == {}
+    mark = prebuilt.fallback_calls()
+    path(*given)
+    assert prebuilt.fallbacks_since(mark) == [(FOOT_PATH, said)]
 
 
 def test_each_kind_of_surface_names_its_gather_kernel():

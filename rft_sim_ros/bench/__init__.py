@@ -59,6 +59,7 @@ def run_bench(out, quick=False, log=print, workers=None):
     sweeps = pareto.QUICK_SWEEPS if quick else pareto.SWEEPS
     results['speed_against_error'] = pareto.speed_against_error(sweeps, log, workers)
     results['load_average_at_end'] = load_average()
-    results['machine']['kernels'] = prebuilt.state()  # (with any kernel given other types)
+    # (and the kernels this process gave other types; its workers' are their runs')
+    results['machine']['kernels'] = prebuilt.state() + prebuilt.fallback_line()
     report.write(Path(out), results)
     return results

@@ -152,8 +152,8 @@ class BagWriter:
     recorded (as the node's parameter of the same meaning). terrain: whether /rft/terrain
     (PointCloud2) and /rft/terrain/marker (one MarkerArray a publication) are recorded
     (`write_terrain`). sensors: the run's `sensors.SensorLayout` (the states' sensor readings
-    are recorded on its topics), or None. Use as a context manager or call `close()`; the bag is only complete
-    once closed.
+    are recorded on its topics), or None. Use as a context manager or call `close()`; the bag
+    is only complete once closed.
     """
 
     def __init__(self, path, leg_names, *, plates=False, terrain=False, sensors=None):

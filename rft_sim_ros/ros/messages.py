@@ -69,7 +69,7 @@ class RunStatus:
     paused: True while the simulation is paused (sim time stands still).
     outcome: the run's outcome so far (`Simulation.outcome`; None: not given).
     kernels: which sand kernels run, the prebuilt ones or numba's, and which prebuilt kernels
-        were given other types, so that numba's ran them (`SandEngine.kernels`), beside the
+        were given other types, so that numba's ran them (`Simulation.kernels`), beside the
         real-time factor they give ('': not said).
     """
     scene: str

@@ -64,7 +64,7 @@ class BagRecorder:
                          if wall > 0 and state.time > sim_start else float('nan'),
                          stable=self._sim.diverged is None, problem=self._sim.diverged or '',
                          commands_rejected=rejected, outcome=self._sim.outcome(),
-                         kernels=self._sim.engine.kernels)
+                         kernels=self._sim.kernels)
 
     def record(self, state):
         """One publish cycle of `state` (SimState), plus the sand surface and /diagnostics

@@ -76,17 +76,18 @@ class SimRuntime:
     the joint_trajectory_controller served; namespace: the node's ('/' or '/go2'): the
     command topics and the action are named as they resolve there in warnings and goal
     outcomes. plates: publish active plates.
-    terrain: a `terrain.TerrainFeed` of the sim's surface, or None. warn, error: log functions (str).
-    clock: wall time, s (monotonic). tick_budget_s: wall time one tick may spend stepping.
-    diagnostics_period_s: wall s between /diagnostics. warn_period_s: throttle of the
-    rejected-command warnings (one line per reason and topic per period).
+    terrain: a `terrain.TerrainFeed` of the sim's surface, or None. warn, error: log
+    functions (str). clock: wall time, s (monotonic). tick_budget_s: wall time one tick may
+    spend stepping. diagnostics_period_s: wall s between /diagnostics. warn_period_s:
+    throttle of the rejected-command warnings (one line per reason and topic per period).
     """
 
     def __init__(self, sim, sink, *, publish_rate, joint_names=None,
                  trajectory_controller=topics.TRAJECTORY_CONTROLLER, namespace='/',
                  joint_commands_topic=topics.ROBOT_JOINT_COMMANDS, real_time_factor=1.0,
-                 paused=False, plates=False, terrain=None, warn=print, error=print, clock=time.monotonic,
-                 tick_budget_s=0.05, diagnostics_period_s=1.0, warn_period_s=2.0):
+                 paused=False, plates=False, terrain=None, warn=print, error=print,
+                 clock=time.monotonic, tick_budget_s=0.05, diagnostics_period_s=1.0,
+                 warn_period_s=2.0):
         self.sim = sim
         self._sink = sink
         self._publishing = PublishSchedule(parameters.publish_rate(publish_rate), sim.timestep)
@@ -150,7 +151,7 @@ class SimRuntime:
         return RunStatus(scene=self.sim.scene.name, real_time_factor=real_time_factor,
                          stable=self.diverged is None, problem=self.diverged or '',
                          commands_rejected=self.rejections, paused=self.paused,
-                         outcome=self.sim.outcome(), kernels=self.sim.engine.kernels)
+                         outcome=self.sim.outcome(), kernels=self.sim.kernels)
 
     # --- stepping and publishing ------------------------------------------------------------
 

@@ -260,7 +260,6 @@ class SandEngine:
         self._sum_since = 0  # the STEPS counter when the sum restarted
         self._views()
         self._load_kernels()
-        self._fallbacks_from = prebuilt.fallback_calls()  # (`kernels`)
 
     def _set_surface(self, surface):
         """Write the surface's `surface.SurfaceData` into the kernels' settings and keep its
@@ -607,11 +606,10 @@ class SandEngine:
     @property
     def kernels(self):
         """One line: whether this engine's step calls the prebuilt kernels (its gather, and
-        its implicit step or the explicit methods' kernels) or numba's, and why; and which
-        prebuilt kernels this process has called with other types since the engine was
-        made, the gaits' too, so that numba's ran them (`prebuilt.state`)."""
+        its implicit step or the explicit methods' kernels) or numba's, and why
+        (`prebuilt.state`)."""
         stepping = (self._stepping,) if self._implicit_method else EXPLICIT
-        return prebuilt.state(self._gathering, *stepping, since=self._fallbacks_from)
+        return prebuilt.state(self._gathering, *stepping)
 
     def _explicit(self):
         """Explicit sand wrenches ('ema' or 'none': explicit.smoothed_wrenches) of the plates

@@ -63,7 +63,7 @@ def load_average():
 def machine_info():
     """Where a run was measured: CPU, cores, load average now (`load_average`), Python,
     MuJoCo and numpy versions, and whether this process runs the prebuilt kernels
-    (`prebuilt.state`; a run's summary says its own engine's: `SandEngine.kernels`)."""
+    (`prebuilt.state`; a run's summary says its own: `Simulation.kernels`)."""
     cpu = platform.processor() or platform.machine()
     try:
         with open('/proc/cpuinfo') as info:
@@ -343,7 +343,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         'scene_values': scene.values,
         'surface': sim.engine.surface.describe() if surface is None else {
             **sim.engine.surface.describe(), 'given_in_python': True},
-        'machine': {**machine_info(), 'kernels': sim.engine.kernels},
+        'machine': {**machine_info(), 'kernels': sim.kernels},
     }
     if sim.engine.deformable:  # where the nodes of the final surface (terrain.npy) lie
         summary['terrain_grid'] = sim.engine.surface.placement()

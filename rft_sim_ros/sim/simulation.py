@@ -125,6 +125,10 @@ class Simulation:
     """
 
     def __init__(self, scene, surface=None):
+        # prebuilt kernels called with other types (numba's ran them) before this simulation,
+        # and before its (re)start, which `kernels` and `run_warnings` tell theirs from
+        self._made_from = self._fallbacks_from = prebuilt.fallback_calls()
+        self._fallbacks_said = set()
         self.scene = scene
         self.notices = notices = list(scene.notices)  # the scene's, then what start-up decided
         self.scenario = load_scenario(scene)
@@ -219,8 +223,6 @@ class Simulation:
         self._steps_before = self.steps  # (the outcome counts from here)
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
-        # prebuilt kernels given other types: calls before this start, and those said since
-        self._fallbacks_from, self._fallbacks_said = prebuilt.fallback_calls(), set()
         self._next_entry_check = 0.0  # sim time, s
         self._pose()
         self.scenario.initialize(self)
@@ -454,6 +456,7 @@ class Simulation:
         counting forward, and settings changed while running (zeta) stay as set, as the ROS
         node's parameters do."""
         self._time_offset += self.data.time
+        self._fallbacks_from, self._fallbacks_said = prebuilt.fallback_calls(), set()
         mujoco.mj_resetData(self.model, self.data)
         self.engine.forget_last_step()
         self.reset_terrain()
@@ -472,21 +475,29 @@ class Simulation:
         """What a run says once (and again after each reset), the first time it happens:
         plates in the sand outside the deformable bed, a body without plates reaching into
         the sand (`sand_entry`), a prebuilt kernel called with other types than it was built
-        for (`prebuilt.fallbacks`: numba's ran it). A list of lines, mostly empty; called at
-        the publish rate."""
+        for since the start (`prebuilt.fallbacks_since`: numba's ran it), once for each
+        argument that did not match. A list of lines, mostly empty; called at the publish
+        rate."""
         return [line for line in (self._left_bed_warning(), self._entry_warning(),
                                   *self._fallback_warnings()) if line]
 
     def _fallback_warnings(self):
         """A line for each prebuilt kernel called with other types than it was built for
-        since this start, once (`run_warnings`)."""
-        new = {name: fallback for name, fallback in prebuilt.fallbacks().items()
-               if fallback.calls > self._fallbacks_from.get(name, 0)
-               and name not in self._fallbacks_said}
+        since this start, once for each argument that did not match (`run_warnings`)."""
+        new = [key for key in prebuilt.fallbacks_since(self._fallbacks_from)
+               if key not in self._fallbacks_said]
         self._fallbacks_said.update(new)
         return [f'the prebuilt kernel {function(name)} was called with other types than it '
-                f'was built for ({fallback.why}): numba\'s kernel runs those calls, with the '
-                'same results, after it compiles or loads' for name, fallback in new.items()]
+                f'was built for ({why}): numba\'s kernel runs those calls, with the same '
+                'results, after it compiles or loads' for name, why in new]
+
+    @property
+    def kernels(self):
+        """One line: whether the sand engine's step calls the prebuilt kernels or numba's,
+        and why (`SandEngine.kernels`), and each prebuilt kernel called with other types than
+        it was built for since this simulation was made (its scenario's and gaits' too: numba's
+        ran them; `prebuilt.fallback_line`): what a run's summary and /diagnostics say."""
+        return self.engine.kernels + prebuilt.fallback_line(self._made_from)
 
     def _left_bed_warning(self):
         sand = self.engine.surface
