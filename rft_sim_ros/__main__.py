@@ -13,12 +13,15 @@ the environment says otherwise (`native_threads`).
 import os
 import signal
 import sys
+import time
 
 from .native_threads import unset
 
 
 def main(argv=None):
-    """Load the CLI with Ctrl-C deferred, then run `rft_sim_ros.cli.main(argv)`."""
+    """Load the CLI with Ctrl-C deferred, then run `rft_sim_ros.cli.main(argv)`, telling it
+    when the command began (before these imports: a run's time "in all")."""
+    started = time.perf_counter()
     os.environ.update(unset())
     noted = []
     previous = signal.getsignal(signal.SIGINT)
@@ -29,7 +32,7 @@ def main(argv=None):
     if noted:
         print('\nrft-sim: interrupted', file=sys.stderr)
         return 128 + signal.SIGINT
-    return cli_main(argv)
+    return cli_main(argv, started)
 
 
 if __name__ == '__main__':

@@ -265,11 +265,10 @@ def cmd_run(args):
                 if video:
                     from .render.recorder import VideoRecorder
                     recorders.append(VideoRecorder(out / VIDEO_FILE, scene))
-                started = time.perf_counter()
                 summary = run_scene(scene, out, duration=args.duration,
                                     progress=not args.quiet, recorders=recorders,
                                     schedule=schedule, stop=stop, log=say)
-                elapsed = time.perf_counter() - started
+                elapsed = time.perf_counter() - args.started
             except (SceneError, ValueError):  # refused before it ran (the model does not load)
                 if created is not None:
                     shutil.rmtree(created, ignore_errors=True)
@@ -315,8 +314,8 @@ SHOWN_METRICS = 4
 
 def human_summary(summary, out, elapsed):
     """The few lines `rft-sim run` prints at the end: how the run ended (its real-time
-    factor, and `elapsed`, s, the whole run's wall time: the model's set-up and the outputs
-    written, the figure's included), what happened to the robot (the summary's
+    factor, and `elapsed`, s, the command's wall time: its imports, the model's set-up and
+    the outputs written, the figure's included), what happened to the robot (the summary's
     outcome words, where it has them), its key metrics (the scenario's first SHOWN_METRICS,
     else the base's displacement and final speed), and where its files are."""
     if summary['interrupted']:
@@ -327,8 +326,8 @@ def human_summary(summary, out, elapsed):
         ended = 'NOT STABLE'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
              f'{summary["wall_time_s"]:.3g} s (real-time factor '
-             f'{summary["real_time_factor"]:.3g}; {elapsed:.3g} s in all, set-up and files '
-             'included)']
+             f'{summary["real_time_factor"]:.3g}; {elapsed:.3g} s in all, imports, set-up and '
+             'files included)']
     if summary['reason']:
         lines.append(f'  reason: {summary["reason"]}')
     words = (summary.get('outcome') or {}).get('words')
@@ -523,15 +522,14 @@ def cmd_sweep(args):
 
 
 def cmd_warmup(args):
-    import time
     from .warmup import cached_kernels, warm_up
-    say_if_cold()
-    started = time.perf_counter()
+    print('warmup: every kernel into numba\'s cache, then the prebuilt kernels for this CPU '
+          '(minutes where the cache is empty)', file=sys.stderr, flush=True)
     missing, prebuilt = warm_up(log=lambda line: print(line, file=sys.stderr))
-    print(f'{len(cached_kernels()) - len(missing)} of {len(cached_kernels())} kernels cached '
-          f'({time.perf_counter() - started:.1f} s)' + (f'; not cached: {", ".join(missing)}'
-                                                       if missing else ''))
+    print(f'{len(cached_kernels()) - len(missing)} of {len(cached_kernels())} kernels cached'
+          + (f'; not cached: {", ".join(missing)}' if missing else ''))
     print(prebuilt)
+    print(f'warmup: {time.perf_counter() - args.started:.1f} s in all')
     return 1 if missing else 0
 
 
@@ -687,9 +685,15 @@ def joined_values(parser, argv):
     return joined
 
 
-def main(argv=None):
+def main(argv=None, started=None):
+    """The `rft-sim` command on `argv` (default: the process's arguments); `started`:
+    `time.perf_counter()` when the command began (the entry point's, before the imports of
+    this module; default: now), from which a run's time "in all" counts. Returns the exit
+    status."""
+    started = time.perf_counter() if started is None else started
     parser = build_parser()
     args = parser.parse_args(joined_values(parser, sys.argv[1:] if argv is None else argv))
+    args.started = started
     try:
         with interrupts_never_lost(), held_while_compiling():
             return args.func(args)

@@ -370,3 +370,15 @@ def test_rft_sim_keeps_native_thread_pools_to_one_thread_unless_the_user_says(mo
         entry(['--version'])
     assert [os.environ.get(name) for name in
             ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')] == ['1', '1', '3']
+
+
+def test_a_runs_time_in_all_counts_from_the_entry_point_before_the_clis_imports(monkeypatch):
+    """`rft-sim`'s entry point takes the time before it imports the CLI (numpy, MuJoCo and
+    the scene code) and hands it to `cli.main`, from which a run's "in all" counts."""
+    import rft_sim_ros.cli as cli
+    from rft_sim_ros.__main__ import main as entry
+    handed = []
+    monkeypatch.setattr(cli, 'main', lambda argv, started: handed.append(started) or 0)
+    called = time.perf_counter()
+    assert entry(['--version']) == 0
+    assert len(handed) == 1 and called <= handed[0] <= time.perf_counter()
