@@ -314,8 +314,9 @@ SHOWN_METRICS = 4
 
 def human_summary(summary, out, elapsed):
     """The few lines `rft-sim run` prints at the end: how the run ended (its real-time
-    factor, and `elapsed`, s, the command's wall time: its imports, the model's set-up and
-    the outputs written, the figure's included), what happened to the robot (the summary's
+    factor, and `elapsed`, s, the command's wall time since it started (`main`'s `started`:
+    through `rft-sim`, its imports too), the model's set-up and the outputs written, the
+    figure's included), what happened to the robot (the summary's
     outcome words, where it has them), its key metrics (the scenario's first SHOWN_METRICS,
     else the base's displacement and final speed), and where its files are."""
     if summary['interrupted']:
@@ -326,8 +327,8 @@ def human_summary(summary, out, elapsed):
         ended = 'NOT STABLE'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
              f'{summary["wall_time_s"]:.3g} s (real-time factor '
-             f'{summary["real_time_factor"]:.3g}; {elapsed:.3g} s in all, imports, set-up and '
-             'files included)']
+             f'{summary["real_time_factor"]:.3g}; {elapsed:.3g} s in all, set-up and files '
+             'included)']
     if summary['reason']:
         lines.append(f'  reason: {summary["reason"]}')
     words = (summary.get('outcome') or {}).get('words')
@@ -528,8 +529,8 @@ def cmd_warmup(args):
     missing, prebuilt = warm_up(log=lambda line: print(line, file=sys.stderr))
     print(f'{len(cached_kernels()) - len(missing)} of {len(cached_kernels())} kernels cached'
           + (f'; not cached: {", ".join(missing)}' if missing else ''))
-    print(prebuilt)
     print(f'warmup: {time.perf_counter() - args.started:.1f} s in all')
+    print(prebuilt)  # (last: the line that says why, where they could not be built)
     return 1 if missing else 0
 
 
