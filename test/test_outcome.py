@@ -78,6 +78,18 @@ def test_the_words_say_a_body_left_under_the_sand():
         'deepest: pelvis 120 cm below the surface at t = 1.50 s (no plates: it passed through)')
 
 
+def test_the_words_say_no_body_reached_the_sand():
+    """A run that ends before the robot touches the sand (a short drop, a robot held above
+    it) says so, rather than only that it stood upright."""
+    above = {'fell': False, 'max_tilt_deg': 0.0, 'unsettled_step_share': 0.0, 'deepest': None,
+             'max_uncovered_sinkage_m': None}
+    assert words(above, -0.05, 'plate') == (
+        'upright: base turned at most 0 deg; no body has reached the sand')
+    touched = dict(above, deepest={'body': 'plate', 'sinkage_m': 0.001, 'time_s': 0.1,
+                                   'has_plates': True})
+    assert words(touched, 0.001, 'plate') == 'upright: base turned at most 0 deg'
+
+
 def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
     """/diagnostics (ROS-free fields): the outcome's words and figures as values, level WARN
     once the robot fell, OK before."""

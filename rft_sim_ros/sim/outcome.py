@@ -41,7 +41,8 @@ The summary's `outcome` (summary.json, /diagnostics):
   max_uncovered_sinkage_m deepest point below the surface of a body without plates
                               (null: every collision body carries plates);
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
-                              lying on the sand".
+                              lying on the sand"; "no body has reached the sand" where no
+                              geom went below the surface.
 """
 import math
 
@@ -226,7 +227,9 @@ def words(outcome, final_depth, final_body):
     else:
         parts = [f"upright: base turned at most {outcome['max_tilt_deg']:.0f} deg"]
     deepest = outcome['deepest']
-    if deepest is not None and deepest['sinkage_m'] > DEEP_M:
+    if deepest is None:  # (a short run, a robot held above the sand: its metrics say no contact)
+        parts.append('no body has reached the sand')
+    elif deepest['sinkage_m'] > DEEP_M:
         parts.append(f"deepest: {deepest['body']} {deepest['sinkage_m'] * 100:.3g} cm below the "
                      f"surface at t = {deepest['time_s']:.2f} s"
                      + ('' if deepest['has_plates'] else ' (no plates: it passed through)'))
