@@ -267,7 +267,8 @@ def cmd_run(args):
                     recorders.append(VideoRecorder(out / VIDEO_FILE, scene))
                 summary = run_scene(scene, out, duration=args.duration,
                                     progress=not args.quiet, recorders=recorders,
-                                    schedule=schedule, stop=stop, log=say)
+                                    schedule=schedule, stop=stop, log=say,
+                                    started=args.started)
                 elapsed = time.perf_counter() - args.started
             except (SceneError, ValueError):  # refused before it ran (the model does not load)
                 if created is not None:
@@ -327,8 +328,8 @@ def human_summary(summary, out, elapsed):
         ended = 'NOT STABLE'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
              f'{summary["wall_time_s"]:.3g} s (real-time factor '
-             f'{summary["real_time_factor"]:.3g}; {elapsed:.3g} s in all, set-up and files '
-             'included)']
+             f'{summary["real_time_factor"]:.3g}; first step at {summary["first_step_s"]:.2g} s, '
+             f'{elapsed:.3g} s in all, set-up and files included)']
     if summary['reason']:
         lines.append(f'  reason: {summary["reason"]}')
     words = (summary.get('outcome') or {}).get('words')

@@ -101,9 +101,10 @@ def test_the_cli_prints_a_short_summary_or_the_json_asked_for(tmp_path, capsys):
     assert 2 <= len(lines) <= 6
     assert lines[0].startswith('plate_drop: stable, 0.05 s of sim time')
     # the loop's real-time factor, and the whole run's wall time, which holds the loop's
-    loop, whole = re.fullmatch(r'.* in (\S+) s \(real-time factor \S+; (\S+) s in all, '
-                               r'set-up and files included\)', lines[0]).groups()
-    assert 0 < float(loop) < float(whole)
+    loop, first, whole = re.fullmatch(
+        r'.* in (\S+) s \(real-time factor \S+; first step at (\S+) s, (\S+) s in all, '
+        r'set-up and files included\)', lines[0]).groups()
+    assert 0 < float(loop) < float(whole) and 0 < float(first) < float(whole)
     assert lines[1].startswith('  outcome: upright')  # the summary's outcome words
     assert 'max_sinkage_m' in lines[2] and lines[-1].startswith(f'  wrote {tmp_path / "a"}/')
     assert main([*SHORT, '--out', str(tmp_path / 'b'), '--no-bag', '--json', '--quiet']) == 0

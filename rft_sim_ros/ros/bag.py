@@ -13,6 +13,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
 from rft_sim_ros.ros import cdr, messages, topics
 from rft_sim_ros.ros.factory import RosbagsFactory, jazzy_typestore
+from rft_sim_ros.ros.jazzy_types import typestore_for
 from rft_sim_ros.stamps import seconds_to_ns, split_ns
 
 #: The distribution whose message definitions the bags hold (metadata `ros_distro`).
@@ -157,11 +158,11 @@ class BagWriter:
     """
 
     def __init__(self, path, leg_names, *, plates=False, terrain=False, sensors=None):
-        self.factory = RosbagsFactory(jazzy_typestore())
         self._plates = plates
         self._imu_topic = sensors.imu_topic if sensors is not None else topics.IMU
         self._types = topics.published_topics(leg_names, plates=plates, terrain=terrain,
                                               sensors=sensors)
+        self.factory = RosbagsFactory(typestore_for(frozenset(self._types.values())))
         self._writer = _Rosbag2Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._connections = {

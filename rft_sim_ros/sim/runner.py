@@ -122,7 +122,7 @@ def mujoco_log(path):
 
 
 def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, plots=True,
-              schedule=(), stop=None, log=None, surface=None):
+              schedule=(), stop=None, log=None, surface=None, started=None):
     """Run `scene` (SceneConfig) headless for `duration` s (default: the scene's), on its
     sand surface or on `surface` (a `sand.surface.Surface` made in Python: `Simulation`).
 
@@ -150,17 +150,22 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     A timestep longer than the sand coupling resolves at the run's largest zeta
     (sand/timestep.py) is said through log('warning: ...') before the first step, and the
     run is reported not stable with that reason.
+    started: `time.perf_counter()` when the run began for its user (`rft-sim run` passes its
+    command's start, before its imports; default: this call), from which the summary's
+    `first_step_s` counts: the seconds to the first step (the simulation built, its initial
+    state recorded).
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
     part of wall_time_s spent in the recorders, finishing them (closing a bag) included;
     generic_metrics: sim/metrics.py, those of every scene, next to the scenario's own
     `metrics`).
     """
+    started = time.perf_counter() if started is None else started
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     with mujoco_log(None if out is None else out / 'mujoco.log'):
         summary, series, sim, details = _run(scene, duration, recorders, progress, schedule,
-                                             stop, log, surface)
+                                             stop, log, surface, started)
     if details is not None:
         summary['scenario_traceback'] = SCENARIO_TRACEBACK if out is not None else details
     if out is not None:
@@ -186,9 +191,9 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
 SCENARIO_TRACEBACK = 'scenario_traceback.log'
 
 
-def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
+def _run(scene, duration, recorders, progress, schedule, stop, log, surface, started):
     """The run itself: (summary, time series rows, the Simulation, the traceback of an
-    exception in the scenario's code or None)."""
+    exception in the scenario's code or None); started: `run_scene`'s."""
     bar = None
     loop_started = None
     interrupted = False
@@ -200,9 +205,9 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         changes = [{'time_s': step * scene.timestep, action.key: action.value,
                     'applied': False} for step, action in actions
                    if isinstance(action, SettingChange)]
-        started = time.perf_counter()
+        building = time.perf_counter()
         sim = Simulation(scene, surface)
-        startup = time.perf_counter() - started
+        startup = time.perf_counter() - building
         for notice in sim.notices if log else ():
             log(notice)
         generic = GenericMetrics(sim)
@@ -306,6 +311,7 @@ def _run(scene, duration, recorders, progress, schedule, stop, log, surface):
         'wall_time_s': wall,
         'recording_time_s': recording,
         'startup_time_s': startup,
+        'first_step_s': loop_started - started,
         'real_time_factor': sim_time / wall if wall > 0 else float('inf'),
         'steps': sim.steps,
         'spawn_settle_steps': sim.settle_steps,

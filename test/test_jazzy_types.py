@@ -1,0 +1,64 @@
+"""ros/jazzy_types.py: a bag's message types are rosbags' own Jazzy definitions, kept in the
+user's cache, so that a later bag does not load rosbags' whole Jazzy store; a damaged cache
+file is made again."""
+import subprocess
+import sys
+
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from rft_sim_ros.ros import jazzy_types, topics
+
+#: Every type a bag may record: the state's topics, plates, terrain, and every sensor kind.
+RECORDED = frozenset({*topics.published_topics(['a', 'b'], plates=True, terrain=True).values(),
+                      topics.IMU_TYPE, *topics.MODEL_SENSOR_TYPES.values(),
+                      topics.FLOAT64_ARRAY_TYPE})
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """An empty cache folder, and `typestore_for` forgetting what this process made."""
+    monkeypatch.setenv('XDG_CACHE_HOME', str(tmp_path))
+    jazzy_types.typestore_for.cache_clear()
+    yield jazzy_types.cache_file()
+    jazzy_types.typestore_for.cache_clear()
+
+
+def _same_as_rosbags(typestore):
+    full = get_typestore(Stores.ROS2_JAZZY)
+    for name in RECORDED:
+        assert typestore.generate_msgdef(name) == full.generate_msgdef(name), name
+    assert set(typestore.fielddefs) < set(full.fielddefs)
+    for name, definition in typestore.fielddefs.items():
+        assert definition == full.fielddefs[name], name
+
+
+def test_the_types_are_rosbags_jazzy_definitions_first_from_its_store_then_from_the_cache(
+        cache):
+    assert not cache.exists()
+    _same_as_rosbags(jazzy_types.typestore_for(RECORDED))
+    assert cache.is_file()
+    jazzy_types.typestore_for.cache_clear()
+    _same_as_rosbags(jazzy_types.typestore_for(RECORDED))  # (read back from the file)
+    assert len(jazzy_types.typestore_for(RECORDED).fielddefs) < 60  # (not the store's 162)
+
+
+def test_a_later_process_does_not_load_rosbags_jazzy_store(cache):
+    jazzy_types.typestore_for(RECORDED)
+    probe = ('import sys; from rft_sim_ros.ros.jazzy_types import typestore_for; '
+             f'typestore_for(frozenset({sorted(RECORDED)!r})); '
+             "print('rosbags.typesys.stores.ros2_jazzy' in sys.modules)")
+    done = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True,
+                          check=True, timeout=60, env={'XDG_CACHE_HOME': str(cache.parents[2]),
+                                                        'PATH': '/usr/bin:/bin'})
+    assert done.stdout.strip() == 'False'
+
+
+def test_a_type_the_cache_lacks_or_a_damaged_file_is_taken_from_the_store_again(cache):
+    jazzy_types.typestore_for(frozenset({topics.CLOCK_TYPE}))
+    jazzy_types.typestore_for.cache_clear()
+    _same_as_rosbags(jazzy_types.typestore_for(RECORDED))  # more than the file held
+    cache.write_text('{"not": json')
+    jazzy_types.typestore_for.cache_clear()
+    _same_as_rosbags(jazzy_types.typestore_for(RECORDED))
+    assert jazzy_types._read(cache)  # (written again, whole)
