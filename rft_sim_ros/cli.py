@@ -328,7 +328,7 @@ def human_summary(summary, out, elapsed):
         ended = 'NOT STABLE'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '
              f'{summary["wall_time_s"]:.3g} s (real-time factor '
-             f'{summary["real_time_factor"]:.3g}; first step at {summary["first_step_s"]:.2g} s, '
+             f'{summary["real_time_factor"]:.3g}; first step at {summary["first_step_s"]:.3g} s, '
              f'{elapsed:.3g} s in all, set-up and files included)']
     if summary['reason']:
         lines.append(f'  reason: {summary["reason"]}')

@@ -54,11 +54,33 @@ def test_a_later_process_does_not_load_rosbags_jazzy_store(cache):
     assert done.stdout.strip() == 'False'
 
 
-def test_a_type_the_cache_lacks_or_a_damaged_file_is_taken_from_the_store_again(cache):
+def test_a_bag_writer_in_a_later_process_does_not_load_rosbags_jazzy_store(tmp_path):
+    """What a recorded run's start costs: its bag writer takes its types from the cache the
+    first writer filled."""
+    probe = ('import sys; from rft_sim_ros.ros.bag import BagWriter; '
+             f'BagWriter({str(tmp_path / "bag")!r} + sys.argv[1], ["a", "b"]).close(); '
+             "print('rosbags.typesys.stores.ros2_jazzy' in sys.modules)")
+    env = {'XDG_CACHE_HOME': str(tmp_path / 'cache'), 'PATH': '/usr/bin:/bin'}
+    loaded = [subprocess.run([sys.executable, '-c', probe, str(i)], capture_output=True,
+                             text=True, check=True, timeout=60, env=env).stdout.strip()
+              for i in range(2)]
+    assert loaded == ['True', 'False']  # the first filled the cache
+
+
+def test_a_type_the_cache_lacks_is_taken_from_the_store_and_added(cache):
     jazzy_types.typestore_for(frozenset({topics.CLOCK_TYPE}))
     jazzy_types.typestore_for.cache_clear()
     _same_as_rosbags(jazzy_types.typestore_for(RECORDED))  # more than the file held
-    cache.write_text('{"not": json')
-    jazzy_types.typestore_for.cache_clear()
+    assert set(jazzy_types._read(cache)) >= RECORDED | {topics.CLOCK_TYPE}
+
+
+@pytest.mark.parametrize('damaged', [
+    '{"not": json', '[]', 'null', '{"x": [[], [["f", [2]]]]}',
+    '{"std_msgs/msg/String": [[], [["data", [1, "string"]]]]}',
+    '{"std_msgs/msg/String": [[], [["data", [7, ["string", 0]]]]]}'])
+def test_a_damaged_cache_file_is_made_again(cache, damaged):
+    cache.parent.mkdir(parents=True)
+    cache.write_text(damaged)
     _same_as_rosbags(jazzy_types.typestore_for(RECORDED))
-    assert jazzy_types._read(cache)  # (written again, whole)
+    assert set(jazzy_types._read(cache)) >= RECORDED  # (written again, whole)
+    assert [path.name for path in cache.parent.iterdir()] == [cache.name]  # (no leftovers)

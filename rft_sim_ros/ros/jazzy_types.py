@@ -1,8 +1,8 @@
 """The ROS 2 Jazzy message types a bag records, without loading rosbags' whole Jazzy store.
 
 rosbags builds a class for each of the 162 types of its Jazzy store when the store is first
-loaded: 0.17 s of every recorded run's start on a 2-core AMD EPYC VM, where a bag needs some
-30 of them. `typestore_for` gives a rosbags typestore holding only the types asked for and
+loaded: 0.17 s, most of a bag's start (0.27 s) on a 2-core AMD EPYC VM, where a bag needs
+some 30 of them. `typestore_for` gives a rosbags typestore holding only the types asked for and
 those they nest, with rosbags' own Jazzy definitions: taken from its store the first time
 they are asked for and kept in the user's cache (one file per rosbags version, `cache_file`),
 so that later runs register those few only (0.03 s). A cache file that cannot be read, or
@@ -12,16 +12,19 @@ the runs to take the store each time.
 import functools
 import json
 import os
+import tempfile
 from importlib.metadata import version
 from pathlib import Path
+
+from rosbags.interfaces import Nodetype
 
 #: Bump when the cache file's layout changes.
 _FORMAT = 1
 
 
 def cache_file():
-    """$XDG_CACHE_HOME/rft_sim_ros/ros_types/jazzy-<rosbags version>.json (default
-    ~/.cache/...)."""
+    """$XDG_CACHE_HOME/rft_sim_ros/ros_types/jazzy-<rosbags version>-<format>.json
+    (default ~/.cache/...)."""
     base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
     return (Path(base) / 'rft_sim_ros' / 'ros_types'
             / f'jazzy-{version("rosbags")}-{_FORMAT}.json')
@@ -37,10 +40,11 @@ def typestore_for(type_names):
     definitions = _closure(type_names, cached)
     if definitions is None:
         from .factory import jazzy_typestore
-        store = jazzy_typestore()
-        cached = {**cached, **_closure(type_names, store.fielddefs)}
-        _write(path, cached)
-        definitions = _closure(type_names, cached)
+        definitions = _closure(type_names, jazzy_typestore().fielddefs)
+        if definitions is None:
+            raise ValueError(f'not every one of {sorted(type_names)} is a ROS 2 Jazzy type of '
+                             f'rosbags {version("rosbags")}')
+        _write(path, {**cached, **definitions})
     typestore = get_typestore(Stores.EMPTY)
     typestore.register(definitions)
     return typestore
@@ -49,7 +53,6 @@ def typestore_for(type_names):
 def _closure(type_names, fielddefs):
     """{name: definition} of `type_names` and the types they nest, from `fielddefs`; None
     where one of them is not there."""
-    from rosbags.typesys.store import Nodetype
     found, pending = {}, list(type_names)
     while pending:
         name = pending.pop()
@@ -68,23 +71,35 @@ def _closure(type_names, fielddefs):
 
 def _read(path):
     """The cache file's {name: definition} (rosbags' form: tuples, `Nodetype`s); {} where it
-    is missing or cannot be read."""
+    is missing or cannot be read, or holds anything but definitions."""
     try:
         stored = json.loads(path.read_text())
         return {name: ([tuple(constant) for constant in constants],
                        [(field, _description(description)) for field, description in fields])
                 for name, (constants, fields) in stored.items()}
-    except (OSError, ValueError, TypeError, KeyError):
+    except (OSError, ValueError, TypeError, LookupError, AttributeError):
         return {}
 
 
 def _description(stored):
-    """A field's type description from its JSON form: (Nodetype, payload), nested."""
-    from rosbags.typesys.store import Nodetype
+    """A field's type description from its JSON form: (Nodetype, payload), nested; ValueError
+    for any other form."""
     kind, payload = Nodetype(stored[0]), stored[1]
     if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-        return kind, (_description(payload[0]), payload[1])
-    return kind, payload if kind == Nodetype.NAME else tuple(payload)
+        return kind, (_description(payload[0]), _whole(payload[1]))
+    if kind == Nodetype.NAME and isinstance(payload, str):
+        return kind, payload
+    if kind == Nodetype.BASE and isinstance(payload, list) and len(payload) == 2 \
+            and isinstance(payload[0], str):
+        return kind, (payload[0], _whole(payload[1]))
+    raise ValueError(f'not a type description: {stored!r}')
+
+
+def _whole(value):
+    """`value` where it is a whole number (a length or bound), else ValueError."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f'not a length: {value!r}')
+    return value
 
 
 def _write(path, definitions):
@@ -92,8 +107,12 @@ def _write(path, definitions):
     new); nothing where it cannot be written."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        partial = path.with_name(f'{path.name}.{os.getpid()}')
-        partial.write_text(json.dumps(definitions))
-        partial.replace(path)
+        handle, partial = tempfile.mkstemp(dir=path.parent, prefix=f'{path.name}.')
     except OSError:
-        pass
+        return
+    try:
+        with os.fdopen(handle, 'w') as out:
+            json.dump(definitions, out)
+        os.replace(partial, path)
+    except OSError:
+        Path(partial).unlink(missing_ok=True)

@@ -152,8 +152,8 @@ def run_scene(scene, out_dir=None, duration=None, recorders=(), progress=True, p
     run is reported not stable with that reason.
     started: `time.perf_counter()` when the run began for its user (`rft-sim run` passes its
     command's start, before its imports; default: this call), from which the summary's
-    `first_step_s` counts: the seconds to the first step (the simulation built, its initial
-    state recorded).
+    `first_step_s` counts: the seconds until the loop starts stepping (the simulation built,
+    its recorders started, its initial state made).
     Returns the summary dict (see design section 4 for its fields; recording_time_s is the
     part of wall_time_s spent in the recorders, finishing them (closing a bag) included;
     generic_metrics: sim/metrics.py, those of every scene, next to the scenario's own
