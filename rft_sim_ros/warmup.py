@@ -64,7 +64,9 @@ def _numba_kernels_only():
 def warm_up(log=print):
     """Compile (or load) every kernel: short runs of the scenes and settings that use them,
     with the gather kernels of the other surfaces and the implicit step with elliptic cones
-    compiled meanwhile in a second process.
+    compiled meanwhile in a second process; the message types a bag records into the user's
+    cache (`ros.jazzy_types`, so that a first recorded run does not load rosbags' whole
+    Jazzy store).
     Then builds the prebuilt kernels (`prebuild`); where that fails (e.g. no C
     compiler), says why and goes on: runs then load them from numba's cache, as before.
     Returns (the qualified names still not cached (none, unless a kernel went unused),
@@ -92,6 +94,9 @@ def warm_up(log=print):
         run('plate_drop', {'sand.deformable.enabled': True})  # and deformable sand's
     down = np.array([[0.0, 0.0, -1.0]])  # the compiled law on its own (one plate)
     plate_forces_compiled(np.zeros((1, 3)), down, np.ones(1), down, 1.0, 0.0, 1.0, 1.0, 0.0)
+    from .ros.jazzy_types import typestore_for  # (the bag's types, into the user's cache)
+    from .ros.topics import RECORDABLE_TYPES
+    typestore_for(RECORDABLE_TYPES)
     log('warmup: the kernels a run calls, ahead of time for this CPU')
     return uncached(), prebuild()
 

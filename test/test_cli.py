@@ -316,6 +316,8 @@ def test_warmup_leaves_every_kernel_cached(capsys):
     assert total >= 20  # the engine's, the law's and the gaits' kernels were all found
     assert f'{total} of {total} kernels cached' in capsys.readouterr().out
     assert warmup.uncached() == []
+    from rft_sim_ros.ros import jazzy_types, topics
+    assert set(jazzy_types._read(jazzy_types.cache_file())) >= topics.RECORDABLE_TYPES
 
 
 def test_an_ignored_sigint_stays_ignored(tmp_path):

@@ -3,16 +3,23 @@ user's cache, so that a later bag does not load rosbags' whole Jazzy store; a da
 file is made again."""
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from rft_sim_ros.ros import jazzy_types, topics
 
-#: Every type a bag may record: the state's topics, plates, terrain, and every sensor kind.
-RECORDED = frozenset({*topics.published_topics(['a', 'b'], plates=True, terrain=True).values(),
-                      topics.IMU_TYPE, *topics.MODEL_SENSOR_TYPES.values(),
-                      topics.FLOAT64_ARRAY_TYPE})
+#: Every type a bag may record (what the warmup caches).
+RECORDED = topics.RECORDABLE_TYPES
+
+
+def test_the_recordable_types_are_those_a_bag_with_everything_records():
+    model_sensors = [(kind, kind, None) for kind in ('touch', 'gyro', 'jointpos')]
+    layout = SimpleNamespace(imu_topic=topics.IMU, contact_legs=('a',),
+                             model_sensors=model_sensors)
+    recorded = topics.published_topics(['a', 'b'], plates=True, terrain=True, sensors=layout)
+    assert set(recorded.values()) == RECORDED
 
 
 @pytest.fixture

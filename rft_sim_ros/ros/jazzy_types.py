@@ -4,7 +4,8 @@ rosbags builds a class for each of the 162 types of its Jazzy store when the sto
 loaded: 0.17 s, most of a bag's start (0.27 s) on a 2-core AMD EPYC VM, where a bag needs
 some 30 of them. `typestore_for` gives a rosbags typestore holding only the types asked for and
 those they nest, with rosbags' own Jazzy definitions: taken from its store the first time
-they are asked for and kept in the user's cache (one file per rosbags version, `cache_file`),
+they are asked for (`rft-sim warmup` asks for every type a bag may record) and kept in the
+user's cache (one file per rosbags version, `cache_file`),
 so that later runs register those few only (0.03 s). A cache file that cannot be read, or
 that lacks a type asked for, is made again from the store; one that cannot be written leaves
 the runs to take the store each time.

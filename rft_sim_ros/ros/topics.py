@@ -83,6 +83,14 @@ ROBOT_DESCRIPTION_TYPE = 'std_msgs/msg/String'
 MODEL_SENSOR_TYPES = {'touch': WRENCH_TYPE, 'force': WRENCH_TYPE, 'torque': WRENCH_TYPE,
                       'framequat': IMU_TYPE, 'gyro': IMU_TYPE, 'accelerometer': IMU_TYPE}
 
+#: Every message type a run's bag may record (`published_topics` with plates, terrain and
+#: every kind of sensor): `rft-sim warmup` fills the bag's type cache with them
+#: (`jazzy_types`).
+RECORDABLE_TYPES = frozenset({CLOCK_TYPE, JOINT_STATE_TYPE, ODOMETRY_TYPE, TF_TYPE,
+                              DIAGNOSTICS_TYPE, WRENCH_TYPE, MARKER_ARRAY_TYPE,
+                              POINT_CLOUD_TYPE, IMU_TYPE, FLOAT64_ARRAY_TYPE,
+                              *MODEL_SENSOR_TYPES.values()})
+
 #: Topics that stay global when the node runs in a namespace, as in ROS convention: one
 #: clock, one tf tree, one diagnostics stream.
 GLOBAL_TOPICS = (CLOCK, TF, DIAGNOSTICS)
