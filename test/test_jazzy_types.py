@@ -50,17 +50,6 @@ def test_the_types_are_rosbags_jazzy_definitions_first_from_its_store_then_from_
     assert len(jazzy_types.typestore_for(RECORDED).fielddefs) < 60  # (not the store's 162)
 
 
-def test_a_later_process_does_not_load_rosbags_jazzy_store(cache):
-    jazzy_types.typestore_for(RECORDED)
-    probe = ('import sys; from rft_sim_ros.ros.jazzy_types import typestore_for; '
-             f'typestore_for(frozenset({sorted(RECORDED)!r})); '
-             "print('rosbags.typesys.stores.ros2_jazzy' in sys.modules)")
-    done = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True,
-                          check=True, timeout=60, env={'XDG_CACHE_HOME': str(cache.parents[2]),
-                                                        'PATH': '/usr/bin:/bin'})
-    assert done.stdout.strip() == 'False'
-
-
 def test_a_bag_writer_in_a_later_process_does_not_load_rosbags_jazzy_store(tmp_path):
     """What a recorded run's start costs: its bag writer takes its types from the cache the
     first writer filled."""

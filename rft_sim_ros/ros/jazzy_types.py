@@ -2,11 +2,11 @@
 
 rosbags builds a class for each of the 162 types of its Jazzy store when the store is first
 loaded: 0.17 s, most of a bag's start (0.27 s) on a 2-core AMD EPYC VM, where a bag needs
-some 30 of them. `typestore_for` gives a rosbags typestore holding only the types asked for and
-those they nest, with rosbags' own Jazzy definitions: taken from its store the first time
-they are asked for (`rft-sim warmup` asks for every type a bag may record) and kept in the
-user's cache (one file per rosbags version, `cache_file`),
-so that later runs register those few only (0.03 s). A cache file that cannot be read, or
+some 30 of them. `typestore_for` gives a rosbags typestore holding only the types asked for
+and those they nest, with rosbags' own Jazzy definitions: taken from its store the first
+time they are asked for (`rft-sim warmup` asks for every type a bag may record) and kept in
+the user's cache (one file per rosbags version, `cache_file`), so that later runs register
+those few only (0.03 s). A cache file that cannot be read, or
 that lacks a type asked for, is made again from the store; one that cannot be written leaves
 the runs to take the store each time.
 """
@@ -19,16 +19,17 @@ from pathlib import Path
 
 from rosbags.interfaces import Nodetype
 
+from ..resources import user_cache_dir
+
 #: Bump when the cache file's layout changes.
 _FORMAT = 1
 
 
 def cache_file():
     """$XDG_CACHE_HOME/rft_sim_ros/ros_types/jazzy-<rosbags version>-<format>.json
-    (default ~/.cache/...)."""
-    base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
-    return (Path(base) / 'rft_sim_ros' / 'ros_types'
-            / f'jazzy-{version("rosbags")}-{_FORMAT}.json')
+    (default ~/.cache/...: `resources.user_cache_dir`)."""
+    return user_cache_dir('ros_types') / f'jazzy-{version("rosbags")}-{_FORMAT}.json'
+
 
 
 @functools.lru_cache(maxsize=None)

@@ -205,7 +205,8 @@ class SandEngine:
         self.surface = Plane(surface_height) if surface is None else surface
         self.deformable = not self.surface.rigid
         self._set_surface(self.surface)
-        self._gathering = kernel_names.gather(KINDS[self.surface.data.kind], self.deformable)
+        self._surface_kind = KINDS[self.surface.data.kind]  # ('plane', 'slope', 'grid')
+        self._gathering = kernel_names.gather(self._surface_kind, self.deformable)
         self._gather = prebuilt.kernel(self._gathering)
         # per-plate forces of an implicit step, where asked for (`active_plates`)
         self._plate_forces = prebuilt.kernel(PLATE_FORCES)
@@ -658,7 +659,7 @@ class SandEngine:
         are scratch). Where any of them had to compile, the time that took is recorded in
         the cache (`kernel_cache.record_cold_start`): the next notice that they compile
         quotes it (`cold_start_estimate`)."""
-        cold = _uncached_key(engine_kernels(self.low_velocity.method, KINDS[self.surface.data.kind],
+        cold = _uncached_key(engine_kernels(self.low_velocity.method, self._surface_kind,
                                             self.deformable, self._parts))
         wall, cpu = time.perf_counter(), _cpu_seconds()
         self._compile_kernels()

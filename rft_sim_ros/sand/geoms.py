@@ -16,11 +16,11 @@ unchanged body are cached on disk (`plate_cache_dir`; key: the geometry and the 
 """
 import hashlib
 import os
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from ..resources import user_cache_dir
 from ..rft.plates import Plates, edge_for_plate_area, refine, top_up
 
 _INSIDE_MARGIN = 1e-7  # m; centroids closer than this to another geom's surface are kept
@@ -306,8 +306,7 @@ def simplified_meshes(model, body_id, count):
 
 def plate_cache_dir():
     """Where plates are cached: $XDG_CACHE_HOME/rft_sim_ros/plates (default ~/.cache/...)."""
-    base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
-    return Path(base) / 'rft_sim_ros' / 'plates'
+    return user_cache_dir('plates')
 
 
 #: Bump when the plate-making changes, so that old cache entries are not used.
