@@ -314,16 +314,19 @@ SHOWN_METRICS = 4
 
 
 def human_summary(summary, out, elapsed):
-    """The few lines `rft-sim run` prints at the end: how the run ended (its real-time
-    factor, and `elapsed`, s, the command's wall time since it started (`main`'s `started`:
-    through `rft-sim`, its imports too), the model's set-up and the outputs written, the
-    figure's included), what happened to the robot (the summary's
-    outcome words, where it has them), its key metrics (the scenario's first SHOWN_METRICS,
-    else the base's displacement and final speed), and where its files are."""
+    """The few lines `rft-sim run` prints at the end: how the run ended (stable, and
+    whether the robot fell, collapsed or sank; its real-time factor, and `elapsed`, s, the
+    command's wall time since it started (`main`'s `started`: through `rft-sim`, its
+    imports too), the model's set-up and the outputs written, the figure's included), what
+    happened to the robot (the summary's outcome words, where it has them), its key metrics
+    (the scenario's first SHOWN_METRICS, else the base's displacement and final speed), and
+    where its files are."""
     if summary['interrupted']:
         ended = 'interrupted'
     elif summary['stable']:
-        ended = 'stable'
+        outcome = summary.get('outcome') or {}
+        down = [said for said in ('fell', 'collapsed', 'sank') if outcome.get(said)]
+        ended = 'stable' + (f' (the robot {" and ".join(down)})' if down else '')
     else:
         ended = 'NOT STABLE'
     lines = [f'{summary["scene"]}: {ended}, {summary["sim_time_s"]:.4g} s of sim time in '

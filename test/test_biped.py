@@ -104,11 +104,15 @@ def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
     assert keys.index('outcome') == keys.index('stable') + 1
     outcome = summary['outcome']
     assert set(outcome) == {'fell', 'fell_at_s', 'tilt_limit_deg', 'max_tilt_deg',
-                            'final_tilt_deg', 'deepest', 'unsettled_step_share',
-                            'rows_handed_back_step_share', 'max_uncovered_sinkage_m',
-                            'words'}
+                            'final_tilt_deg', 'collapsed', 'collapsed_at_s', 'collapse_share',
+                            'stance_height_set_down_m', 'min_stance_height_m', 'sank',
+                            'sank_at_s', 'max_base_depth_m', 'final_base_speed_mps',
+                            'deepest', 'unsettled_step_share', 'rows_handed_back_step_share',
+                            'max_uncovered_sinkage_m', 'words'}
     assert set(outcome['deepest']) == {'body', 'sinkage_m', 'time_s', 'has_plates'}
     assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
+    assert outcome['collapsed'] is False and outcome['sank'] is False
+    assert 0.5 < outcome['stance_height_set_down_m'] < 0.8  # (a 0.74 m trunk on its legs)
     assert summary['other_bodies'] and 'trunk' in summary['plates_per_body']
 
 

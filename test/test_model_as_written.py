@@ -66,6 +66,23 @@ def test_a_joint_without_an_actuator_stays_a_passive_spring_as_stiff_as_written(
     assert served.passive_joint_names == ()
 
 
+def test_servos_passive_switches_the_models_own_actuator_off(tmp_path):
+    """`servos: {shoulder: passive}` on a joint the model drives with its own position
+    actuator: that actuator exerts no force (gain and bias 0), so the arm swings down
+    under its weight instead of being held at 0, the joint is listed passive and left out
+    of commands, and a notice says which actuator was switched off."""
+    held = Simulation(arm_scene(tmp_path))
+    free = Simulation(arm_scene(tmp_path, servos={'shoulder': 'passive'}))
+    assert free.passive_joint_names == ('shoulder', 'elbow') and free.servo_joint_names == ()
+    assert ("servos passive: the model's actuator shoulder switched off (no force), so the "
+            'joints they drove move freely') in free.notices, free.notices
+    for sim in (held, free):
+        sim.step(500)
+    assert abs(held.data.joint('shoulder').qpos[0]) < 0.1  # (kp 50 against the arm's weight)
+    assert free.data.joint('shoulder').qpos[0] > 0.5  # swung down
+    assert free.data.actuator('shoulder').force[0] == 0.0
+
+
 def test_a_model_without_actuators_gets_interfaces_on_every_joint(tmp_path):
     (tmp_path / 'bare.xml').write_text(ARM.split('<actuator>')[0] + '</mujoco>')
     sim = Simulation(load_scene(tmp_path / 'bare.xml', {'duration': 0.1,
@@ -242,3 +259,19 @@ def test_a_closed_loop_is_kept_and_its_unactuated_joints_follow_it(tmp_path):
     assert angle['crank'] == pytest.approx(0.3, abs=0.02)
     assert angle['rocker'] == pytest.approx(angle['crank'], abs=2e-3)  # a parallelogram
     assert angle['coupler_hinge'] == pytest.approx(-angle['crank'], abs=2e-3)
+
+
+def test_servos_passive_switches_off_a_muscle_too():
+    """A muscle on a joint made passive: its gain is its own kind (not a number to zero),
+    so it is made a fixed gain of 0 with no bias; the model compiles and it pushes nothing."""
+    from rft_sim_ros.robot.joints import add_joint_interfaces
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><body><joint name="j" axis="0 1 0"/><geom size="0.1" mass="1"/>'
+        '</body></worldbody><actuator><muscle name="m" joint="j"/></actuator></mujoco>')
+    plan = add_joint_interfaces(spec, {'j': 'passive'})
+    assert plan.passive == ('j',) and plan.switched_off == ('m',) and plan.commanded == ()
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.ctrl[:], data.act[:] = 1.0, 1.0
+    mujoco.mj_step(model, data)
+    assert data.actuator_force[0] == 0.0

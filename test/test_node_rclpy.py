@@ -588,3 +588,19 @@ def test_keyframe_parameter_sets_the_initial_pose(ros, tmp_path):
     with pytest.raises(StartFailed, match="robot.keyframe: keyframe 'nope' is not in the model"):
         ros.add(SimNode(context=ros.context, parameter_overrides=[
             Parameter('model', value=str(path)), Parameter('keyframe', value='nope')]))
+
+
+def test_as_fast_as_possible_a_command_takes_effect_at_the_next_cycle(ros):
+    """real_time_factor 0: a timer callback runs publish cycles for up to 50 ms of wall time
+    (on the servo rig, a few tenths of a second of sim time); the node reads its command
+    topics before every cycle, so the joint moves from the cycle after the command was
+    sent, not only after the callback's cycles (every state stamped from two cycles on
+    shows it moving; those of one callback beyond the publisher's depth are not seen)."""
+    sim = start_sim(ros, real_time_factor=0.0)
+    assert ros.spin_until(lambda: len(ros.probe.joint_states) > 10)
+    sent = sim.runtime.sim.time
+    ros.probe.positions.publish(Float64MultiArray(data=[0.3, 0.0]))
+    assert ros.spin_until(lambda: seconds(ros.probe.joint_states[-1].header.stamp) > sent + 0.1)
+    after = [hip(m) for m in ros.probe.joint_states
+             if seconds(m.header.stamp) > sent + 2 * PERIOD]
+    assert after and min(after) > 0.01, (sent, after)

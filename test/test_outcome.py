@@ -1,5 +1,6 @@
 """sim/outcome.py: the lowest point of each geom type (a mesh's too), exact against a dense
-sampling of its surface; the tilt, fall time and deepest point a watch records; the words."""
+sampling of its surface; the tilt, fall time and deepest point a watch records, the tilt from
+the pose as set down, a collapse and a sinking, bodies without collision geoms; the words."""
 import mujoco
 import numpy as np
 import pytest
@@ -44,7 +45,8 @@ def test_a_watch_records_the_tilt_the_fall_and_the_deepest_point():
     mujoco.mj_forward(model, data)
     base = model.body('base').id
     watch = OutcomeWatch(model, base, plated=[base])
-    watch.start(data, 1.0)
+    watch.set_down(data)
+    watch.start()
     sand = Plane(0.0)
     for time, angle, z in ((1.1, 30.0, 0.05), (1.2, 60.0, -0.03), (1.3, 90.0, 0.2)):
         half = np.radians(angle) / 2
@@ -66,6 +68,144 @@ def test_a_watch_records_the_tilt_the_fall_and_the_deepest_point():
     assert ('in 25 % of steps the implicit solve froze plates whose leading/trailing sets '
             'cycled') in outcome['words']
     assert "in 5 % of steps MuJoCo's own solver took the constraint rows" in outcome['words']
+
+
+def _turn(model, data, angle_deg, z):
+    half = np.radians(angle_deg) / 2
+    data.qpos[2], data.qpos[3:7] = z, (np.cos(half), np.sin(half), 0.0, 0.0)
+    mujoco.mj_forward(model, data)
+
+
+def test_the_tilt_counts_from_the_pose_as_set_down_not_from_the_start():
+    """A robot set down upright that settles leaning 34 deg (spawn rest, before the clock
+    starts) has turned 34 deg, not 0: the tilt is measured from how it was set down."""
+    model = mujoco.MjModel.from_xml_string(FALLER)
+    data = mujoco.MjData(model)
+    _turn(model, data, 0.0, 0.05)
+    watch = OutcomeWatch(model, model.body('base').id, plated=[])
+    watch.set_down(data)
+    _turn(model, data, 34.0, 0.05)  # (settled)
+    watch.start()
+    watch.observe(data, Plane(0.0), 0.04)
+    outcome = watch.result(data, Plane(0.0), steps=1, unsettled=0)
+    assert outcome['max_tilt_deg'] == pytest.approx(34.0)
+    assert not outcome['fell']
+    assert outcome['words'].startswith('upright: base turned at most 34 deg')
+
+
+#: A base box (1 kg) on one slide-jointed leg, its foot a sphere (0.1 kg, r 2 cm): the leg
+#: slides up into the base as the robot folds; a `tail` without geoms hangs behind.
+LEGGED = """<mujoco><worldbody><body name="base" pos="0 0 0.42"><freejoint/>
+  <geom type="box" size="0.1 0.1 0.05" mass="1"/>
+  <body name="foot" pos="0 0 -0.4"><joint name="leg" type="slide" axis="0 0 1"/>
+    <geom type="sphere" size="0.02" mass="0.1"/></body>
+  <body name="tail" pos="-0.3 0 0"><joint axis="0 1 0"/><inertial pos="0 0 0" mass="0.01"
+    diaginertia="1e-6 1e-6 1e-6"/></body></body></worldbody></mujoco>"""
+
+
+def _stand(model, data, base_z, foot_depth=0.0):
+    """The base at base_z (m), upright, the foot's lowest point foot_depth below z = 0."""
+    data.qpos[2], data.qpos[3:7] = base_z, (1.0, 0.0, 0.0, 0.0)
+    data.joint('leg').qpos[0] = 0.42 - base_z - foot_depth  # foot centre at 0.02 - depth
+    mujoco.mj_forward(model, data)
+
+
+def _legged_watch():
+    """LEGGED set down standing (its foot's lowest point on the sand), and its watch."""
+    model = mujoco.MjModel.from_xml_string(LEGGED)
+    data = mujoco.MjData(model)
+    base, foot = model.body('base').id, model.body('foot').id
+    watch = OutcomeWatch(model, base, plated=[base, foot], feet=[foot])
+    _stand(model, data, 0.42)
+    watch.set_down(data)
+    watch.start()
+    return model, data, watch
+
+
+def test_a_watch_says_when_the_robot_collapsed_and_when_it_sank():
+    """Stance height: the centre of mass above the foot's lowest point. Set down at 0.384 m
+    (base and tail 1.01 kg at 0.42, the foot 0.1 kg at 0.02, over 1.11 kg); at 0.274 m it
+    stands, at 0.0928 m (below half) it collapsed; lowered 0.2 m into the sand, its base 15
+    cm deep, it sank."""
+    model, data, watch = _legged_watch()
+    sand = Plane(0.0)
+    for time, base_z, foot_depth in ((1.1, 0.3, 0.0), (1.2, 0.1, 0.0), (1.3, -0.1, 0.2)):
+        _stand(model, data, base_z, foot_depth)
+        watch.observe(data, sand, time)
+    outcome = watch.result(data, sand, steps=1, unsettled=0)
+    assert outcome['stance_height_set_down_m'] == pytest.approx((1.01 * 0.42 + 0.002) / 1.11)
+    assert outcome['min_stance_height_m'] == pytest.approx((1.01 * 0.1 + 0.002) / 1.11)
+    assert outcome['collapsed'] and outcome['collapsed_at_s'] == 1.2
+    assert outcome['sank'] and outcome['sank_at_s'] == 1.3
+    assert outcome['max_base_depth_m'] == pytest.approx(0.15)
+    assert not outcome['fell'] and watch.down
+    assert outcome['words'].startswith(
+        'sank at t = 1.30 s: its base went 15 cm into the sand; collapsed at t = 1.20 s: its '
+        'centre of mass came down to 9.28 cm above its sand bodies, from 38.4 cm as set '
+        'down; base turned at most 0 deg; foot ends 20 cm below the sand surface')
+    assert watch.problem(data, sand).startswith('collapsed: its centre of mass 9.28 cm above')
+    _stand(model, data, -0.1, 0.52)  # its leg out, 52 cm down: the base 15 cm in
+    assert watch.problem(data, sand) == 'sank: its base 15 cm into the sand'
+
+
+def test_a_robot_that_keeps_its_stance_has_not_collapsed_however_deep_its_feet_sink():
+    """Feet 10 cm into the sand (the hexapod's dactyls), the base above it: neither."""
+    model, data, watch = _legged_watch()
+    _stand(model, data, 0.32, 0.1)
+    watch.observe(data, Plane(0.0), 0.5)
+    outcome = watch.result(data, Plane(0.0), steps=1, unsettled=0)
+    assert not (outcome['collapsed'] or outcome['sank'] or watch.down)
+    assert watch.problem(data, Plane(0.0)) is None
+    assert outcome['words'].startswith('upright: base turned at most 0 deg; deepest: foot 10 cm')
+
+
+def test_without_sand_bodies_or_joints_the_stance_is_not_watched():
+    """A rigid body (a plate pressed into the sand) or a robot without sand bodies: no
+    collapse or sinking is judged, their fields null."""
+    model = mujoco.MjModel.from_xml_string(LEGGED)
+    data = mujoco.MjData(model)
+    _stand(model, data, 0.1)
+    watch = OutcomeWatch(model, model.body('base').id, plated=[], feet=[])
+    watch.set_down(data)
+    watch.start()
+    _stand(model, data, -0.3, 0.4)
+    watch.observe(data, Plane(0.0), 0.1)
+    outcome = watch.result(data, Plane(0.0), steps=1, unsettled=0)
+    assert outcome['stance_height_set_down_m'] is None and outcome['max_base_depth_m'] is None
+    assert not (outcome['collapsed'] or outcome['sank'])
+    rigid = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="plate"><freejoint/><geom type="box" '
+        'size="0.05 0.05 0.005"/></body></worldbody></mujoco>')
+    plate = rigid.body('plate').id
+    assert OutcomeWatch(rigid, plate, plated=[plate], feet=[plate])._watch_body is False
+
+
+def test_a_body_without_collision_geoms_is_watched_by_its_origin():
+    """`tail` has no geom: nothing collides it with the sand, so its origin is watched, and
+    where it is the deepest point the words say it passed through."""
+    model, data, watch = _legged_watch()
+    data.qpos[3:7] = (np.cos(np.pi / 8), 0.0, -np.sin(np.pi / 8), 0.0)  # tail down 45 deg
+    data.qpos[2] = 0.1
+    data.joint('leg').qpos[0] = 0.38  # (the foot drawn up to the base)
+    mujoco.mj_forward(model, data)
+    tail = data.xpos[model.body('tail').id]
+    watch.observe(data, Plane(0.0), 0.2)
+    outcome = watch.result(data, Plane(0.0), steps=1, unsettled=0)
+    deepest = outcome['deepest']
+    assert deepest['body'] == 'tail' and not deepest['has_plates']
+    assert deepest['sinkage_m'] == pytest.approx(-tail[2])
+    assert '(no plates: it passed through)' in outcome['words']
+
+
+def test_a_fallen_robot_still_moving_is_not_lying():
+    """Tumbling down a slope at 3.1 m/s at the end: not 'lying on the sand'."""
+    tumbling = {'fell': True, 'fell_at_s': 1.08, 'max_tilt_deg': 176.0,
+                'unsettled_step_share': 0.0, 'final_base_speed_mps': 3.1,
+                'deepest': None, 'max_uncovered_sinkage_m': None}
+    assert words(tumbling, 0.0, 'base').startswith(
+        'fell at t = 1.08 s: base turned 176 deg; still moving at 3.1 m/s at the end')
+    assert words(dict(tumbling, final_base_speed_mps=0.01), 0.0, 'base').startswith(
+        'fell at t = 1.08 s: base turned 176 deg; lying on the sand')
 
 
 def test_the_words_say_a_body_left_under_the_sand():
@@ -92,7 +232,7 @@ def test_the_words_say_no_body_reached_the_sand():
 
 def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
     """/diagnostics (ROS-free fields): the outcome's words and figures as values, level WARN
-    once the robot fell, OK before."""
+    once the robot fell, collapsed or sank, OK before."""
     from rft_sim_ros.ros.messages import RunStatus, diagnostic_fields
     from rft_sim_ros.sim.state import SimState
     state = SimState(time=1.0, joint_names=(), joint_positions=np.zeros(0),
@@ -101,7 +241,8 @@ def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
                      base_linear_velocity=np.zeros(3), base_angular_velocity=np.zeros(3),
                      legs=(), zeta=3.75, plates_active=0)
     fallen = {'fell': True, 'fell_at_s': 0.8, 'tilt_limit_deg': 45.0, 'max_tilt_deg': 95.0,
-              'final_tilt_deg': 90.0, 'deepest': {'body': 'trunk', 'sinkage_m': 0.02,
+              'final_tilt_deg': 90.0, 'collapsed': False, 'collapsed_at_s': None,
+              'sank': False, 'sank_at_s': None, 'deepest': {'body': 'trunk', 'sinkage_m': 0.02,
                                                   'time_s': 0.9, 'has_plates': True},
               'unsettled_step_share': 0.0, 'max_uncovered_sinkage_m': None,
               'words': 'fell at t = 0.80 s: base turned 95 deg; lying on the sand'}
@@ -116,3 +257,24 @@ def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
     fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0,
                                                 outcome=standing))
     assert fields.level == 0 and dict(fields.values)['fell_at_s'] == 'nan'
+    for down in ('collapsed', 'sank'):  # as much a warning as a fall
+        fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0, outcome={
+            **standing, down: True, f'{down}_at_s': 0.5}))
+        values = dict(fields.values)
+        assert fields.level == 1 and values[down] == 'true' and float(values[f'{down}_at_s']) == 0.5
+
+
+def test_start_up_names_the_robots_bodies_without_collision_geoms(tmp_path):
+    """A free robot's body without a collision geom (`tail`) is named in a notice, as one
+    that passes through the sand; a mocap body and a rig fixed to the world are not."""
+    from rft_sim_ros.scenes.config import load_scene
+    from rft_sim_ros.sim.simulation import Simulation
+    path = tmp_path / 'legged.xml'
+    path.write_text(LEGGED.replace('</worldbody>', '<body name="target" mocap="true"/>'
+                                   '</worldbody>'))
+    sim = Simulation(load_scene(path, {'rft.sand_bodies': ['foot'],
+                                       'rft.plates_per_body': 50}))
+    [notice] = [n for n in sim.notices if n.startswith('bodies without a collision geom')]
+    assert ': tail; should the robot fall onto them they pass through the sand' in notice
+    rig = Simulation(load_scene('rail_flat', {'rft.plates_per_body': 50}))
+    assert not [n for n in rig.notices if n.startswith('bodies without a collision geom')]

@@ -77,6 +77,28 @@ def test_as_fast_as_possible_steps_until_the_tick_budget(rig_scene):
     assert len(h.times()) > before
 
 
+def test_commands_are_taken_before_every_cycle_of_a_tick(rig_scene):
+    """As fast as possible a tick runs many cycles; the node's command subscriptions are
+    read before each (`take_commands`), so a command that came in during the third cycle
+    holds from the fourth on, not from the tick after."""
+    h = Harness(rig_scene, real_time_factor=0.0, tick_budget_s=0.05)
+    h.clock.per_call = 0.005  # every clock read costs 5 ms of wall time: ~10 cycles a tick
+    h.runtime.tick()
+    targets = h.targets()
+    targets[0] += 0.2
+    taken = []
+
+    def take_commands():
+        taken.append(len(h.times()))
+        if len(taken) == 4:  # (before the fourth cycle: three ran)
+            assert h.runtime.on_positions(position_array(targets)).accepted
+    before = len(h.times())
+    h.runtime.tick(take_commands)
+    assert len(h.times()) - before == len(taken) > 5  # once before each cycle
+    assert taken[3] == before + 3
+    np.testing.assert_allclose(h.targets(), targets)
+
+
 def test_a_slow_machine_does_not_sprint_to_catch_up(rig):
     rig.runtime.tick()
     rig.clock.advance(30.0)            # e.g. the process was stopped for 30 s

@@ -67,6 +67,27 @@ def test_moves_under_position_commands(sandbot):
     assert sim.data.xpos[trunk, 2] - before[2] == pytest.approx(rise, abs=0.008)
 
 
+@pytest.mark.parametrize('overrides, said', [
+    ({'servos': {'*': 'passive'}}, 'collapsed'),  # limp: folds onto its trunk
+    ({'zeta': 0.002}, 'sank'),  # 1/2000 of play sand: its legs out, it goes under
+])
+def test_a_robot_that_cannot_stand_is_said_to_collapse_or_sink_not_upright(overrides, said):
+    """Not turned over, yet not standing: limp, the sandbot settles with its centre of mass
+    at 9 cm above its feet (23 cm as set down); in sand 2000 times looser than play sand,
+    its trunk goes 66 cm under. Spawn rest does not start it from there but from where it
+    was set down (saying why), so the run shows it happen, and the outcome names it."""
+    scene = load_scene(XACRO, {'robot.package_paths': {'sandbot_description': str(PACKAGE)},
+                               'rft.plates_per_body': 100, **overrides})
+    sim = Simulation(scene)
+    assert any(n.startswith(f'spawn rest: {said}: ') for n in sim.notices), sim.notices
+    sim.step(1000)
+    outcome = sim.outcome()
+    assert outcome[said] and 0.0 < outcome[f'{said}_at_s'] < 0.5 and sim.down
+    assert not outcome['fell'] and outcome['max_tilt_deg'] < 5.0
+    assert outcome['words'].startswith(f'{said} at t = ')
+    assert 'upright' not in outcome['words']
+
+
 def test_the_bundled_quadruped_trots_forward_in_sand(tmp_path):
     out = tmp_path / 'trot'
     assert main(['run', 'quadruped', '--set', 'settle_time=0.5', '--set', 'cycles=3',

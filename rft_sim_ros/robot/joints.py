@@ -24,14 +24,16 @@ else the description's limit (URDF `<limit effort>`), else none.
 
 One mode at a time, as ros2_control switches controllers: a position command puts every
 joint in position mode (PD/position actuators on, motors at 0), an effort command puts them
-in effort mode (position actuators' gains off). A joint whose `servos` entry is `passive`,
-that has no actuator where the model has some (above), that is driven by another actuator
-kind (velocity, integrated velocity, tendon...), that has no name (no command could name it;
-/joint_states leaves it out too), or that an active joint equality sets from another joint
-or a constant (a URDF `<mimic>` joint, which MuJoCo's importer makes one; MJCF
-`<equality><joint joint1=...>`) gets no interfaces: it follows, as a ros2_control mimic
-joint does, instead of a servo fighting the equality. Other equality constraints (an MJCF's
-closed loops: `connect`, `weld`) are kept as written.
+in effort mode (position actuators' gains off). A joint whose `servos` entry is `passive`
+(the model's own actuators on it, if any, switched off: a fixed gain of 0 and no bias, no
+force; actuators on tendons or sites across it are kept), that has no actuator where the
+model has some (above), that is driven by another actuator kind (velocity, integrated
+velocity, tendon...), that has no name (no command could name it; /joint_states leaves it
+out too), or that an active joint equality sets from another joint or a constant (a URDF
+`<mimic>` joint, which MuJoCo's importer makes one; MJCF `<equality><joint joint1=...>`)
+gets no interfaces: it follows, as a ros2_control mimic joint does, instead of a servo
+fighting the equality. Other equality constraints (an MJCF's closed loops: `connect`,
+`weld`) are kept as written.
 """
 import fnmatch
 import math
@@ -113,10 +115,14 @@ def position_servos(model):
 @dataclass(frozen=True)
 class JointPlan:
     """What `add_joint_interfaces` did: `commanded`, the joints that got interfaces (in
-    model order); `passive`, the named movable joints left without an actuator of the
-    model's (no servo asked for them), as the model has them."""
+    model order); `passive`, the named movable joints that move freely: those the model
+    gives no actuator (no servo asked for them), as the model has them, and those `servos`
+    makes passive; `unactuated`, those the model gives no actuator; `switched_off`, the
+    names of the model's actuators on joints `servos` makes passive, switched off."""
     commanded: tuple
     passive: tuple
+    unactuated: tuple
+    switched_off: tuple
 
 
 def add_joint_interfaces(spec, servos):
@@ -132,15 +138,25 @@ def add_joint_interfaces(spec, servos):
     every_joint = not spec.actuators  # no actuator of its own: every joint is commanded
     followers = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT
                  and e.active}
-    joints, passive, added_pd = [], [], False
+    joints, passive, unactuated, switched_off, added_pd = [], [], [], [], False
     for joint in spec.joints:
         settings = servo_settings(servos, joint.name)
-        if joint.type not in _MOVABLE or joint.name in followers or settings == PASSIVE:
+        if joint.type not in _MOVABLE or joint.name in followers:
             continue
         actuators = by_joint.get(joint.name, [])
+        if settings == PASSIVE:  # free: the model's own actuators on it exert no force
+            for actuator in actuators:  # (a fixed gain of 0, no bias: a muscle's too)
+                actuator.gaintype, actuator.biastype = (mujoco.mjtGain.mjGAIN_FIXED,
+                                                        mujoco.mjtBias.mjBIAS_NONE)
+                actuator.gainprm, actuator.biasprm = np.zeros(10), np.zeros(10)
+                switched_off.append(actuator.name or f'actuator on {joint.name}')
+            if joint.name:
+                passive.append(joint.name)
+            continue
         if not (actuators or every_joint or settings):
             if joint.name:
                 passive.append(joint.name)
+                unactuated.append(joint.name)
             continue  # no actuator in the model, and the scene asks for no servo
         position = [a for a in actuators if _is_position_servo(
             a.gaintype, a.biastype, a.dyntype, a.gainprm, a.biasprm)]
@@ -156,7 +172,7 @@ def add_joint_interfaces(spec, servos):
         joints.append(joint.name)
     if added_pd and spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER:
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    return JointPlan(tuple(joints), tuple(passive))
+    return JointPlan(tuple(joints), tuple(passive), tuple(unactuated), tuple(switched_off))
 
 
 def _add_actuator(spec, name, joint):

@@ -3,25 +3,26 @@
 ROS-free; shared by the node and the headless bag recorder so both follow one rule:
 a status every `period_s` (the node counts wall seconds, as diagnostic_updater does; the
 headless recorder counts sim seconds, so its bags are reproducible) and at once when what
-the status says changes: zeta, stable/diverged, paused/running, a fall. `outcome_values`:
-what /diagnostics says of the run's outcome (sim/outcome.py).
+the status says changes: zeta, stable/diverged, paused/running, a fall, collapse or sinking.
+`outcome_values`: what /diagnostics says of the run's outcome (sim/outcome.py).
 """
 import math
 
 
-def status_key(zeta, stable, paused, fell=False):
+def status_key(zeta, stable, paused, down=False):
     """What makes a new /diagnostics due at once: a change of the last published state's
     zeta (N/cm^3), or of whether the run is stable or paused (messages.RunStatus), or
-    whether the robot has fallen (`Simulation.fell`)."""
-    return zeta, stable, paused, fell
+    whether the robot has fallen, collapsed or sunk (`Simulation.down`)."""
+    return zeta, stable, paused, down
 
 
 def outcome_values(outcome):
     """[(key, value)] of /diagnostics for a run's `outcome` (summary.json's, sim/outcome.py;
     None: none yet): outcome (its words), fell, fell_at_s (nan: it did not fall),
-    max_tilt_deg, deepest_body ('' where no geom went below the surface), deepest_sinkage_m,
+    max_tilt_deg, collapsed, collapsed_at_s (nan: it did not collapse), sank, sank_at_s (nan:
+    it did not sink), deepest_body ('' where no geom went below the surface), deepest_sinkage_m,
     deepest_has_plates, unsettled_step_share and max_uncovered_sinkage_m (nan: every
-    collision body carries plates)."""
+    watched body carries plates)."""
     if outcome is None:
         return []
     deepest = outcome['deepest'] or {'body': '', 'sinkage_m': 0.0, 'has_plates': True}
@@ -30,6 +31,11 @@ def outcome_values(outcome):
     return [('outcome', outcome['words']), ('fell', bool(outcome['fell'])),
             ('fell_at_s', nan if outcome['fell_at_s'] is None else float(outcome['fell_at_s'])),
             ('max_tilt_deg', float(outcome['max_tilt_deg'])),
+            ('collapsed', bool(outcome['collapsed'])),
+            ('collapsed_at_s', nan if outcome['collapsed_at_s'] is None
+             else float(outcome['collapsed_at_s'])),
+            ('sank', bool(outcome['sank'])),
+            ('sank_at_s', nan if outcome['sank_at_s'] is None else float(outcome['sank_at_s'])),
             ('deepest_body', deepest['body']), ('deepest_sinkage_m', float(deepest['sinkage_m'])),
             ('deepest_has_plates', bool(deepest['has_plates'])),
             ('unsettled_step_share', float(outcome['unsettled_step_share'])),

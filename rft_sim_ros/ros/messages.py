@@ -339,9 +339,10 @@ def diagnostic_fields(state, status):
     values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
     values += [('kernels', status.kernels)] if status.kernels else []
     values += outcome_values(status.outcome)
-    fell = status.outcome is not None and status.outcome['fell']
+    down = status.outcome is not None and any(
+        status.outcome[key] for key in ('fell', 'collapsed', 'sank'))
     return DiagnosticFields(
-        level=2 if not status.stable else 1 if fell else 0,  # ERROR / WARN / OK
+        level=2 if not status.stable else 1 if down else 0,  # ERROR / WARN / OK
         name='rft_sim: simulation',
         message=status.problem if not status.stable else 'paused' if status.paused else 'running',
         hardware_id=status.scene,

@@ -34,6 +34,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -314,16 +315,16 @@ class SimNode(Node):
             self._video_failed = PainterFailed
             self._video = VideoRecorder(self._video_file, sim.scene)
             self._video.start(sim)
-        for msgtype, topic, callback in (
+        self._command_subscriptions = [self.create_subscription(
+            self._factory.message_class(msgtype), topics.relative(topic), callback,
+            QUEUE_DEPTH) for msgtype, topic, callback in (
                 (topics.JOINT_TRAJECTORY_TYPE, self.runtime.trajectory_topic,
                  self.runtime.on_trajectory),
                 (topics.POSITION_COMMANDS_TYPE, topics.POSITION_COMMANDS,
                  self.runtime.on_positions),
                 (topics.VELOCITY_COMMANDS_TYPE, topics.VELOCITY_COMMANDS,
                  self.runtime.on_velocities),
-                (topics.EFFORT_COMMANDS_TYPE, topics.EFFORT_COMMANDS, self.runtime.on_efforts)):
-            self.create_subscription(self._factory.message_class(msgtype), topics.relative(topic),
-                                     callback, QUEUE_DEPTH)
+                (topics.EFFORT_COMMANDS_TYPE, topics.EFFORT_COMMANDS, self.runtime.on_efforts))]
         self._serve_topic_hardware()
         self._serve_follow_joint_trajectory()
         self._serve_simulation_interfaces()
@@ -344,9 +345,9 @@ class SimNode(Node):
                                        parameters.JOINT_STATES_TOPIC)
         self._hardware_states = self.create_publisher(joint_state, topics.relative(states),
                                                       QUEUE_DEPTH)
-        self.create_subscription(joint_state, topics.relative(self.runtime.joint_commands_topic),
-                                 self.runtime.on_joint_commands,
-                                 topics.ROBOT_JOINT_COMMANDS_DEPTH)
+        self._command_subscriptions.append(self.create_subscription(
+            joint_state, topics.relative(self.runtime.joint_commands_topic),
+            self.runtime.on_joint_commands, topics.ROBOT_JOINT_COMMANDS_DEPTH))
         gains = self._declare(parameters.JOINT_GAINS, Parameter.Type.STRING_ARRAY)
         if gains:
             problem = self.runtime.parameter_problem(parameters.JOINT_GAINS, gains)
@@ -486,13 +487,37 @@ class SimNode(Node):
     # --- callbacks --------------------------------------------------------------------------
 
     def _tick(self):
-        self.runtime.tick()
+        self.runtime.tick(self._take_commands)
         self._sync_paused()
         if self._view is not None:
             if self._view.is_running():
                 self._view.show()
             else:  # (the window was closed: the node runs on without it)
                 self._view = None
+
+    def _take_commands(self):
+        """Hand every message the command subscriptions hold to its callback now, in the
+        order they were received (across the topics: a position command after an effort
+        one leaves the joints in position mode), between two publish cycles of a tick: the
+        executor would serve them only after the tick, which runs the cycles due for up to
+        its budget (many, where the machine falls behind or runs as fast as it can), and
+        then one a subscription between two ticks. Taken as rclpy's executor takes them;
+        the callbacks are the runtime's, in this thread."""
+        taken = []  # (received, order, callback, message)
+        for subscription in self._command_subscriptions:
+            while True:
+                try:
+                    with subscription.handle:
+                        message = subscription.handle.take_message(subscription.msg_type,
+                                                                   subscription.raw)
+                except InvalidHandle:  # (destroyed: the node is shutting down)
+                    break
+                if message is None:
+                    break
+                taken.append((message[1]['received_timestamp'], len(taken),
+                              subscription.callback, message[0]))
+        for _, _, callback, message in sorted(taken, key=lambda item: item[:2]):
+            callback(message)
 
     def _close_video(self):
         """Finish the video (the frames queued are painted first) and say where it is."""

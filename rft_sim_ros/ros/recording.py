@@ -72,7 +72,7 @@ class BagRecorder:
         BATCH cycles."""
         update = self._terrain.update(state.time)
         key = status_key(state.zeta, self._sim.diverged is None, False,  # (never paused)
-                         self._sim.fell)
+                         self._sim.down)
         status = self._status(state) if self._schedule.due(state.time, key) else None
         self._pending.append((state, update, status))
         self._last = state

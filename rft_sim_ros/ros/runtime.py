@@ -8,8 +8,10 @@ rclpy node only forwards events to it:
   due (`Pacer`), each one publish period of sim time (whole steps, exact rate on average:
   `PublishSchedule`) followed by one state publication,
   for at most `tick_budget_s` of wall time so the executor stays responsive, then
-  /diagnostics when due (`DiagnosticsSchedule`, wall seconds). The first tick publishes the
-  initial state.
+  /diagnostics when due (`DiagnosticsSchedule`, wall seconds). Before each cycle it calls
+  `take_commands` (the node: it takes the messages its command subscriptions hold and hands
+  them to the `on_*` below), so a command takes effect at the next cycle, however many
+  cycles the tick runs. The first tick publishes the initial state.
 * `on_trajectory(msg)` / `on_positions(msg)` / `on_velocities(msg)` / `on_efforts(msg)` /
   `on_joint_commands(msg)` (sensor_msgs/JointState of ros2_control's topic hardware
   interface: `control.joint_state_commands`, hybrid mode):
@@ -155,8 +157,9 @@ class SimRuntime:
 
     # --- stepping and publishing ------------------------------------------------------------
 
-    def tick(self):
-        """Run the publish cycles due now (within the tick budget), then /diagnostics if due."""
+    def tick(self, take_commands=None):
+        """Run the publish cycles due now (within the tick budget), each after
+        `take_commands()` (None: nothing to take), then /diagnostics if due."""
         started = self._clock()
         if self.last_state is None:
             self._publish_state()
@@ -166,6 +169,8 @@ class SimRuntime:
         while (not self.paused and now - started < self._budget
                and self._pacer.due(now, self.sim.time
                                    + self._next_cycle_steps() * self.sim.timestep)):
+            if take_commands is not None:
+                take_commands()
             self._cycle()
             now = self._clock()
         self._diagnostics(now)
@@ -216,7 +221,7 @@ class SimRuntime:
             self._publish_terrain(due=True)
 
     def _diagnostics(self, now):
-        key = status_key(self.last_state.zeta, self.diverged is None, self.paused, self.sim.fell)
+        key = status_key(self.last_state.zeta, self.diverged is None, self.paused, self.sim.down)
         if self._schedule.due(now, key):
             rate = self._meter.rate(self.last_state.time, now)
             self._sink.write_diagnostics(self.last_state, self.status(0.0 if self.paused else rate))

@@ -204,6 +204,23 @@ def is_collision_geom(model, geom_id):
     return bool(model.geom_contype[geom_id] or model.geom_conaffinity[geom_id])
 
 
+def moving_collision_geoms(model):
+    """Ids of the collision geoms (`is_collision_geom`) of the moving bodies of `model`
+    (those not welded to the world)."""
+    return [g for g in range(model.ngeom) if model.body_weldid[model.geom_bodyid[g]] != 0
+            and is_collision_geom(model, g)]
+
+
+def bodies_without_collision(model):
+    """Ids of the moving bodies of `model` (each the top body of its weld group, those
+    welded to it standing in for it; mocap bodies left out) welded to no collision geom: the
+    model gives them none, or only visual geoms, so nothing but their origin tells where
+    they are, and they pass through the sand."""
+    held = {int(model.body_weldid[model.geom_bodyid[g]]) for g in moving_collision_geoms(model)}
+    return [b for b in range(1, model.nbody)
+            if model.body_weldid[b] == b and b not in held and model.body_mocapid[b] < 0]
+
+
 def body_geoms(model, body_id):
     """Ids of the geoms that carry the plates of body `body_id`: those marked as its sand
     surface (`is_sand_surface_geom`), else its collision geoms, else all its geoms; a copy

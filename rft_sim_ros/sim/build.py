@@ -86,8 +86,13 @@ def compile_model(scene, scenario, spec, initial_positions, notices):
     keep_sand_visuals(spec, patterns, visual)
     spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
     joint_plan = add_joint_interfaces(spec, scene.servos)
-    if joint_plan.passive:
-        names = joint_plan.passive
+    if joint_plan.switched_off:
+        names = joint_plan.switched_off
+        notices.append(f'servos passive: the model\'s actuator{"s" * (len(names) > 1)} '
+                       f'{first_few(names)} switched off (no force), so the joints they drove '
+                       'move freely')
+    if joint_plan.unactuated:
+        names = joint_plan.unactuated
         notices.append(
             f'joint{"s" * (len(names) > 1)} {", ".join(names)}: no actuator in the model, '
             f'so {"they stay" if len(names) > 1 else "it stays"} passive as written '

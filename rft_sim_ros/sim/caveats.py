@@ -1,12 +1,14 @@
 """What start-up tells the user the sand will not do for their model, each as one notice
-with the key that changes it: bear the robot on sand bodies too small for its weight
-(robot/bearing.py), hold free bodies that have no sand body (another robot, a loose crate),
-run MuJoCo's noslip iterations on the constraints the sand solve takes, resolve footprints
-finer than the deformable bed's cells, or mark cells finer than its plates."""
+with the key that changes it: hold bodies the model gives no collision geom, bear the robot
+on sand bodies too small for its weight (robot/bearing.py), hold free bodies that have no
+sand body (another robot, a loose crate), run MuJoCo's noslip iterations on the constraints
+the sand solve takes, resolve footprints finer than the deformable bed's cells, or mark
+cells finer than its plates."""
 import numpy as np
 
 from ..robot.bearing import bearing
 from ..robot.sand_bodies import free_root_joint, geom_lowest_z, unheld_free_trees
+from ..sand.geoms import bodies_without_collision
 from ..units import zeta_to_si
 
 #: Names a notice lists before "and N more".
@@ -25,6 +27,15 @@ def caveats(model, data, engine, scene, base, sand_count):
     first `sand_count` bodies are the sand bodies (the others: robot/sand_bodies.py, "Other
     bodies"), which the notices on bearing and on the bed's cells are about."""
     notices = []
+    bare = [model.body(b).name or f'body {b}' for b in bodies_without_collision(model)
+            if free_root_joint(model, b) is not None]  # (a rig fixed to the world: by design)
+    if bare:
+        notices.append(f'bodies without a collision geom (the model gives them none, or only '
+                       f'visual ones): {first_few(bare)}; should the robot fall onto them they '
+                       'pass through the sand, watched by their origins only (give them '
+                       'collision geoms, or name those with visual geoms beside the sand '
+                       'bodies, rft.sand_bodies: [auto, NAME], for their visual geoms to carry '
+                       'plates)')
     if not scene.keep_floor:  # (else the floor holds the robot and any other body)
         notices += _bearing_notice(model, data, engine, scene.zeta, base, sand_count)
         unheld = unheld_free_trees(model, engine.body_ids)

@@ -1,14 +1,23 @@
-"""What happened to the robot in a run, said plainly: whether it fell, how deep any of its
-bodies went into the sand, and how often the implicit solve did not settle.
+"""What happened to the robot in a run, said plainly: whether it fell, collapsed or sank, how
+deep any of its bodies went into the sand, and how often the implicit solve did not settle.
 
 `OutcomeWatch` looks, at a modest rate of sim time (the Simulation's OUTCOME_RATE, 25 Hz), at
 
-- the base's tilt: the angle (deg) between its up axis (body z) now and at the (re)start,
-  after spawn rest settled it; the robot fell once it exceeds TILT_LIMIT_DEG (a quadruped on
-  its side, a humanoid on its back; standing and walking robots stay well within it);
+- the base's tilt: the angle (deg) between its up axis (body z) now and as the robot was set
+  down (`set_down`: its spawn's pose, before spawn rest settled it; on a slope, turned to
+  it); the robot fell once it exceeds TILT_LIMIT_DEG (a quadruped on its side, a humanoid on
+  its back; standing and walking robots stay well within it);
+- an articulated robot (a free root with joints): its stance height, the height of its
+  centre of mass (its root's subtree) above the lowest point of its sand bodies, against
+  that height as set down; it collapsed once that is below COLLAPSE_SHARE of it (legs given
+  way, belly on the sand) without turning over, however deep its feet sank; and its base's
+  lowest point (its collision geoms', else its origin) against the sand surface: it sank
+  once that is more than DEEP_M into the sand (belly in very soft sand, a robot too heavy
+  for it);
 - the lowest point of every collision geom of every moving body (exact: for a mesh its
-  lowest vertex, of the convex hull MuJoCo collides where it made one), against the sand
-  surface under that point: the deepest one (body, depth
+  lowest vertex, of the convex hull MuJoCo collides where it made one), and the origin of
+  every moving body welded to no collision geom (the model gave it none: it passes through
+  the sand), against the sand surface under that point: the deepest one (body, depth
   m, time s, whether the body carries plates) and the deepest of the bodies without plates
   (`rft.other_bodies_density_per_mm2: null` allows them);
 
@@ -22,9 +31,27 @@ The summary's `outcome` (summary.json, /diagnostics):
   tilt_limit_deg              TILT_LIMIT_DEG;
   max_tilt_deg, final_tilt_deg
                               the base's largest tilt, and its tilt at the end;
+  collapsed, collapsed_at_s   the stance height came down below collapse_share of its
+                              height as set down, and the first look that saw it (false,
+                              null: it did not; so where it is not watched: a robot that is
+                              one rigid body or fixed to the world, one without sand bodies
+                              with collision geoms in its own tree, or one set down with its
+                              centre of mass within DEEP_M of its sand bodies);
+  collapse_share              COLLAPSE_SHARE;
+  stance_height_set_down_m, min_stance_height_m
+                              the stance height (m) as set down and its lowest (null: not
+                              watched);
+  sank, sank_at_s             the base went more than DEEP_M into the sand, and the first
+                              look that saw it (false, null: it did not, or not watched);
+  max_base_depth_m            how far the base's lowest point went below the sand surface
+                              (m; negative: it stayed above; null: not watched);
+  final_base_speed_mps        the speed of the base's origin at the end (m/s; a fallen
+                              robot faster than LYING_SPEED is still moving, not lying);
   deepest                     {body, sinkage_m, time_s, has_plates}: the deepest point below
-                              the sand surface of any collision geom (null: no geom ever
-                              went below it);
+                              the sand surface of any collision geom or bare body origin
+                              (null: none ever went below it). Exact geometry, so it may
+                              exceed generic_metrics' max_sinkage_m_<body>, which is over
+                              the body's plates (sim/metrics.py);
   unsettled_step_share        steps in which the implicit solve froze a plate or its sets
                               did not settle, over the run's steps (0 without sand contact).
                               A plate is frozen where its leading/trailing set would cycle
@@ -38,18 +65,22 @@ The summary's `outcome` (summary.json, /diagnostics):
   rows_handed_back_step_share steps whose constraint rows (contacts, limits, closed loops)
                               MuJoCo's own solver took because the implicit solve could
                               not settle them, over the run's steps;
-  max_uncovered_sinkage_m deepest point below the surface of a body without plates
-                              (null: every collision body carries plates);
+  max_uncovered_sinkage_m deepest point below the surface of a body without plates, bare
+                              body origins included (null: every watched body carries
+                              plates);
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
-                              lying on the sand"; "no body has reached the sand" where no
-                              geom went below the surface.
+                              lying on the sand"; "collapsed at t = 0.40 s: its centre of
+                              mass came down to 15 cm above its sand bodies, from 54 cm as
+                              set down; base turned at most 1 deg"; "sank at t = 0.36 s: its
+                              base went 94 cm into the sand; ..."; "no body has reached the
+                              sand" where no geom went below the surface.
 """
 import math
 
 import mujoco
 import numpy as np
 
-from ..sand.geoms import is_collision_geom, mesh_vertices
+from ..sand.geoms import bodies_without_collision, mesh_vertices, moving_collision_geoms
 
 #: deg: the robot fell once its base has turned this far from how it started.
 TILT_LIMIT_DEG = 45.0
@@ -59,6 +90,13 @@ TILT_LIMIT_DEG = 45.0
 DEEP_M = 0.05
 #: The share of unsettled implicit steps above which the words say it.
 UNSETTLED_SAID = 0.01
+#: The robot collapsed once its centre of mass came down below this share of its height
+#: above the sand as it was set down: folded onto its belly, its legs given way, sunk into
+#: very soft sand (a walking or crouching robot stays well above it).
+COLLAPSE_SHARE = 0.5
+#: m/s: a fallen robot whose base moves faster than this at the end is still moving
+#: (sliding, tumbling), not lying on the sand.
+LYING_SPEED = 0.1
 
 _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = (
     int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE),
@@ -122,29 +160,55 @@ class LowestPoints:
 
 class OutcomeWatch:
     """Tracks a run's outcome (module docstring) for the robot whose base is body `base` of
-    `model`; `plated`: ids of the bodies that carry plates."""
+    `model`; `plated`: ids of the bodies that carry plates, `feet` those of its sand
+    bodies."""
 
-    def __init__(self, model, base, plated, tilt_limit_deg=TILT_LIMIT_DEG):
+    def __init__(self, model, base, plated, feet=(), tilt_limit_deg=TILT_LIMIT_DEG):
         self._model, self._base = model, int(base)
+        self._root = int(model.body_rootid[base])
         self.tilt_limit_deg = float(tilt_limit_deg)
-        geoms = [g for g in range(model.ngeom) if model.body_weldid[model.geom_bodyid[g]] != 0
-                 and is_collision_geom(model, g)]
-        self._lowest = LowestPoints(model, geoms)
-        plated = set(int(b) for b in plated)
-        self._bodies = model.geom_bodyid[self._lowest.geoms]
+        self._lowest = LowestPoints(model, moving_collision_geoms(model))
+        self._bare = np.array(bodies_without_collision(model), dtype=int)  # (by their origins)
+        plated, feet = set(int(b) for b in plated), set(int(b) for b in feet)
+        self._bodies = np.concatenate([model.geom_bodyid[self._lowest.geoms], self._bare])
         self._has_plates = np.array([int(b) in plated for b in self._bodies], dtype=bool)
-        self.start(None, 0.0)
+        self._feet = np.array([i for i, g in enumerate(self._lowest.geoms)  # (its own tree's)
+                               if int(model.geom_bodyid[g]) in feet
+                               and model.body_rootid[model.geom_bodyid[g]] == self._root],
+                              dtype=int)
+        self._watch_body = articulated(model, self._root) and self._feet.size > 0
+        welded = model.body_weldid[base]  # the base: its geoms', else its origin's depth
+        self._base_geoms = np.array([i for i, g in enumerate(self._lowest.geoms)
+                                     if model.body_weldid[model.geom_bodyid[g]] == welded],
+                                    dtype=int)
+        self._base_origin = int(welded)
+        self._up = self._stance_set_down = None
+        self.start()
 
-    def start(self, data, time):
-        """From a (re)start at sim time `time` (s): the base's up axis now is upright."""
-        self._up = None if data is None else data.xmat[self._base].reshape(3, 3)[:, 2].tolist()
-        self.fell_at = None
+    def set_down(self, data):
+        """The robot as it was set down (`data`, before it settled): its base's up axis now
+        is upright, and (`_watch_body`: an articulated robot on a free root) its stance
+        height now is its height as set down (`stance_height`; not watched where it is
+        within DEEP_M: set down lying)."""
+        self._up = data.xmat[self._base].reshape(3, 3)[:, 2].tolist()
+        stance = self.stance_height(data) if self._watch_body else None
+        self._stance_set_down = stance if stance is not None and stance > DEEP_M else None
+
+    def start(self):
+        """From a (re)start: nothing seen yet."""
+        self.fell_at = self.collapsed_at = self.sank_at = None
         self.max_tilt = 0.0
-        self.deepest = None  # (depth m, geom index, time s)
+        self.min_stance, self.base_depth = math.inf, -math.inf
+        self.deepest = None  # (depth m, index into the watched bodies, time s)
         self.uncovered = 0.0 if (~self._has_plates).any() else None
 
+    @property
+    def down(self):
+        """Whether the robot has fallen, collapsed or sunk since the (re)start."""
+        return any(at is not None for at in (self.fell_at, self.collapsed_at, self.sank_at))
+
     def tilt(self, data):
-        """deg between the base's up axis now and at the start."""
+        """deg between the base's up axis now and as it was set down."""
         if self._up is None:
             return 0.0
         x, y, z = self._up
@@ -152,6 +216,35 @@ class OutcomeWatch:
         cosine = rotation[2] * x + rotation[5] * y + rotation[8] * z
         return math.degrees(math.acos(min(1.0, max(-1.0, cosine)))) if cosine == cosine \
             else math.nan
+
+    def stance_height(self, data):
+        """m: the height of the robot's centre of mass (its root's subtree) above the lowest
+        point of its sand bodies' geoms: what its legs hold up, however deep its feet sank."""
+        feet = self._lowest(data, self._feet)
+        return float(data.subtree_com[self._root][2] - feet[:, 2].min())
+
+    def base_depth_now(self, data, surface):
+        """m: how far the base's lowest point lies below the sand surface (negative: above):
+        that of its collision geoms (those welded to it too), else of its origin."""
+        if self._base_geoms.size:
+            return float(self.depths(data, surface, self._base_geoms).max())
+        x, y, z = data.xpos[self._base_origin]
+        return float(surface.height(np.array([x]), np.array([y]))[0] - z)
+
+    def problem(self, data, surface):
+        """'collapsed: ...' or 'sank: ...', where the robot (an articulated one on a free
+        root) now holds its centre of mass up less than COLLAPSE_SHARE of its stance height
+        as set down, or has its base more than DEEP_M into the sand; else None."""
+        if self._stance_set_down is None:
+            return None
+        stance = self.stance_height(data)
+        if stance < COLLAPSE_SHARE * self._stance_set_down:
+            return (f'collapsed: its centre of mass {stance * 100:.3g} cm above its sand '
+                    f'bodies, from {self._stance_set_down * 100:.3g} cm as set down')
+        depth = self.base_depth_now(data, surface)
+        if depth > DEEP_M:
+            return f'sank: its base {depth * 100:.3g} cm into the sand'
+        return None
 
     def depths(self, data, surface, which=None):
         """(K,) m: how far the lowest point of each collision geom (at indices `which`;
@@ -169,6 +262,19 @@ class OutcomeWatch:
         ground = surface.height(centres[:, 0], centres[:, 1])
         return np.flatnonzero(centres[:, 2] - reach < ground + reach)
 
+    def _watched(self, data, surface, near=None):
+        """(indices into the watched bodies' list, depths m): the geoms at indices `near`
+        (None: all) and the bare bodies' origins, how far each lies below the surface."""
+        which = (np.arange(len(self._lowest.geoms)) if near is None
+                 else np.asarray(near, dtype=int))
+        depth = self.depths(data, surface, which) if len(which) else np.zeros(0)
+        if self._bare.size:
+            origins = data.xpos[self._bare]
+            which = np.concatenate([which, len(self._lowest.geoms) + np.arange(self._bare.size)])
+            depth = np.concatenate([depth, surface.height(origins[:, 0], origins[:, 1])
+                                    - origins[:, 2]])
+        return which, depth
+
     def observe(self, data, surface, time):
         """One look at `data` at sim time `time` (s)."""
         tilt = self.tilt(data)
@@ -177,19 +283,34 @@ class OutcomeWatch:
         self.max_tilt = max(self.max_tilt, tilt)
         if self.fell_at is None and tilt > self.tilt_limit_deg:
             self.fell_at = time
+        if self._stance_set_down is not None:
+            stance, depth = self.stance_height(data), self.base_depth_now(data, surface)
+            self.min_stance = min(self.min_stance, stance)
+            self.base_depth = max(self.base_depth, depth)
+            if self.collapsed_at is None and stance < COLLAPSE_SHARE * self._stance_set_down:
+                self.collapsed_at = time
+            if self.sank_at is None and depth > DEEP_M:
+                self.sank_at = time
         near = self._near(data, surface) if self._lowest.geoms.size else ()
-        if not len(near):
+        which, depth = self._watched(data, surface, near)
+        if not len(which):
             return
-        depth = self.depths(data, surface, near)
         i = int(np.argmax(depth))
         if depth[i] > 0.0 and (self.deepest is None or depth[i] > self.deepest[0]):
-            self.deepest = (float(depth[i]), int(near[i]), time)
-        bare = ~self._has_plates[near]
+            self.deepest = (float(depth[i]), int(which[i]), time)
+        bare = ~self._has_plates[which]
         if self.uncovered is not None and bare.any():
             self.uncovered = max(self.uncovered, float(depth[bare].max()))
 
-    def _body(self, g):
-        return self._model.body(int(self._bodies[g])).name
+    def _body(self, i):
+        return self._model.body(int(self._bodies[i])).name
+
+    def _base_speed(self, data):
+        """m/s: the speed of the base's origin."""
+        velocity = np.empty(6)
+        mujoco.mj_objectVelocity(self._model, data, mujoco.mjtObj.mjOBJ_XBODY, self._base,
+                                 velocity, 0)
+        return float(np.linalg.norm(velocity[3:]))
 
     def result(self, data, surface, steps, unsettled, handed_back=0):
         """The `outcome` mapping (module docstring) of the run so far, `data` its final state;
@@ -198,34 +319,69 @@ class OutcomeWatch:
         final = self.tilt(data)
         deepest = None
         if self.deepest is not None:
-            depth, g, time = self.deepest
-            deepest = {'body': self._body(g), 'sinkage_m': depth, 'time_s': time,
-                       'has_plates': bool(self._has_plates[g])}
+            depth, i, time = self.deepest
+            deepest = {'body': self._body(i), 'sinkage_m': depth, 'time_s': time,
+                       'has_plates': bool(self._has_plates[i])}
+        def seen(value):  # (watched and looked at with a finite state: else null)
+            return value if self._stance_set_down is not None and math.isfinite(value) else None
         outcome = {
             'fell': self.fell_at is not None, 'fell_at_s': self.fell_at,
             'tilt_limit_deg': self.tilt_limit_deg, 'max_tilt_deg': self.max_tilt,
-            'final_tilt_deg': final, 'deepest': deepest,
+            'final_tilt_deg': final,
+            'collapsed': self.collapsed_at is not None, 'collapsed_at_s': self.collapsed_at,
+            'collapse_share': COLLAPSE_SHARE,
+            'stance_height_set_down_m': self._stance_set_down,
+            'min_stance_height_m': seen(self.min_stance),
+            'sank': self.sank_at is not None, 'sank_at_s': self.sank_at,
+            'max_base_depth_m': seen(self.base_depth),
+            'final_base_speed_mps': self._base_speed(data),
+            'deepest': deepest,
             'unsettled_step_share': unsettled / steps if steps else 0.0,
             'rows_handed_back_step_share': handed_back / steps if steps else 0.0,
             'max_uncovered_sinkage_m': self.uncovered,
         }
-        now = self.depths(data, surface) if self._lowest.geoms.size else np.zeros(1)
-        lowest = int(np.argmax(now))
-        outcome['words'] = words(outcome, float(now[lowest]),
-                                 self._body(lowest) if self._lowest.geoms.size else '')
+        which, now = self._watched(data, surface)
+        final_depth, final_body = -math.inf, ''  # (nothing watched: nothing below)
+        if len(now):
+            lowest = int(np.argmax(now))
+            final_depth, final_body = float(now[lowest]), self._body(which[lowest])
+        outcome['words'] = words(outcome, final_depth, final_body)
         return outcome
+
+
+def articulated(model, root):
+    """Whether the tree of root body `root` hangs on a free joint and has joints of its own
+    (a robot that can fold, not one rigid body or one fixed to the world)."""
+    joints = [j for j in range(model.njnt) if model.body_rootid[model.jnt_bodyid[j]] == root]
+    free = [j for j in joints if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    return bool(free) and len(joints) > len(free)
 
 
 def words(outcome, final_depth, final_body):
     """`outcome` in a line; final_depth (m): how far below the surface the lowest point of
     final_body lies at the end."""
+    below = f'{final_body} ends {final_depth * 100:.3g} cm below the sand surface'
+    turned = f"base turned at most {outcome['max_tilt_deg']:.0f} deg"
     if outcome['fell']:
+        speed = outcome.get('final_base_speed_mps', 0.0)
         parts = [f"fell at t = {outcome['fell_at_s']:.2f} s: base turned "
-                 f"{outcome['max_tilt_deg']:.0f} deg"]
-        parts.append('lying on the sand' if final_depth <= DEEP_M else
-                     f'{final_body} ends {final_depth * 100:.3g} cm below the sand surface')
+                 f"{outcome['max_tilt_deg']:.0f} deg",
+                 below if final_depth > DEEP_M else
+                 f'still moving at {speed:.2g} m/s at the end' if speed > LYING_SPEED else
+                 'lying on the sand']
+    elif outcome.get('collapsed'):
+        parts = [f"collapsed at t = {outcome['collapsed_at_s']:.2f} s: its centre of mass "
+                 f"came down to {outcome['min_stance_height_m'] * 100:.3g} cm above its sand "
+                 f"bodies, from {outcome['stance_height_set_down_m'] * 100:.3g} cm as set "
+                 f'down', turned]
     else:
-        parts = [f"upright: base turned at most {outcome['max_tilt_deg']:.0f} deg"]
+        parts = [('' if outcome.get('sank') else 'upright: ') + turned]
+    if outcome.get('sank'):
+        parts.insert(0, f"sank at t = {outcome['sank_at_s']:.2f} s: its base went "
+                        f"{outcome['max_base_depth_m'] * 100:.3g} cm into the sand")
+    if not outcome['fell'] and (outcome.get('collapsed') or outcome.get('sank')) \
+            and final_depth > DEEP_M:
+        parts.append(below)
     deepest = outcome['deepest']
     if deepest is None:  # (a short run, a robot held above the sand: its metrics say no contact)
         parts.append('no body has reached the sand')

@@ -127,15 +127,23 @@ def _outcome(summary):
         lines.append(f'<p>reason: {esc(summary["reason"])}</p>')
     outcome = summary.get('outcome') or {}
     if outcome.get('words'):
-        css = 'bad' if outcome.get('fell') else 'ok'
+        css = 'bad' if any(outcome.get(key) for key in ('fell', 'collapsed', 'sank')) else 'ok'
         lines.append(f'<p class="{css}">{esc(outcome["words"])}</p>')
     rows = []
     if outcome:
-        if outcome.get('fell_at_s') is not None:
-            rows.append(['fell at (s)', outcome['fell_at_s']])
+        for key, name in (('fell_at_s', 'fell at (s)'), ('collapsed_at_s', 'collapsed at (s)'),
+                          ('sank_at_s', 'sank at (s)')):
+            if outcome.get(key) is not None:
+                rows.append([name, outcome[key]])
         for key, name in (('max_tilt_deg', 'largest base tilt (deg)'),
                           ('final_tilt_deg', 'final base tilt (deg)'),
                           ('tilt_limit_deg', 'tilt counted as a fall (deg)'),
+                          ('stance_height_set_down_m', 'centre of mass above its sand bodies '
+                                                       'as set down (m)'),
+                          ('min_stance_height_m', 'lowest centre of mass above its sand '
+                                                  'bodies (m)'),
+                          ('max_base_depth_m', 'deepest point of the base in the sand (m)'),
+                          ('final_base_speed_mps', 'final base speed (m/s)'),
                           ('unsettled_step_share', 'share of steps whose sand sets did '
                                                    'not settle'),
                           ('max_uncovered_sinkage_m', 'deepest body without plates (m)')):

@@ -15,7 +15,8 @@ walking at 0-20 N a foot) would squash the gait's forces, so when the largest fo
 CLIP_RATIO times the FORCE_QUANTILE of all of them, the force axis stops at FORCE_HEADROOM
 times that quantile and the panel says the peak it leaves off ('landing peak 95 N at 0.12 s,
 off the axis'). Scheduled changes (--set-at) are dashed lines on every panel, the outcome's
-fall (summary `outcome.fell_at_s`) a red line; both named in the legend of the first panel
+fall, collapse and sinking (summary `outcome.fell_at_s`, `collapsed_at_s`, `sank_at_s`) red
+lines; all named in the legend of the first panel
 and in the title, which names the robot and the scene (labels.run_name).
 """
 import math
@@ -107,8 +108,8 @@ def _joint_groups(series, summary):
 
 
 def _time_marks(axes, summary):
-    """Scheduled changes and the fall as vertical lines on every time axis; returns the
-    title's words for them."""
+    """Scheduled changes, a fall, a collapse and a sinking as vertical lines on every time
+    axis; returns the title's words for them."""
     words = []
     for change in (c for c in summary.get('schedule') or () if c.get('applied')):
         setting = ', '.join(f'{k} = {v:g}' for k, v in change.items()
@@ -117,11 +118,13 @@ def _time_marks(axes, summary):
             axis.axvline(change['time_s'], color='0.3', linestyle='--', linewidth=0.8,
                          label=f'{setting} from {change["time_s"]:g} s' if i == 0 else None)
     outcome = summary.get('outcome') or {}
-    fell_at = outcome.get('fell_at_s')
-    if outcome.get('fell') and fell_at is not None:
-        for i, axis in enumerate(axes):
-            axis.axvline(fell_at, color='red', linewidth=1.2,
-                         label=f'fell at {fell_at:.2f} s' if i == 0 else None)
+    for key, said in (('fell_at_s', 'fell'), ('collapsed_at_s', 'collapsed'),
+                      ('sank_at_s', 'sank')):
+        at = outcome.get(key)
+        if at is not None:
+            for i, axis in enumerate(axes):
+                axis.axvline(at, color='red', linewidth=1.2,
+                             label=f'{said} at {at:.2f} s' if i == 0 else None)
     if outcome.get('words'):
         words.append(str(outcome['words']))
     elif not summary.get('stable', True) and summary.get('reason'):

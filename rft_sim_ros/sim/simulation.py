@@ -172,7 +172,8 @@ class Simulation:
             raise scene.locator.error('sensors', str(error)) from None
         notices += caveats(model, data, engine, scene, base, len(self.sand_bodies))
         self._entry_watch = SandEntryWatch(model, engine.body_ids)
-        self._outcome = OutcomeWatch(model, base, engine.body_ids)
+        self._outcome = OutcomeWatch(model, base, engine.body_ids,
+                                     engine.body_ids[:len(self.sand_bodies)])
         servo_stiffness(scene, model)
         mujoco.mj_forward(model, data)
         self.interfaces = JointInterfaces(
@@ -243,6 +244,7 @@ class Simulation:
             if turned and notice not in self.notices:  # (a reset spawns again)
                 self.notices.append(notice)
         mujoco.mj_forward(self.model, self.data)
+        self._outcome.set_down(self.data)
         self.hybrid_drive.release()
         self.interfaces.set_mode('position')
         self.commands = None
@@ -252,14 +254,17 @@ class Simulation:
         if kind == 'rest':
             self._settle()
         self._counts_before = self._engine_counts() - self._settle_counts
-        self._outcome.start(self.data, self.time)
+        self._outcome.start()
 
     def _settle(self):
         """Spawn 'rest': step, the joints holding their targets, until the base is at rest
         (robot/pose.py), then start the clock at 0 from there. A robot that does not come to
         rest standing (still moving after SETTLE_LIMIT_S; or at rest fallen: its base turned
         more than FALL_TILT_DEG from how it was set down, onto its side or back, as one that
-        cannot stand without its controller falls) starts instead from the state before, at
+        cannot stand without its controller falls; or at rest collapsed or sunk, its centre
+        of mass held up less than half as high above its sand bodies as set down, or its base
+        more than 5 cm into the sand, as one whose servos are too weak for it lies down on
+        its belly: sim/outcome.py's `OutcomeWatch.problem`) starts instead from the state before, at
         rest on the sand, as spawn drop:0 would. A notice says what was seen where it was
         not a plain settling: the base's turn at the end and its largest on the way (a
         robot that rocks far and then stands is not called fallen), its speed if still
@@ -295,6 +300,7 @@ class Simulation:
         tilt = float(np.degrees(np.arccos(np.clip(up @ set_down, -1.0, 1.0))))
         if tilt > most:
             most, most_at = tilt, step * self.timestep
+        problem = self._outcome.problem(self.data, self.engine.surface)
         turns = (f'{tilt:.3g} deg from how it was set down (up to {most:.3g} deg, '
                  f'{most_at:.2f} s into settling)')
         if still < hold:
@@ -305,6 +311,8 @@ class Simulation:
         elif tilt > FALL_TILT_DEG:
             failure = (f'fell: its base ({self.base_body}) came to rest turned {turns}, on '
                        'its side or back')
+        elif problem is not None:
+            failure = f'{problem}, at rest'
         elif most > FALL_TILT_DEG:
             notice = (f'spawn rest: its base ({self.base_body}) came to rest after '
                       f'{step * self.timestep:.2f} s turned {turns}: it starts from there')
@@ -327,14 +335,15 @@ class Simulation:
         return np.array([e.solves, e.unsettled_steps, e.handed_back_steps], dtype=np.int64)
 
     @property
-    def fell(self):
-        """Whether the robot has fallen since the last (re)start (sim/outcome.py)."""
-        return self._outcome.fell_at is not None
+    def down(self):
+        """Whether the robot has fallen, collapsed or sunk since the last (re)start
+        (sim/outcome.py)."""
+        return self._outcome.down
 
     def outcome(self):
         """What happened since the last (re)start, the state now included, as
-        summary.json's `outcome` says it (sim/outcome.py): fell, how deep any body went, the
-        unsettled share, in words."""
+        summary.json's `outcome` says it (sim/outcome.py): fell, collapsed or sank, how deep
+        any body went, the unsettled share, in words."""
         self._outcome.observe(self.data, self.engine.surface, self.time)
         _, unsettled, handed_back = (self._engine_counts() - self._settle_counts
                                      - self._counts_before)
