@@ -231,20 +231,24 @@ class OutcomeWatch:
         x, y, z = data.xpos[self._base_origin]
         return float(surface.height(np.array([x]), np.array([y]))[0] - z)
 
+    def _judge(self, data, surface):
+        """(stance height m, base depth m, collapsed, sank) now, of a watched robot
+        (`set_down`): collapsed, its stance below COLLAPSE_SHARE of its height as set down;
+        sank, its base more than DEEP_M into the sand."""
+        stance, depth = self.stance_height(data), self.base_depth_now(data, surface)
+        return (stance, depth, stance < COLLAPSE_SHARE * self._stance_set_down,
+                depth > DEEP_M)
+
     def problem(self, data, surface):
-        """'collapsed: ...' or 'sank: ...', where the robot (an articulated one on a free
-        root) now holds its centre of mass up less than COLLAPSE_SHARE of its stance height
-        as set down, or has its base more than DEEP_M into the sand; else None."""
+        """'collapsed: ...' or 'sank: ...' where the robot (a watched one: `set_down`) is
+        now collapsed or sunk (`_judge`); else None."""
         if self._stance_set_down is None:
             return None
-        stance = self.stance_height(data)
-        if stance < COLLAPSE_SHARE * self._stance_set_down:
+        stance, depth, collapsed, sank = self._judge(data, surface)
+        if collapsed:
             return (f'collapsed: its centre of mass {stance * 100:.3g} cm above its sand '
                     f'bodies, from {self._stance_set_down * 100:.3g} cm as set down')
-        depth = self.base_depth_now(data, surface)
-        if depth > DEEP_M:
-            return f'sank: its base {depth * 100:.3g} cm into the sand'
-        return None
+        return f'sank: its base {depth * 100:.3g} cm into the sand' if sank else None
 
     def depths(self, data, surface, which=None):
         """(K,) m: how far the lowest point of each collision geom (at indices `which`;
@@ -284,12 +288,12 @@ class OutcomeWatch:
         if self.fell_at is None and tilt > self.tilt_limit_deg:
             self.fell_at = time
         if self._stance_set_down is not None:
-            stance, depth = self.stance_height(data), self.base_depth_now(data, surface)
+            stance, depth, collapsed, sank = self._judge(data, surface)
             self.min_stance = min(self.min_stance, stance)
             self.base_depth = max(self.base_depth, depth)
-            if self.collapsed_at is None and stance < COLLAPSE_SHARE * self._stance_set_down:
+            if self.collapsed_at is None and collapsed:
                 self.collapsed_at = time
-            if self.sank_at is None and depth > DEEP_M:
+            if self.sank_at is None and sank:
                 self.sank_at = time
         near = self._near(data, surface) if self._lowest.geoms.size else ()
         which, depth = self._watched(data, surface, near)

@@ -262,19 +262,18 @@ class Simulation:
         rest standing (still moving after SETTLE_LIMIT_S; or at rest fallen: its base turned
         more than FALL_TILT_DEG from how it was set down, onto its side or back, as one that
         cannot stand without its controller falls; or at rest collapsed or sunk, its centre
-        of mass held up less than half as high above its sand bodies as set down, or its base
-        more than 5 cm into the sand, as one whose servos are too weak for it lies down on
-        its belly: sim/outcome.py's `OutcomeWatch.problem`) starts instead from the state before, at
-        rest on the sand, as spawn drop:0 would. A notice says what was seen where it was
-        not a plain settling: the base's turn at the end and its largest on the way (a
-        robot that rocks far and then stands is not called fallen), its speed if still
-        moving, and what was done."""
+        of mass held up less than half as high above its sand bodies as set down, or its
+        base more than 5 cm into the sand, as one whose servos are too weak for it lies down
+        on its belly: sim/outcome.py's `OutcomeWatch.problem`) starts instead from the state
+        before, at rest on the sand, as spawn drop:0 would. A notice says what was seen
+        where it was not a plain settling: the base's turn at the end and its largest on the
+        way (a robot that rocks far and then stands is not called fallen), its speed if
+        still moving, and what was done."""
         if self.commands is not None:
             self._ctrl[self.interfaces.position_actuators] = self.commands.sample(0.0).positions
         kind = mujoco.mjtState.mjSTATE_INTEGRATION
         lowered = np.empty(mujoco.mj_stateSize(self.model, kind))
         mujoco.mj_getState(self.model, self.data, lowered, kind)
-        set_down = self.data.xmat[self._base_id].reshape(3, 3)[:, 2].copy()  # its up axis
         still, hold = 0, max(1, int(round(REST_HOLD_S / self.timestep)))
         check = max(1, int(round(ENTRY_CHECK_S / self.timestep)))
         failure = None
@@ -290,14 +289,12 @@ class Simulation:
                                  'settle (diverged)')
             still = still + 1 if speed < REST_SPEED else 0
             if step % check == 0:
-                up = self.data.xmat[self._base_id].reshape(3, 3)[:, 2]
-                tilt = float(np.degrees(np.arccos(np.clip(up @ set_down, -1.0, 1.0))))
+                tilt = self._outcome.tilt(self.data)  # (from how it was set down)
                 if tilt > most:
                     most, most_at = tilt, step * self.timestep
             if still >= hold:
                 break
-        up = self.data.xmat[self._base_id].reshape(3, 3)[:, 2]
-        tilt = float(np.degrees(np.arccos(np.clip(up @ set_down, -1.0, 1.0))))
+        tilt = self._outcome.tilt(self.data)
         if tilt > most:
             most, most_at = tilt, step * self.timestep
         problem = self._outcome.problem(self.data, self.engine.surface)
