@@ -173,7 +173,7 @@ def test_the_fall_is_marked_on_every_time_panel(hexapod_figure):
 def test_the_title_names_the_robot_and_the_scene():
     from rft_sim_ros.sim.labels import run_name
     menagerie = _summary(model='/home/u/mujoco_menagerie/unitree_go2/scene.xml',
-                         name='go2 scene', scene='scene')
+                         name='go2 scene', scene='unitree_go2')
     assert run_name(menagerie) == 'go2 scene (unitree_go2/scene.xml)'
     assert run_name(_summary()) == 'my_hexapod (hexapod.urdf.xacro)'
     bundled = _summary(model='/pkg/models/hexapod.xml', name='hexapod', scene='hexapod',
@@ -190,7 +190,7 @@ def _no_fall_marked(fig):
 
 def test_the_figure_title_has_the_robot_zeta_and_timestep_and_no_fall(figure):
     summary = _summary(model='/home/u/mujoco_menagerie/unitree_go2/scene.xml',
-                       name='go2 scene', scene='scene',
+                       name='go2 scene', scene='unitree_go2',
                        outcome={'fell': False, 'fell_at_s': None, 'words': 'stayed upright'})
     summary['schedule'] = [{'time_s': 1.5, 'zeta': 1.0, 'applied': True},
                            {'time_s': 99.0, 'zeta': 2.0, 'applied': False}]

@@ -5,9 +5,10 @@ from pathlib import Path
 
 import pytest
 
-from rft_sim_ros import cli
+from rft_sim_ros import cli, resources
 from rft_sim_ros.scenes import schema
-from rft_sim_ros.scenes.config import SceneError, bundled_scenes, load_scene, parse_assignment
+from rft_sim_ros.scenes.config import (SceneError, bundled_scenes, load_scene, parse_assignment,
+                                       robot_file_name)
 from rft_sim_ros.sim.runner import run_scene
 from rft_sim_ros.sim.simulation import Simulation
 
@@ -44,6 +45,18 @@ def test_every_bundled_scene_passes_the_schema():
     for name, path in bundled_scenes().items():
         scene = load_scene(path)
         assert set(scene.values) <= set(schema.BY_PATH), name
+
+
+def test_a_robot_file_names_its_scene_by_its_stem_or_a_generic_stems_folder(tmp_path):
+    assert robot_file_name('/w/anymal_c/anymal_c.xml') == 'anymal_c'
+    assert robot_file_name('desc/urdf/my_robot.urdf.xacro') == 'my_robot'
+    assert robot_file_name('/m/unitree_go2/scene.xml') == 'unitree_go2'
+    assert robot_file_name('scene.xml') == 'scene'  # (no folder named: the stem)
+    menagerie = tmp_path / 'plate_robot'
+    menagerie.mkdir()
+    (menagerie / 'scene.xml').write_text(
+        (resources.models_dir() / 'plate.xml').read_text())
+    assert load_scene(str(menagerie / 'scene.xml')).name == 'plate_robot'
 
 
 def test_defaults_fill_a_minimal_scene(tmp_path):

@@ -41,6 +41,26 @@ def test_play_pause_stop_and_the_codes_of_each_transition(rig):
     assert services.state().state == si.STATE_PAUSED
 
 
+def test_stopped_is_paused_at_the_initial_state_by_any_reset_until_it_moves_on(rig):
+    h, services = rig
+    h.run(0.1)
+    services.reset(si.SCOPE_STATE)  # playing: a reset keeps playing
+    assert services.state().state == si.STATE_PLAYING
+    services.set_state(si.STATE_PAUSED)
+    assert services.state().state == si.STATE_PAUSED
+    assert services.reset(si.SCOPE_ALL).result == si.RESULT_OK  # paused and reset: stopped
+    assert services.state().state == si.STATE_STOPPED
+    assert services.set_state(si.STATE_STOPPED).result == si.ALREADY_IN_TARGET_STATE
+    assert services.set_state(si.STATE_PAUSED).result == si.RESULT_OK  # no time passes
+    assert services.state().state == si.STATE_PAUSED and h.runtime.paused
+    h.runtime.reset()  # the node's own ~/reset too
+    assert services.state().state == si.STATE_STOPPED
+    assert services.set_state(si.STATE_PLAYING).result == si.RESULT_OK
+    assert services.state().state == si.STATE_PLAYING
+    started_paused = Harness(load_scene(SERVO_RIG), paused=True)
+    assert si.SimulationServices(started_paused.runtime).state().state == si.STATE_STOPPED
+
+
 def test_step_needs_a_pause_and_advances_whole_publish_periods(rig):
     h, services = rig
     refused = services.step(1)

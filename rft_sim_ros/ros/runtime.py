@@ -116,6 +116,9 @@ class SimRuntime:
         self._meter.rate(sim.time, clock())
         self._rejections = Counter()
         self.paused = bool(paused)
+        #: paused at the scene's initial state: started paused, or reset while paused, and
+        #: not stepped or played since (simulation_interfaces' STOPPED)
+        self.stopped = self.paused
         self.diverged = None
         self.last_state = None
         self._goal = None  # (FollowedGoal, listener) of the goal being followed
@@ -410,6 +413,7 @@ class SimRuntime:
         if paused != self.paused:
             self.paused = paused
             if not paused:
+                self.stopped = False
                 self._pacer.restart(self._clock(), self.sim.time)
 
     def _diverged_problem(self):
@@ -432,6 +436,7 @@ class SimRuntime:
         if not self.paused:
             return ServiceResult(False, 'step works while paused: call pause (true) first')
         before = self.sim.time
+        self.stopped = False
         stepped = self._cycle()
         self._diagnostics(self._clock())
         if not stepped:
@@ -441,9 +446,11 @@ class SimRuntime:
 
     def reset(self):
         """std_srvs/Trigger `reset`: back to the scene's initial state; sim time keeps
-        running forward; commands are dropped; paused stays as it is. The sand surface, if
-        that changed, is published at once; the state with the next cycle."""
+        running forward; commands are dropped; paused stays as it is (and a reset while
+        paused is `stopped`). The sand surface, if that changed, is published at once; the
+        state with the next cycle."""
         self.sim.reset()
+        self.stopped = self.paused
         self._end_goal(goals.aborted('the simulation was reset'))
         self.diverged = None
         self._pacer.restart(self._clock(), self.sim.time)

@@ -22,7 +22,9 @@ What this simulator supports, as GetSimulatorFeatures says it:
   state publication, as ~/step. The action runs its steps at once (as the service does): a
   cancel request is refused.
 * GetSimulationState / SetSimulationState (SIMULATION_STATE_GETTING, _SETTING, _PAUSE):
-  PLAYING, PAUSED, and STOPPED (paused and reset, until played or paused).
+  PLAYING, PAUSED, and STOPPED: paused at the scene's initial state (started paused, or reset
+  while paused, by any reset service), until stepped, played or set to PAUSED, as the
+  package's SimulationState says ("equivalent to pausing and resetting").
 Not supported: spawning, entities, named poses, worlds, quitting.
 """
 from dataclasses import dataclass
@@ -64,7 +66,6 @@ class SimulationServices:
 
     def __init__(self, runtime):
         self._runtime = runtime
-        self._stopped_at = None  # sim time of the last stop (STOPPED until it moves on)
 
     @staticmethod
     def features():
@@ -111,8 +112,7 @@ class SimulationServices:
     def _state(self):
         if not self._runtime.paused:
             return STATE_PLAYING
-        stopped = self._stopped_at is not None and self._stopped_at == self._runtime.sim.time
-        return STATE_STOPPED if stopped else STATE_PAUSED
+        return STATE_STOPPED if self._runtime.stopped else STATE_PAUSED
 
     def set_state(self, state):
         """SetSimulationState to `state`."""
@@ -128,9 +128,8 @@ class SimulationServices:
                 return Answer(STATE_TRANSITION_ERROR, done.message)
             return Answer(RESULT_OK, done.message)
         runtime.pause(True)
-        if state == STATE_PAUSED:
-            self._stopped_at = None
+        if state == STATE_PAUSED:  # (from STOPPED too: paused, as it stands)
+            runtime.stopped = False
             return Answer(RESULT_OK, f'paused at sim time {runtime.sim.time:.6f} s')
         done = runtime.reset()
-        self._stopped_at = runtime.sim.time
         return Answer(RESULT_OK, f'stopped: {done.message}')

@@ -137,6 +137,20 @@ def load_scene(name_or_path, overrides=None, given_by='--set'):
     return _validate(raw, path, Locator(path, lines, overrides, given_by), notices)
 
 
+#: Model file stems that say nothing about the robot (a MuJoCo Menagerie robot's scene.xml):
+#: its folder names it.
+GENERIC_STEMS = {'scene', 'model', 'robot', 'main', 'description'}
+
+
+def robot_file_name(model_path):
+    """The name of a bare robot file's scene, and so of its runs' folders: the file's stem
+    ('anymal_c' for anymal_c.xml, 'my_robot' for my_robot.urdf.xacro), or its folder's name
+    where the stem says nothing (GENERIC_STEMS: 'unitree_go2' for unitree_go2/scene.xml)."""
+    path = Path(model_path)
+    stem = path.name.split('.')[0]
+    return path.parent.name if stem in GENERIC_STEMS and path.parent.name else stem
+
+
 def robot_scene(model_path):
     """The scene of a bare robot file (the mapping a scene YAML would hold): its model, a name
     and a description, and every other key at the schema's default, so that it starts and
@@ -146,7 +160,7 @@ def robot_scene(model_path):
     onto the sand and settled; a base fixed to the world starts where the model puts it),
     sand bodies and legs auto unless `rft.sand_bodies` (`rft-sim run --sand-bodies`) names
     them."""
-    return {'name': Path(model_path).name.split('.')[0],
+    return {'name': robot_file_name(model_path),
             'description': f'{Path(model_path).name} in sand (external commands)',
             'model': str(Path(model_path).resolve())}
 

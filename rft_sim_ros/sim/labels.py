@@ -10,6 +10,8 @@ suffix is only made readable, never given a unit it does not state.
 import re
 from pathlib import PurePath
 
+from ..scenes.config import GENERIC_STEMS, robot_file_name
+
 #: Keys whose readable name is not their spelled-out key.
 KNOWN = {
     'zeta': 'sand stiffness zeta (N/cm³)',
@@ -37,10 +39,6 @@ KNOWN = {
 #: Unit suffixes of the project's key names -> the unit as written on an axis.
 UNITS = {'mps': 'm/s', 'm': 'm', 'mm': 'mm', 's': 's', 'N': 'N', 'Nm': 'N m', 'rad': 'rad',
          'deg': 'deg', 'kg': 'kg', 'Hz': 'Hz', 'Pa': 'Pa', 'J': 'J', 'W': 'W'}
-
-#: Model file stems that say nothing about the robot (a MuJoCo Menagerie robot's scene.xml):
-#: its folder is named with them.
-GENERIC_STEMS = {'scene', 'model', 'robot', 'main', 'description'}
 
 _INDEX = re.compile(r'^(.*)\[(\d+)\]$')
 
@@ -98,6 +96,6 @@ def run_name(summary):
     robot = summary.get('robot_model') or {}
     path = robot.get('file') or config.get('model') or ''
     scene = summary.get('scene') or ''
-    if not scene or (scene == _stem(path) and config.get('scenario') == 'external'):
+    if not scene or (scene == robot_file_name(path) and config.get('scenario') == 'external'):
         return robot_name(summary)
     return f'{robot_name(summary)} in scene {scene}'
