@@ -48,6 +48,7 @@ from pathlib import Path
 from . import __version__
 from .render import VIDEO_FILE
 from .interrupts import held_while_compiling, interrupts_never_lost, release_quietly
+from .sim.outcome import DOWN
 from .sim.summary import significant
 from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
                             parse_assignment, robot_overrides)
@@ -315,7 +316,7 @@ SHOWN_METRICS = 4
 
 def human_summary(summary, out, elapsed):
     """The few lines `rft-sim run` prints at the end: how the run ended (stable, and
-    whether the robot fell, collapsed or sank; its real-time factor, and `elapsed`, s, the
+    whether the robot fell, was upside down, collapsed or sank; its real-time factor, and `elapsed`, s, the
     command's wall time since it started (`main`'s `started`: through `rft-sim`, its
     imports too), the model's set-up and the outputs written, the figure's included), what
     happened to the robot (the summary's outcome words, where it has them), its key metrics
@@ -325,7 +326,7 @@ def human_summary(summary, out, elapsed):
         ended = 'interrupted'
     elif summary['stable']:
         outcome = summary.get('outcome') or {}
-        down = [said for said in ('fell', 'collapsed', 'sank') if outcome.get(said)]
+        down = [said for key, _, said in DOWN if outcome.get(key)]
         ended = 'stable' + (f' (the robot {" and ".join(down)})' if down else '')
     else:
         ended = 'NOT STABLE'

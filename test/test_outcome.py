@@ -215,7 +215,7 @@ def test_the_words_say_a_body_left_under_the_sand():
                'max_uncovered_sinkage_m': 1.2}
     assert words(outcome, 0.9, 'pelvis') == (
         'fell at t = 0.80 s: base turned 95 deg; pelvis ends 90 cm below the sand surface; '
-        'deepest: pelvis 120 cm below the surface at t = 1.50 s (no plates: it passed through)')
+        'deepest: pelvis 1.2 m below the surface at t = 1.50 s (no plates: it passed through)')
 
 
 def test_the_words_say_no_body_reached_the_sand():
@@ -224,7 +224,7 @@ def test_the_words_say_no_body_reached_the_sand():
     above = {'fell': False, 'max_tilt_deg': 0.0, 'unsettled_step_share': 0.0, 'deepest': None,
              'max_uncovered_sinkage_m': None}
     assert words(above, -0.05, 'plate') == (
-        'upright: base turned at most 0 deg; no body has reached the sand')
+        'upright: base turned at most 0 deg; no body went below the sand surface')
     touched = dict(above, deepest={'body': 'plate', 'sinkage_m': 0.001, 'time_s': 0.1,
                                    'has_plates': True})
     assert words(touched, 0.001, 'plate') == 'upright: base turned at most 0 deg'
@@ -241,7 +241,8 @@ def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
                      base_linear_velocity=np.zeros(3), base_angular_velocity=np.zeros(3),
                      legs=(), zeta=3.75, plates_active=0)
     fallen = {'fell': True, 'fell_at_s': 0.8, 'tilt_limit_deg': 45.0, 'max_tilt_deg': 95.0,
-              'final_tilt_deg': 90.0, 'collapsed': False, 'collapsed_at_s': None,
+              'final_tilt_deg': 90.0, 'upside_down': False, 'upside_down_at_s': None,
+              'final_up_angle_deg': 90.0, 'collapsed': False, 'collapsed_at_s': None,
               'sank': False, 'sank_at_s': None, 'deepest': {'body': 'trunk', 'sinkage_m': 0.02,
                                                   'time_s': 0.9, 'has_plates': True},
               'unsettled_step_share': 0.0, 'max_uncovered_sinkage_m': None,
@@ -257,7 +258,7 @@ def test_diagnostics_carry_the_outcome_and_warn_of_a_fall():
     fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0,
                                                 outcome=standing))
     assert fields.level == 0 and dict(fields.values)['fell_at_s'] == 'nan'
-    for down in ('collapsed', 'sank'):  # as much a warning as a fall
+    for down in ('upside_down', 'collapsed', 'sank'):  # as much a warning as a fall
         fields = diagnostic_fields(state, RunStatus(scene='s', real_time_factor=1.0, outcome={
             **standing, down: True, f'{down}_at_s': 0.5}))
         values = dict(fields.values)
@@ -278,3 +279,76 @@ def test_start_up_names_the_robots_bodies_without_collision_geoms(tmp_path):
     assert ': tail; should the robot fall onto them they pass through the sand' in notice
     rig = Simulation(load_scene('rail_flat', {'rft.plates_per_body': 50}))
     assert not [n for n in rig.notices if n.startswith('bodies without a collision geom')]
+
+
+def test_a_robot_on_its_back_is_upside_down_never_upright_set_down_so_or_turned_over():
+    """The base's z axis against the world's up (REP 103: a standing robot's base frame has
+    z up): a robot set down on its back has not turned from there, yet is upside down from
+    the first look; one set down upright that turns past 90 deg is upside down from then; a
+    rigid body (no joints) is not judged."""
+    model = mujoco.MjModel.from_xml_string(FALLER)
+    data = mujoco.MjData(model)
+    base, sand = model.body('base').id, Plane(0.0)
+    watch = OutcomeWatch(model, base, plated=[base])
+    _turn(model, data, 180.0, 0.05)
+    watch.set_down(data)
+    watch.start()
+    for time in (0.0, 0.5):
+        watch.observe(data, sand, time)
+    outcome = watch.result(data, sand, steps=10, unsettled=0)
+    assert outcome['upside_down'] and outcome['upside_down_at_s'] == 0.0
+    assert not outcome['fell'] and watch.down
+    assert outcome['up_angle_set_down_deg'] == pytest.approx(180.0)
+    assert outcome['final_up_angle_deg'] == pytest.approx(180.0)
+    assert outcome['words'].startswith("set down upside down: its base's z axis 180 deg from "
+                                       'up, 180 deg at the end; lying on the sand')
+    assert 'upright' not in outcome['words']
+    _turn(model, data, 0.0, 0.05)
+    watch.set_down(data)
+    watch.start()
+    for time, angle in ((1.0, 60.0), (1.5, 150.0), (2.0, 120.0)):
+        _turn(model, data, angle, 0.3)
+        watch.observe(data, sand, time)
+    outcome = watch.result(data, sand, steps=10, unsettled=0)
+    assert outcome['fell_at_s'] == 1.0 and outcome['upside_down_at_s'] == 1.5
+    assert outcome['max_up_angle_deg'] == pytest.approx(150.0)
+    assert outcome['words'].startswith(
+        "fell at t = 1.00 s: base turned 150 deg; upside down at t = 1.50 s: its base's z "
+        'axis 120 deg from up at the end (at most 150 deg); ')
+    rigid = mujoco.MjModel.from_xml_string(SHAPES)
+    data = mujoco.MjData(rigid)
+    mujoco.mj_forward(rigid, data)
+    watch = OutcomeWatch(rigid, 1, plated=[1])
+    _turn(rigid, data, 180.0, 0.5)
+    watch.set_down(data)
+    watch.start()
+    watch.observe(data, sand, 0.0)
+    outcome = watch.result(data, sand, steps=10, unsettled=0)
+    assert not outcome['upside_down'] and outcome['final_up_angle_deg'] is None
+    assert outcome['up_angle_set_down_deg'] is None and 'upright' in outcome['words']
+
+
+def test_a_robot_set_down_upside_down_is_said_at_start_up_and_in_its_outcome(tmp_path):
+    from rft_sim_ros.cli import human_summary
+    from rft_sim_ros.scenes.config import load_scene
+    from rft_sim_ros.sim.simulation import Simulation
+    path = tmp_path / 'legged.xml'
+    path.write_text(LEGGED.replace('pos="0 0 0.42"', 'pos="0 0 0.42" euler="180 0 0"'))
+    sim = Simulation(load_scene(path, {'rft.sand_bodies': ['foot'],
+                                       'rft.plates_per_body': 50}))
+    [notice] = [n for n in sim.notices if 'upside down' in n]
+    assert notice.startswith('the base (base) is set down upside down: its z axis 180 deg')
+    sim.step(100)
+    outcome = sim.outcome()
+    assert outcome['upside_down'] and outcome['upside_down_at_s'] == 0.0 and sim.down
+    summary = {'interrupted': False, 'stable': True, 'outcome': outcome, 'scene': 'legged',
+               'sim_time_s': sim.time, 'wall_time_s': 1.0, 'real_time_factor': 0.1,
+               'first_step_s': 0.5, 'reason': None, 'metrics': {'x': 1.0}}
+    assert human_summary(summary, tmp_path, 1.0)[0].startswith(
+        'legged: stable (the robot was upside down)')
+
+
+def test_lengths_in_the_words_are_in_cm_below_a_metre_and_in_m_above():
+    from rft_sim_ros.sim.outcome import length
+    assert length(0.147) == '14.7 cm' and length(0.0083) == '0.83 cm'
+    assert length(11.9) == '11.9 m' and length(-1.5) == '-1.5 m'

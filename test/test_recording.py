@@ -168,6 +168,8 @@ def test_recorder_reports_a_divergence_and_finishes_the_bag(tmp_path):
                             slice(None), 1e5))])
     reason = summary['reason']
     assert not summary['stable'] and ('runaway' in reason or 'unstable' in reason)
+    # (its outcome is of the looks before, and says so: not a verdict on the blown-up state)
+    assert summary['outcome']['words'].startswith('until the run stopped at t = 0.1')
     recorded = bag_topics(tmp_path / 'bag')
     assert recorded[topics.JOINT_STATES].count == 11  # (sim time 0 and ten cycles)
     last_time, last = list(read_messages(tmp_path / 'bag', [topics.DIAGNOSTICS]))[-1][1:]

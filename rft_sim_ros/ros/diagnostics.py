@@ -3,43 +3,47 @@
 ROS-free; shared by the node and the headless bag recorder so both follow one rule:
 a status every `period_s` (the node counts wall seconds, as diagnostic_updater does; the
 headless recorder counts sim seconds, so its bags are reproducible) and at once when what
-the status says changes: zeta, stable/diverged, paused/running, a fall, collapse or sinking.
+the status says changes: zeta, stable/diverged, paused/running, the robot going down (a fall,
+upside down, a collapse or sinking).
 `outcome_values`: what /diagnostics says of the run's outcome (sim/outcome.py).
 """
 import math
+
+from rft_sim_ros.sim.outcome import DOWN
 
 
 def status_key(zeta, stable, paused, down=False):
     """What makes a new /diagnostics due at once: a change of the last published state's
     zeta (N/cm^3), or of whether the run is stable or paused (messages.RunStatus), or
-    whether the robot has fallen, collapsed or sunk (`Simulation.down`)."""
+    whether the robot has gone down (`Simulation.down`: fallen, upside down, collapsed or
+    sunk)."""
     return zeta, stable, paused, down
 
 
 def outcome_values(outcome):
     """[(key, value)] of /diagnostics for a run's `outcome` (summary.json's, sim/outcome.py;
-    None: none yet): outcome (its words), fell, fell_at_s (nan: it did not fall),
-    max_tilt_deg, collapsed, collapsed_at_s (nan: it did not collapse), sank, sank_at_s (nan:
-    it did not sink), deepest_body ('' where no geom went below the surface), deepest_sinkage_m,
-    deepest_has_plates, unsettled_step_share and max_uncovered_sinkage_m (nan: every
-    watched body carries plates)."""
+    None: none yet): outcome (its words); for each way down (sim/outcome.py's DOWN) whether
+    it happened and when (fell, fell_at_s, upside_down, upside_down_at_s, collapsed,
+    collapsed_at_s, sank, sank_at_s; nan: it did not); max_tilt_deg, final_up_angle_deg
+    (nan: not watched), deepest_body ('' where no geom went below the surface),
+    deepest_sinkage_m, deepest_has_plates, unsettled_step_share and max_uncovered_sinkage_m
+    (nan: every watched body carries plates)."""
     if outcome is None:
         return []
     deepest = outcome['deepest'] or {'body': '', 'sinkage_m': 0.0, 'has_plates': True}
-    nan = float('nan')
-    uncovered = outcome['max_uncovered_sinkage_m']
-    return [('outcome', outcome['words']), ('fell', bool(outcome['fell'])),
-            ('fell_at_s', nan if outcome['fell_at_s'] is None else float(outcome['fell_at_s'])),
-            ('max_tilt_deg', float(outcome['max_tilt_deg'])),
-            ('collapsed', bool(outcome['collapsed'])),
-            ('collapsed_at_s', nan if outcome['collapsed_at_s'] is None
-             else float(outcome['collapsed_at_s'])),
-            ('sank', bool(outcome['sank'])),
-            ('sank_at_s', nan if outcome['sank_at_s'] is None else float(outcome['sank_at_s'])),
-            ('deepest_body', deepest['body']), ('deepest_sinkage_m', float(deepest['sinkage_m'])),
-            ('deepest_has_plates', bool(deepest['has_plates'])),
-            ('unsettled_step_share', float(outcome['unsettled_step_share'])),
-            ('max_uncovered_sinkage_m', nan if uncovered is None else float(uncovered))]
+
+    def number(value):
+        return float('nan') if value is None else float(value)
+    values = [('outcome', outcome['words'])]
+    for key, at_key, _ in DOWN:
+        values += [(key, bool(outcome[key])), (at_key, number(outcome[at_key]))]
+    return values + [
+        ('max_tilt_deg', float(outcome['max_tilt_deg'])),
+        ('final_up_angle_deg', number(outcome['final_up_angle_deg'])),
+        ('deepest_body', deepest['body']), ('deepest_sinkage_m', float(deepest['sinkage_m'])),
+        ('deepest_has_plates', bool(deepest['has_plates'])),
+        ('unsettled_step_share', float(outcome['unsettled_step_share'])),
+        ('max_uncovered_sinkage_m', number(outcome['max_uncovered_sinkage_m']))]
 
 
 class DiagnosticsSchedule:

@@ -24,6 +24,7 @@ import numpy as np
 
 from rft_sim_ros.ros import topics
 from rft_sim_ros.ros.diagnostics import outcome_values
+from rft_sim_ros.sim.outcome import is_down
 from rft_sim_ros.stamps import seconds_to_ns, split_ns
 from rft_sim_ros.units import zeta_to_si
 
@@ -339,8 +340,7 @@ def diagnostic_fields(state, status):
     values += [(f'commands_rejected.{reason}', int(n)) for reason, n in rejected.items()]
     values += [('kernels', status.kernels)] if status.kernels else []
     values += outcome_values(status.outcome)
-    down = status.outcome is not None and any(
-        status.outcome[key] for key in ('fell', 'collapsed', 'sank'))
+    down = is_down(status.outcome)
     return DiagnosticFields(
         level=2 if not status.stable else 1 if down else 0,  # ERROR / WARN / OK
         name='rft_sim: simulation',

@@ -7,6 +7,10 @@ deep any of its bodies went into the sand, and how often the implicit solve did 
   down (`set_down`: its spawn's pose, before spawn rest settled it; on a slope, turned to
   it); the robot fell once it exceeds TILT_LIMIT_DEG (a quadruped on its side, a humanoid on
   its back; standing and walking robots stay well within it);
+- an articulated robot's up angle: the angle (deg) between its base's z axis and the world's
+  up (against gravity). A standing robot's base frame has z up (REP 103: x forward, y left, z
+  up), so the robot is upside down once that exceeds UPSIDE_DOWN_DEG, also where it was set
+  down so (a robot set down on its back has not turned from there, yet lies on its back);
 - an articulated robot (a free root with joints): its stance height, the height of its
   centre of mass (its root's subtree) above the lowest point of its sand bodies, against
   that height as set down; it collapsed once that is below COLLAPSE_SHARE of it (legs given
@@ -28,6 +32,14 @@ the implicit solve did not settle and says it all in words (`words`).
 The summary's `outcome` (summary.json, /diagnostics):
   fell                        the base turned beyond tilt_limit_deg at some point;
   fell_at_s                   sim time of the first look that saw it (null: it did not fall);
+  upside_down, upside_down_at_s
+                              an articulated robot's base z axis pointed more than
+                              UPSIDE_DOWN_DEG from up (on its back, or set down so), and the
+                              first look that saw it (false, null: it did not, or not watched:
+                              a robot that is one rigid body or fixed to the world);
+  up_angle_set_down_deg, max_up_angle_deg, final_up_angle_deg
+                              the base z axis' angle from up as set down, its largest and at
+                              the end (deg; null: not watched);
   tilt_limit_deg              TILT_LIMIT_DEG;
   max_tilt_deg, final_tilt_deg
                               the base's largest tilt, and its tilt at the end;
@@ -72,8 +84,10 @@ The summary's `outcome` (summary.json, /diagnostics):
                               lying on the sand"; "collapsed at t = 0.40 s: its centre of
                               mass came down to 15 cm above its sand bodies, from 54 cm as
                               set down; base turned at most 1 deg"; "sank at t = 0.36 s: its
-                              base went 94 cm into the sand; ..."; "no body has reached the
-                              sand" where no geom went below the surface.
+                              base went 94 cm into the sand; ..."; "no body went below the
+                              sand surface" where none did. A run that stopped (diverged, its
+                              scenario raised) says so first: "until the run stopped at t =
+                              0.0040 s: ...", of the looks before.
 """
 import math
 
@@ -84,6 +98,9 @@ from ..sand.geoms import bodies_without_collision, mesh_vertices, moving_collisi
 
 #: deg: the robot fell once its base has turned this far from how it started.
 TILT_LIMIT_DEG = 45.0
+#: deg: an articulated robot is upside down once its base's z axis points this far from up
+#: (below the horizontal).
+UPSIDE_DOWN_DEG = 90.0
 #: m: a point this far below the surface is reported in the words (a foot sinking under its
 #: robot's weight stays well within it on zeta 3.75 N/cm^3 sand); a fallen robot whose
 #: lowest point ends within it lies on the sand.
@@ -97,6 +114,15 @@ COLLAPSE_SHARE = 0.5
 #: m/s: a fallen robot whose base moves faster than this at the end is still moving
 #: (sliding, tumbling), not lying on the sand.
 LYING_SPEED = 0.1
+#: The outcome's ways of going down: (key, its time's key, as a run's first line says it).
+DOWN = (('fell', 'fell_at_s', 'fell'), ('upside_down', 'upside_down_at_s', 'was upside down'),
+        ('collapsed', 'collapsed_at_s', 'collapsed'), ('sank', 'sank_at_s', 'sank'))
+
+
+def is_down(outcome):
+    """Whether an `outcome` mapping (OutcomeWatch.result) says the robot went down in any
+    way (DOWN)."""
+    return any((outcome or {}).get(key) for key, _, _ in DOWN)
 
 _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = (
     int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE),
@@ -176,13 +202,17 @@ class OutcomeWatch:
                                if int(model.geom_bodyid[g]) in feet
                                and model.body_rootid[model.geom_bodyid[g]] == self._root],
                               dtype=int)
-        self._watch_body = articulated(model, self._root) and self._feet.size > 0
+        self._watch_up = articulated(model, self._root)
+        self._watch_body = self._watch_up and self._feet.size > 0
+        gravity = np.asarray(model.opt.gravity, dtype=float)
+        norm = float(np.linalg.norm(gravity))
+        self._world_up = (-gravity / norm if norm > 0.0 else np.array([0.0, 0.0, 1.0])).tolist()
         welded = model.body_weldid[base]  # the base: its geoms', else its origin's depth
         self._base_geoms = np.array([i for i, g in enumerate(self._lowest.geoms)
                                      if model.body_weldid[model.geom_bodyid[g]] == welded],
                                     dtype=int)
         self._base_origin = int(welded)
-        self._up = self._stance_set_down = None
+        self._up = self._stance_set_down = self.up_angle_set_down = None
         self.start()
 
     def set_down(self, data):
@@ -191,28 +221,38 @@ class OutcomeWatch:
         height now is its height as set down (`stance_height`; not watched where it is
         within DEEP_M: set down lying)."""
         self._up = data.xmat[self._base].reshape(3, 3)[:, 2].tolist()
+        self.up_angle_set_down = self.up_angle(data) if self._watch_up else None
         stance = self.stance_height(data) if self._watch_body else None
         self._stance_set_down = stance if stance is not None and stance > DEEP_M else None
 
     def start(self):
         """From a (re)start: nothing seen yet."""
-        self.fell_at = self.collapsed_at = self.sank_at = None
+        self.fell_at = self.collapsed_at = self.sank_at = self.upside_down_at = None
         self.max_tilt = 0.0
+        self.max_up_angle = -math.inf
         self.min_stance, self.base_depth = math.inf, -math.inf
         self.deepest = None  # (depth m, index into the watched bodies, time s)
         self.uncovered = 0.0 if (~self._has_plates).any() else None
 
     @property
     def down(self):
-        """Whether the robot has fallen, collapsed or sunk since the (re)start."""
-        return any(at is not None for at in (self.fell_at, self.collapsed_at, self.sank_at))
+        """Whether the robot has fallen, turned upside down, collapsed or sunk since the
+        (re)start."""
+        return any(at is not None for at in (self.fell_at, self.upside_down_at,
+                                             self.collapsed_at, self.sank_at))
 
     def tilt(self, data):
         """deg between the base's up axis now and as it was set down."""
-        if self._up is None:
-            return 0.0
-        x, y, z = self._up
-        rotation = data.xmat[self._base]  # (row-major: its up axis is column 2)
+        return 0.0 if self._up is None else self._angle_to(data, self._up)
+
+    def up_angle(self, data):
+        """deg between the base's z axis now and the world's up (against gravity)."""
+        return self._angle_to(data, self._world_up)
+
+    def _angle_to(self, data, direction):
+        """deg between the base's z axis now and `direction` (a unit vector, world)."""
+        x, y, z = direction
+        rotation = data.xmat[self._base]  # (row-major: its z axis is column 2)
         cosine = rotation[2] * x + rotation[5] * y + rotation[8] * z
         return math.degrees(math.acos(min(1.0, max(-1.0, cosine)))) if cosine == cosine \
             else math.nan
@@ -246,9 +286,9 @@ class OutcomeWatch:
             return None
         stance, depth, collapsed, sank = self._judge(data, surface)
         if collapsed:
-            return (f'collapsed: its centre of mass {stance * 100:.3g} cm above its sand '
-                    f'bodies, from {self._stance_set_down * 100:.3g} cm as set down')
-        return f'sank: its base {depth * 100:.3g} cm into the sand' if sank else None
+            return (f'collapsed: its centre of mass {length(stance)} above its sand '
+                    f'bodies, from {length(self._stance_set_down)} as set down')
+        return f'sank: its base {length(depth)} into the sand' if sank else None
 
     def depths(self, data, surface, which=None):
         """(K,) m: how far the lowest point of each collision geom (at indices `which`;
@@ -287,6 +327,11 @@ class OutcomeWatch:
         self.max_tilt = max(self.max_tilt, tilt)
         if self.fell_at is None and tilt > self.tilt_limit_deg:
             self.fell_at = time
+        if self._watch_up:
+            up = self.up_angle(data)
+            self.max_up_angle = max(self.max_up_angle, up)
+            if self.upside_down_at is None and up > UPSIDE_DOWN_DEG:
+                self.upside_down_at = time
         if self._stance_set_down is not None:
             stance, depth, collapsed, sank = self._judge(data, surface)
             self.min_stance = min(self.min_stance, stance)
@@ -316,22 +361,28 @@ class OutcomeWatch:
                                  velocity, 0)
         return float(np.linalg.norm(velocity[3:]))
 
-    def result(self, data, surface, steps, unsettled, handed_back=0):
+    def result(self, data, surface, steps, unsettled, handed_back=0, stopped_at=None):
         """The `outcome` mapping (module docstring) of the run so far, `data` its final state;
         steps: the run's steps; unsettled: how many of them the implicit solve did not
-        settle; handed_back: in how many it handed MuJoCo's constraint rows back."""
+        settle; handed_back: in how many it handed MuJoCo's constraint rows back;
+        stopped_at: sim time (s) the run stopped at (diverged; None: it did not)."""
         final = self.tilt(data)
         deepest = None
         if self.deepest is not None:
             depth, i, time = self.deepest
             deepest = {'body': self._body(i), 'sinkage_m': depth, 'time_s': time,
                        'has_plates': bool(self._has_plates[i])}
-        def seen(value):  # (watched and looked at with a finite state: else null)
-            return value if self._stance_set_down is not None and math.isfinite(value) else None
+        def seen(value, watched=self._stance_set_down is not None):  # (else null)
+            return value if watched and math.isfinite(value) else None
         outcome = {
             'fell': self.fell_at is not None, 'fell_at_s': self.fell_at,
             'tilt_limit_deg': self.tilt_limit_deg, 'max_tilt_deg': self.max_tilt,
             'final_tilt_deg': final,
+            'upside_down': self.upside_down_at is not None,
+            'upside_down_at_s': self.upside_down_at,
+            'up_angle_set_down_deg': self.up_angle_set_down,
+            'max_up_angle_deg': seen(self.max_up_angle, self._watch_up),
+            'final_up_angle_deg': seen(self.up_angle(data), self._watch_up),
             'collapsed': self.collapsed_at is not None, 'collapsed_at_s': self.collapsed_at,
             'collapse_share': COLLAPSE_SHARE,
             'stance_height_set_down_m': self._stance_set_down,
@@ -350,6 +401,9 @@ class OutcomeWatch:
             lowest = int(np.argmax(now))
             final_depth, final_body = float(now[lowest]), self._body(which[lowest])
         outcome['words'] = words(outcome, final_depth, final_body)
+        if stopped_at is not None:
+            outcome['words'] = f'until the run stopped at t = {stopped_at:.4f} s: ' \
+                + outcome['words']
         return outcome
 
 
@@ -361,41 +415,49 @@ def articulated(model, root):
     return bool(free) and len(joints) > len(free)
 
 
+def length(metres):
+    """A length in words: in cm below a metre ('14.7 cm'), else in m ('11.9 m')."""
+    return f'{metres * 100:.3g} cm' if abs(metres) < 1.0 else f'{metres:.3g} m'
+
+
 def words(outcome, final_depth, final_body):
     """`outcome` in a line; final_depth (m): how far below the surface the lowest point of
     final_body lies at the end."""
-    below = f'{final_body} ends {final_depth * 100:.3g} cm below the sand surface'
+    below = f'{final_body} ends {length(final_depth)} below the sand surface'
     turned = f"base turned at most {outcome['max_tilt_deg']:.0f} deg"
-    if outcome['fell']:
+    over = outcome['fell'] or outcome.get('upside_down')
+    if over:
         speed = outcome.get('final_base_speed_mps', 0.0)
         parts = [f"fell at t = {outcome['fell_at_s']:.2f} s: base turned "
-                 f"{outcome['max_tilt_deg']:.0f} deg",
-                 below if final_depth > DEEP_M else
-                 f'still moving at {speed:.2g} m/s at the end' if speed > LYING_SPEED else
-                 'lying on the sand']
+                 f"{outcome['max_tilt_deg']:.0f} deg"] if outcome['fell'] else []
+        if outcome.get('upside_down'):
+            parts.append(_upside_down(outcome))
+        parts.append(below if final_depth > DEEP_M else
+                     f'still moving at {speed:.2g} m/s at the end' if speed > LYING_SPEED else
+                     'lying on the sand')
     elif outcome.get('collapsed'):
         parts = [f"collapsed at t = {outcome['collapsed_at_s']:.2f} s: its centre of mass "
-                 f"came down to {outcome['min_stance_height_m'] * 100:.3g} cm above its sand "
-                 f"bodies, from {outcome['stance_height_set_down_m'] * 100:.3g} cm as set "
+                 f"came down to {length(outcome['min_stance_height_m'])} above its sand "
+                 f"bodies, from {length(outcome['stance_height_set_down_m'])} as set "
                  f'down', turned]
     else:
         parts = [('' if outcome.get('sank') else 'upright: ') + turned]
     if outcome.get('sank'):
         parts.insert(0, f"sank at t = {outcome['sank_at_s']:.2f} s: its base went "
-                        f"{outcome['max_base_depth_m'] * 100:.3g} cm into the sand")
-    if not outcome['fell'] and (outcome.get('collapsed') or outcome.get('sank')) \
+                        f"{length(outcome['max_base_depth_m'])} into the sand")
+    if not over and (outcome.get('collapsed') or outcome.get('sank')) \
             and final_depth > DEEP_M:
         parts.append(below)
     deepest = outcome['deepest']
     if deepest is None:  # (a short run, a robot held above the sand: its metrics say no contact)
-        parts.append('no body has reached the sand')
+        parts.append('no body went below the sand surface')
     elif deepest['sinkage_m'] > DEEP_M:
-        parts.append(f"deepest: {deepest['body']} {deepest['sinkage_m'] * 100:.3g} cm below the "
+        parts.append(f"deepest: {deepest['body']} {length(deepest['sinkage_m'])} below the "
                      f"surface at t = {deepest['time_s']:.2f} s"
                      + ('' if deepest['has_plates'] else ' (no plates: it passed through)'))
     uncovered = outcome['max_uncovered_sinkage_m']
     if uncovered is not None and uncovered > DEEP_M and (deepest or {}).get('has_plates'):
-        parts.append(f'a body without plates reached {uncovered * 100:.3g} cm into the sand')
+        parts.append(f'a body without plates reached {length(uncovered)} into the sand')
     share = outcome['unsettled_step_share']
     if share > UNSETTLED_SAID:
         parts.append(f'in {share * 100:.0f} % of steps the implicit solve froze plates whose '
@@ -407,3 +469,14 @@ def words(outcome, final_depth, final_body):
                      'constraint rows (contacts, limits, loops) the implicit solve could not '
                      'settle')
     return '; '.join(parts)
+
+
+def _upside_down(outcome):
+    """The words for an upside-down robot (`outcome['upside_down']`)."""
+    final = outcome['final_up_angle_deg']
+    at_end = 'unknown' if final is None else f'{final:.0f} deg'  # (null: a diverged end)
+    if outcome['up_angle_set_down_deg'] > UPSIDE_DOWN_DEG:
+        return (f"set down upside down: its base's z axis {outcome['up_angle_set_down_deg']:.0f} "
+                f'deg from up, {at_end} at the end')
+    return (f"upside down at t = {outcome['upside_down_at_s']:.2f} s: its base's z axis "
+            f'{at_end} from up at the end (at most {outcome["max_up_angle_deg"]:.0f} deg)')

@@ -19,6 +19,7 @@ from typing import NamedTuple
 from urllib.parse import quote
 
 from .labels import label, run_name
+from .outcome import DOWN, is_down
 
 #: The page's own style (no external assets).
 STYLE = """
@@ -127,14 +128,13 @@ def _outcome(summary):
         lines.append(f'<p>reason: {esc(summary["reason"])}</p>')
     outcome = summary.get('outcome') or {}
     if outcome.get('words'):
-        css = 'bad' if any(outcome.get(key) for key in ('fell', 'collapsed', 'sank')) else 'ok'
+        css = 'bad' if is_down(outcome) else 'ok'
         lines.append(f'<p class="{css}">{esc(outcome["words"])}</p>')
     rows = []
     if outcome:
-        for key, name in (('fell_at_s', 'fell at (s)'), ('collapsed_at_s', 'collapsed at (s)'),
-                          ('sank_at_s', 'sank at (s)')):
+        for _, key, said in DOWN:
             if outcome.get(key) is not None:
-                rows.append([name, outcome[key]])
+                rows.append([f'{said} at (s)', outcome[key]])
         for key, name in (('max_tilt_deg', 'largest base tilt (deg)'),
                           ('final_tilt_deg', 'final base tilt (deg)'),
                           ('tilt_limit_deg', 'tilt counted as a fall (deg)'),

@@ -30,6 +30,7 @@ import matplotlib.pyplot as plt  # noqa: E402  (backend must be chosen first)
 import numpy as np  # noqa: E402
 
 from .labels import run_name  # noqa: E402
+from .outcome import DOWN  # noqa: E402
 from .series import joint_columns  # noqa: E402
 
 #: The force axis's clipping (module docstring): quantile of the forces, ratio of the peak
@@ -118,8 +119,7 @@ def _time_marks(axes, summary):
             axis.axvline(change['time_s'], color='0.3', linestyle='--', linewidth=0.8,
                          label=f'{setting} from {change["time_s"]:g} s' if i == 0 else None)
     outcome = summary.get('outcome') or {}
-    for key, said in (('fell_at_s', 'fell'), ('collapsed_at_s', 'collapsed'),
-                      ('sank_at_s', 'sank')):
+    for _, key, said in DOWN:
         at = outcome.get(key)
         if at is not None:
             for i, axis in enumerate(axes):

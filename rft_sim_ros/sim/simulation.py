@@ -37,7 +37,7 @@ from .build import (base_id, choose_sand_bodies, compile_model, deformable_bed, 
                     servo_stiffness, spawn_of)
 from .caveats import caveats
 from .hybrid_drive import HybridDrive
-from .outcome import TILT_LIMIT_DEG, OutcomeWatch
+from .outcome import TILT_LIMIT_DEG, UPSIDE_DOWN_DEG, OutcomeWatch
 from .sand_entry import SandEntryWatch
 from .sensors import Sensors, scene_settings
 from .state import ActivePlates, LegWrench, SimState
@@ -206,6 +206,7 @@ class Simulation:
         if line is None:
             return None
         self.diverged = f'at t = {self.time:.4f} s: the scenario raised at {line}'
+        self._stopped_at = self.time
         return ScenarioFailed(self.diverged, ''.join(traceback.format_exception(error)))
 
     def _pose(self):
@@ -219,6 +220,7 @@ class Simulation:
         handler holding it, cleared divergence flags, control and observation ticks counted
         from here (a reset replays a fresh start's ticks)."""
         self.diverged = None
+        self._stopped_at = None  # sim time s of the divergence (`diverged`)
         self._ticks = 0
         self._since_start = 0  # engine steps since this (re)start: the ticks' phase
         self._steps_before = self.steps  # (the outcome counts from here)
@@ -245,6 +247,13 @@ class Simulation:
                 self.notices.append(notice)
         mujoco.mj_forward(self.model, self.data)
         self._outcome.set_down(self.data)
+        up = self._outcome.up_angle_set_down
+        if up is not None and up > UPSIDE_DOWN_DEG:
+            notice = (f"the base ({self.base_body}) is set down upside down: its z axis "
+                      f'{up:.0f} deg from up (a standing robot\'s base frame has z up, REP '
+                      '103); the outcome says so')
+            if notice not in self.notices:  # (a reset sets it down again)
+                self.notices.append(notice)
         self.hybrid_drive.release()
         self.interfaces.set_mode('position')
         self.commands = None
@@ -255,6 +264,7 @@ class Simulation:
             self._settle()
         self._counts_before = self._engine_counts() - self._settle_counts
         self._outcome.start()
+        self._outcome.observe(self.data, self.engine.surface, self.time)  # (as it starts)
 
     def _settle(self):
         """Spawn 'rest': step, the joints holding their targets, until the base is at rest
@@ -333,8 +343,8 @@ class Simulation:
 
     @property
     def down(self):
-        """Whether the robot has fallen, collapsed or sunk since the last (re)start
-        (sim/outcome.py)."""
+        """Whether the robot has fallen, turned upside down, collapsed or sunk since the last
+        (re)start (sim/outcome.py)."""
         return self._outcome.down
 
     def outcome(self):
@@ -346,7 +356,7 @@ class Simulation:
                                      - self._counts_before)
         return self._outcome.result(self.data, self.engine.surface,
                                     self.steps - self._steps_before, int(unsettled),
-                                    int(handed_back))
+                                    int(handed_back), self._stopped_at)
 
     def implicit_counts(self):
         """The implicit solve's counts over the steps the run took (`step`, resets
@@ -441,6 +451,7 @@ class Simulation:
     def _diverge(self, problem, at_time=None):
         at_time = self.time if at_time is None else at_time
         self.diverged = f'at t = {at_time:.4f} s: {problem}'
+        self._stopped_at = at_time
         raise SimulationDiverged(self.diverged)
 
     def _check(self):
