@@ -4,6 +4,7 @@ import csv
 import json
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from rft_sim_ros.scenes.config import load_scene
@@ -59,3 +60,36 @@ def test_a_leg_without_a_sand_body_is_refused():
     sim = SimpleNamespace(sand_bodies=('A', 'C'), legs={'a': ('A',), 'x': ('O',), 'c': ('C',)})
     with pytest.raises(ValueError, match=r"legs without a sand body have no sinkage: \['x'\]"):
         SeriesRows(sim)
+
+
+WHEEL = """<mujoco><worldbody><body name="hub" pos="0 0 0.5">
+  <geom type="box" size="0.05 0.05 0.05" mass="1"/>
+  <body name="wheel" pos="0 0.1 0"><joint name="axle" axis="0 1 0"/>
+    <geom type="cylinder" size="0.1 0.02" euler="90 0 0" mass="1"/></body>
+</body></worldbody></mujoco>"""
+
+
+def test_a_joint_effort_is_its_mean_over_the_publish_period_not_one_step_of_a_sawtooth(
+        tmp_path):
+    """A wheel spinning in the air at a commanded speed: its servo target moves at control
+    ticks (every 2 steps), so the servo's force swings about its mean, zero, from step to
+    step; the published effort is that mean over the steps since the last state (as the leg
+    wrenches are), not the last step's, which a publish in phase with the ticks would read
+    on one side only."""
+    from rft_sim_ros.sim.simulation import Simulation
+    path = tmp_path / 'wheel.xml'
+    path.write_text(WHEEL)
+    sim = Simulation(load_scene(path, {'rft.sand_bodies': ['wheel'],
+                                       'rft.plates_per_body': 50}))
+    sim.commands.set_velocities([20.0], sim.time)
+    sim.step(500)
+    sim.state()  # (at a steady speed: the mean restarts here)
+    per_step = []
+    for _ in range(10):
+        sim.step(1)
+        per_step.append(float(sim.data.qfrc_actuator[0]))
+    effort = float(sim.state().joint_efforts[0])
+    assert effort == pytest.approx(np.mean(per_step), abs=1e-12)
+    assert min(per_step) < -0.03 and max(per_step) > 0.03  # (N m: the sawtooth)
+    assert abs(effort) < 0.02 * max(abs(f) for f in per_step)
+    assert sim.data.qvel[0] == pytest.approx(20.0, rel=0.01)

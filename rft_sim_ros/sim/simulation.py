@@ -161,6 +161,8 @@ class Simulation:
         self.joint_names = tuple(model.joint(j).name for j in self._joints)
         self._qpos_adr = model.jnt_qposadr[self._joints]
         self._dof_adr = model.jnt_dofadr[self._joints]
+        # actuator forces (qfrc_actuator) summed over the steps since the last state
+        self._effort_sum, self._effort_steps = np.zeros(model.nv), 0
         legs = legs_of(scene, model, engine, self.sand_bodies, self.other_bodies, base)
         self.legs, self._leg_names, self._leg_feet = legs.legs, legs.names, legs.feet
         self._leg_rows, self._leg_membership = legs.rows, legs.membership
@@ -224,6 +226,7 @@ class Simulation:
         self._ticks = 0
         self._since_start = 0  # engine steps since this (re)start: the ticks' phase
         self._steps_before = self.steps  # (the outcome counts from here)
+        self._effort_sum[:], self._effort_steps = 0.0, 0
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
         self._next_entry_check = 0.0  # sim time, s
@@ -394,12 +397,15 @@ class Simulation:
             raise SimulationDiverged(self.diverged)
         scenario, engine_step, data = self.scenario, self.engine.step, self.data
         observe_every, control_every = scenario.observe_interval, self._control_every
+        actuation, effort_sum, add = data.qfrc_actuator, self._effort_sum, np.add
         try:
             for _ in range(count):
                 if self._since_start % control_every == 0:
                     self._control_tick()
                 before = data.time
                 engine_step()
+                add(effort_sum, actuation, out=effort_sum)
+                self._effort_steps += 1
                 self.steps += 1
                 self._since_start += 1
                 if data.time <= before:  # MuJoCo reset a non-finite state
@@ -546,6 +552,16 @@ class Simulation:
         about the leg's point now."""
         return self._legs_and_feet()[0]
 
+    def _mean_efforts(self):
+        """(joints,) N m or N: each joint's actuator force, the mean over the steps since the
+        last call (with none since, the last step's); then restarts the mean."""
+        steps, self._effort_steps = self._effort_steps, 0
+        if not steps:
+            return self.data.qfrc_actuator[self._dof_adr]
+        mean = self._effort_sum[self._dof_adr] / steps
+        self._effort_sum[:] = 0.0
+        return mean
+
     def _legs_and_feet(self):
         """(`leg_wrenches`, (legs, 3) the sand force on each leg's foot, its last sand body,
         N, world axes), means over the steps since the previous call."""
@@ -559,9 +575,13 @@ class Simulation:
                 wrenches[self._foot_rows, :3])
 
     def state(self, with_plates=False):
-        """A SimState snapshot of the current state; its leg wrenches are the means over the
-        steps since the previous snapshot (see `leg_wrenches`); with the sensor readings the
-        scene enables (sensors.*)."""
+        """A SimState snapshot of the current state; its joint efforts and leg wrenches are
+        the means over the steps since the previous snapshot (see `leg_wrenches`; with no
+        step since, the last step's), as a filtered sensor reports them: a servo whose target
+        moves between control ticks (a velocity command, a trajectory) pushes a sawtooth
+        about its mean, which a sample at every publish period, in phase with the ticks,
+        would read on one side only; with the sensor readings the scene enables
+        (sensors.*)."""
         d = self.data
         velocity = np.empty(6)
         mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_XBODY, self._base_id,
@@ -577,7 +597,7 @@ class Simulation:
             joint_names=self.joint_names,
             joint_positions=d.qpos[self._qpos_adr],  # (index arrays: copies already)
             joint_velocities=d.qvel[self._dof_adr],
-            joint_efforts=d.qfrc_actuator[self._dof_adr],
+            joint_efforts=self._mean_efforts(),
             base_frame=self.base_body,
             base_position=d.xpos[self._base_id].copy(),
             base_quaternion_wxyz=d.xquat[self._base_id].copy(),

@@ -50,8 +50,9 @@ class SimState:
 
     time: s of simulation time since the start (continuous across resets).
     joint_names / joint_positions (rad or m) / joint_velocities (rad/s or m/s) /
-    joint_efforts (N m or N, the actuator force acting on the joint): the scene's actuated
-    and passive 1-DOF joints, in the scene's joint order.
+    joint_efforts (N m or N, the actuator force acting on the joint, its mean over the steps
+    since the previous state): the scene's actuated and passive 1-DOF joints, in the scene's
+    joint order.
     base_frame: the TF frame of the robot's base, the base body's name (a URDF's root link,
     e.g. base_link or base), so that odom -> base_frame joins the tree robot_state_publisher
     publishes from the same description.
