@@ -275,3 +275,37 @@ def test_servos_passive_switches_off_a_muscle_too():
     data.ctrl[:], data.act[:] = 1.0, 1.0
     mujoco.mj_step(model, data)
     assert data.actuator_force[0] == 0.0
+
+
+def test_a_velocity_actuated_joint_is_named_and_servos_gives_it_commands(tmp_path):
+    """A shoulder the model drives with a <velocity> actuator: no command interfaces (its
+    control stays 0: held still), a notice names it and says how to give it a servo, and
+    the reason commands cannot reach it names it; `servos` naming it switches that actuator
+    off and gives it a PD and a motor, so a velocity command turns it; a servos pattern
+    that matches no joint is refused, naming the joints."""
+    velocity = ARM.replace('<position name="shoulder" joint="shoulder" kp="50" kv="1"/>',
+                           '<velocity name="spin" joint="shoulder" kv="5"/>')
+    (tmp_path / 'arm.xml').write_text(velocity)
+    settings = {'duration': 0.5, 'sand.surface_height': -1.0, 'rft.sand_bodies': ['forearm'],
+                'rft.plates_per_body': 50}
+    held = Simulation(load_scene(tmp_path / 'arm.xml', settings))
+    assert held.servo_joint_names == () and held.commands is None
+    assert any(n.startswith("joint shoulder: driven by the model's own actuators of another "
+                            'kind') for n in held.notices), held.notices
+    assert "driven by the model's own actuators of another kind: shoulder" in \
+        held.no_commands_reason()
+    served = Simulation(load_scene(tmp_path / 'arm.xml', {
+        **settings, 'servos': {'shoulder': {'kp': 20.0, 'kd': 0.5}}}))
+    assert served.servo_joint_names == ('shoulder',)
+    assert any("actuator spin of another kind than position or motor switched off" in n
+               for n in served.notices)
+    served.commands.set_velocities([2.0], served.time)
+    served.step(200)
+    start = served.data.joint('shoulder').qpos[0]
+    served.step(1000)  # (1 s: its mean speed, the weight's pull round a turn aside)
+    assert served.data.actuator('spin').force[0] == 0.0
+    assert served.data.joint('shoulder').qpos[0] - start == pytest.approx(2.0, rel=0.05)
+    with pytest.raises(SceneError, match=r"servos: 'shuolder' matches no joint of the model "
+                                         r'\(its joints: shoulder, elbow\)'):
+        Simulation(load_scene(tmp_path / 'arm.xml', {**settings,
+                                                     'servos': {'shuolder': 'passive'}}))

@@ -28,7 +28,9 @@ in effort mode (position actuators' gains off). A joint whose `servos` entry is 
 (the model's own actuators on it, if any, switched off: a fixed gain of 0 and no bias, no
 force; actuators on tendons or sites across it are kept), that has no actuator where the
 model has some (above), that is driven by another actuator kind (velocity, integrated
-velocity, tendon...), that has no name (no command could name it; /joint_states leaves it
+velocity, a muscle...; `other_driven`: its control stays 0, a velocity actuator holds it
+still) unless `servos` names it (then those actuators are switched off, as for passive, and
+it gets a PD and a motor as a joint without an actuator does: `replaced`), that has no name (no command could name it; /joint_states leaves it
 out too), or that an active joint equality sets from another joint or a constant (a URDF
 `<mimic>` joint, which MuJoCo's importer makes one; MJCF `<equality><joint joint1=...>`)
 gets no interfaces: it follows, as a ros2_control mimic joint does, instead of a servo
@@ -118,11 +120,16 @@ class JointPlan:
     model order); `passive`, the named movable joints that move freely: those the model
     gives no actuator (no servo asked for them), as the model has them, and those `servos`
     makes passive; `unactuated`, those the model gives no actuator; `switched_off`, the
-    names of the model's actuators on joints `servos` makes passive, switched off."""
+    names of the model's actuators on joints `servos` makes passive, switched off;
+    `other_driven`, the named joints driven by another actuator kind, without interfaces;
+    `replaced`, the names of the model's actuators of another kind on joints `servos` gives
+    a servo, switched off."""
     commanded: tuple
     passive: tuple
     unactuated: tuple
     switched_off: tuple
+    other_driven: tuple = ()
+    replaced: tuple = ()
 
 
 def add_joint_interfaces(spec, servos):
@@ -138,18 +145,23 @@ def add_joint_interfaces(spec, servos):
     every_joint = not spec.actuators  # no actuator of its own: every joint is commanded
     followers = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT
                  and e.active}
+    unmatched = [pattern for pattern in servos if not any(
+        fnmatch.fnmatchcase(joint.name, pattern) for joint in spec.joints if joint.name)]
+    if unmatched:
+        names = [joint.name for joint in spec.joints
+                 if joint.name and joint.type in _MOVABLE]
+        raise ValueError(f'servos: {", ".join(map(repr, unmatched))} match'
+                         f'{"es" * (len(unmatched) == 1)} no joint of the model (its joints: '
+                         f'{", ".join(names) or "none"})')
     joints, passive, unactuated, switched_off, added_pd = [], [], [], [], False
+    other_driven, replaced = [], []
     for joint in spec.joints:
         settings = servo_settings(servos, joint.name)
         if joint.type not in _MOVABLE or joint.name in followers:
             continue
         actuators = by_joint.get(joint.name, [])
         if settings == PASSIVE:  # free: the model's own actuators on it exert no force
-            for actuator in actuators:  # (a fixed gain of 0, no bias: a muscle's too)
-                actuator.gaintype, actuator.biastype = (mujoco.mjtGain.mjGAIN_FIXED,
-                                                        mujoco.mjtBias.mjBIAS_NONE)
-                actuator.gainprm, actuator.biasprm = np.zeros(10), np.zeros(10)
-                switched_off.append(actuator.name or f'actuator on {joint.name}')
+            switched_off += _switch_off(actuators, joint.name)
             if joint.name:
                 passive.append(joint.name)
             continue
@@ -161,8 +173,14 @@ def add_joint_interfaces(spec, servos):
         position = [a for a in actuators if _is_position_servo(
             a.gaintype, a.biastype, a.dyntype, a.gainprm, a.biasprm)]
         motors = [a for a in actuators if _is_motor(a.gaintype, a.biastype, a.dyntype)]
-        if len(position) + len(motors) < len(actuators) or not joint.name:
-            continue  # driven by another actuator kind, or no name to command it by
+        if not joint.name:
+            continue  # no name to command it by
+        if len(position) + len(motors) < len(actuators):  # driven by another actuator kind
+            if not settings:
+                other_driven.append(joint.name)
+                continue
+            replaced += _switch_off(actuators, joint.name)  # (servos asks for its servo)
+            position = motors = []
         if not position:
             _add_actuator(spec, _PD_PREFIX + joint.name, joint.name).set_to_position(
                 kp=1.0, kv=0.0)  # gains set on the compiled model (JointInterfaces)
@@ -172,7 +190,18 @@ def add_joint_interfaces(spec, servos):
         joints.append(joint.name)
     if added_pd and spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER:
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    return JointPlan(tuple(joints), tuple(passive), tuple(unactuated), tuple(switched_off))
+    return JointPlan(tuple(joints), tuple(passive), tuple(unactuated), tuple(switched_off),
+                     tuple(other_driven), tuple(replaced))
+
+
+def _switch_off(actuators, joint):
+    """Switch `actuators` (of joint name `joint`) off: a fixed gain of 0 and no bias (a
+    muscle's too), no force; returns their names."""
+    for actuator in actuators:
+        actuator.gaintype, actuator.biastype = (mujoco.mjtGain.mjGAIN_FIXED,
+                                                mujoco.mjtBias.mjBIAS_NONE)
+        actuator.gainprm, actuator.biasprm = np.zeros(10), np.zeros(10)
+    return [actuator.name or f'actuator on {joint}' for actuator in actuators]
 
 
 def _add_actuator(spec, name, joint):

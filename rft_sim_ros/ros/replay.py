@@ -58,7 +58,7 @@ def _apply(sim, command):
     """Hand `command` to `sim.commands` now; the handler's CommandResult."""
     commands = sim.commands
     if commands is None:
-        raise ValueError('this scene has no commanded joints to replay commands to')
+        raise ValueError(f'{sim.no_commands_reason()}: no joint to replay commands to')
     now = sim.time
     if command.kind == 'trajectory':
         return commands.set_trajectory(command.content, now)

@@ -265,7 +265,7 @@ class SimRuntime:
         block read its packed arrays): hybrid mode (`control.hybrid`)."""
         commands = self.sim.commands
         if commands is None:
-            result = CommandResult(Reason.UNKNOWN_JOINT, 'this scene has no commanded joints')
+            result = CommandResult(Reason.UNKNOWN_JOINT, self.sim.no_commands_reason())
         else:
             try:
                 command = read_joint_state_command(msg, self._command_index,

@@ -381,8 +381,10 @@ KEYS = (
     Key('servos', "mapping joint pattern -> {kp, kd, effort} or 'passive'", '', {},
         'Position-interface gains per joint (glob patterns, later ones win): kp N m/rad or '
         'N/m, kd N m s/rad or N s/m, effort limit N m or N; passive: no interfaces, the joint '
-        "moves freely (the model's own actuators on it switched off, with a notice). Defaults "
-        'from the robot mass (docs/robots.md).', _servos),
+        "moves freely (the model's own actuators on it switched off, with a notice). A joint "
+        "the model drives with another actuator kind (velocity, a muscle) gets a servo only "
+        "when named here (those actuators switched off). A pattern that matches no joint is "
+        'refused. Defaults from the robot mass (docs/robots.md).', _servos),
     Key('joint_gains', 'mapping joint pattern -> {kp, kd}', '', {}, 'Gains of the hybrid '
         'joint commands (a sensor_msgs/JointState on the joint commands topic: tau = kp (q* - '
         'q) + kd (dq* - dq) + tau_ff, docs/ros.md), glob patterns, later ones win: kp N m/rad '

@@ -85,12 +85,28 @@ def compile_model(scene, scenario, spec, initial_positions, notices):
                     + [p for p in patterns if p != AUTO])
     keep_sand_visuals(spec, patterns, visual)
     spec.compiler.discardvisual = True  # headless: visual-only geoms and meshes not needed
-    joint_plan = add_joint_interfaces(spec, scene.servos)
+    try:
+        joint_plan = add_joint_interfaces(spec, scene.servos)
+    except ValueError as error:
+        raise SceneError(f'scene {scene.name}: {error}') from None
     if joint_plan.switched_off:
         names = joint_plan.switched_off
         notices.append(f'servos passive: the model\'s actuator{"s" * (len(names) > 1)} '
                        f'{first_few(names)} switched off (no force), so the joints they drove '
                        'move freely')
+    if joint_plan.replaced:
+        names = joint_plan.replaced
+        notices.append(f'servos: the model\'s actuator{"s" * (len(names) > 1)} '
+                       f'{first_few(names)} of another kind than position or motor switched '
+                       'off (no force): the servos asked for drive their joints instead')
+    if joint_plan.other_driven:
+        names = joint_plan.other_driven
+        notices.append(
+            f'joint{"s" * (len(names) > 1)} {first_few(names)}: driven by the model\'s own '
+            'actuators of another kind than position or motor (velocity, a muscle, ...), '
+            'whose controls stay 0 (a velocity actuator holds its joint still); commands '
+            'leave them out. servos: {NAME: {kp: ..., kd: ...}} switches those actuators off '
+            'and gives the joint position, velocity and effort commands')
     if joint_plan.unactuated:
         names = joint_plan.unactuated
         notices.append(

@@ -139,6 +139,7 @@ class Simulation:
         self.model = model = compiled.model
         self._keyframe = compiled.keyframe
         self.passive_joint_names = compiled.joint_plan.passive
+        self._other_driven = compiled.joint_plan.other_driven
         # the sand's surface, and the rigid ground it replaces
         surface, zeta_map = sand_surface(scene, model, surface, notices)
         ground_to_sand(scene, model, notices)
@@ -551,6 +552,16 @@ class Simulation:
         over the steps since the previous call (`SandEngine.mean_wrenches`), with the torque
         about the leg's point now."""
         return self._legs_and_feet()[0]
+
+    def no_commands_reason(self):
+        """Why `commands` is None, in words: 'this scene has no commanded joints: ...' with
+        its joints that move freely and those the model's actuators of other kinds drive."""
+        kinds = [(self.passive_joint_names, 'passive'),
+                 (self._other_driven, "driven by the model's own actuators of another kind")]
+        said = '; '.join(f'{what}: {", ".join(names)}' for names, what in kinds if names)
+        return ('this scene has no commanded joints' + (f' ({said}; the start-up notices '
+                                                         'say how to give them servos)'
+                                                         if said else ''))
 
     def _mean_efforts(self):
         """(joints,) N m or N: each joint's actuator force, the mean over the steps since the
