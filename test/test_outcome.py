@@ -284,7 +284,8 @@ def test_start_up_names_the_robots_bodies_without_collision_geoms(tmp_path):
 def test_a_robot_on_its_back_is_upside_down_never_upright_set_down_so_or_turned_over():
     """The base's z axis against the world's up (REP 103: a standing robot's base frame has
     z up): a robot set down on its back has not turned from there, yet is upside down from
-    the first look; one set down upright that turns past 90 deg is upside down from then; a
+    the first look; one set down upright that turns past 135 deg is upside down from then;
+    one set down on its side is not upright; a
     rigid body (no joints) is not judged."""
     model = mujoco.MjModel.from_xml_string(FALLER)
     data = mujoco.MjData(model)
@@ -315,6 +316,13 @@ def test_a_robot_on_its_back_is_upside_down_never_upright_set_down_so_or_turned_
     assert outcome['words'].startswith(
         "fell at t = 1.00 s: base turned 150 deg; upside down at t = 1.50 s: its base's z "
         'axis 120 deg from up at the end (at most 150 deg); ')
+    _turn(model, data, 100.0, 0.3)  # (set down on its side: tilted, not upside down)
+    watch.set_down(data)
+    watch.start()
+    watch.observe(data, sand, 0.0)
+    outcome = watch.result(data, sand, steps=10, unsettled=0)
+    assert not outcome['upside_down'] and not outcome['fell']
+    assert outcome['words'].startswith('set down tilted 100 deg from up: base turned at most 0')
     rigid = mujoco.MjModel.from_xml_string(SHAPES)
     data = mujoco.MjData(rigid)
     mujoco.mj_forward(rigid, data)

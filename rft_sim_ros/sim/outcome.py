@@ -9,8 +9,11 @@ deep any of its bodies went into the sand, and how often the implicit solve did 
   its back; standing and walking robots stay well within it);
 - an articulated robot's up angle: the angle (deg) between its base's z axis and the world's
   up (against gravity). A standing robot's base frame has z up (REP 103: x forward, y left, z
-  up), so the robot is upside down once that exceeds UPSIDE_DOWN_DEG, also where it was set
-  down so (a robot set down on its back has not turned from there, yet lies on its back);
+  up), so the robot is upside down once that exceeds UPSIDE_DOWN_DEG (its z axis within
+  TILT_LIMIT_DEG of straight down: a quadruped on its back; a humanoid lying flat, about 90
+  deg, has fallen), also where it was set down so (a robot set down on its back has not
+  turned from there, yet lies on its back); one set down tilted more than TILT_LIMIT_DEG is
+  not called upright;
 - an articulated robot (a free root with joints): its stance height, the height of its
   centre of mass (its root's subtree) above the lowest point of its sand bodies, against
   that height as set down; it collapsed once that is below COLLAPSE_SHARE of it (legs given
@@ -80,6 +83,10 @@ The summary's `outcome` (summary.json, /diagnostics):
   max_uncovered_sinkage_m deepest point below the surface of a body without plates, bare
                               body origins included (null: every watched body carries
                               plates);
+  joint_past_limit            {joint, past_limit_rad (or _m), limit_rad (or _m), time_s}: the
+                              joint pushed farthest past its range, beyond 5 deg (5 mm),
+                              MuJoCo's soft limits yielding to a servo without an effort
+                              limit (sim/joint_limits.py; null: none);
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
                               lying on the sand"; "collapsed at t = 0.40 s: its centre of
                               mass came down to 15 cm above its sand bodies, from 54 cm as
@@ -95,12 +102,13 @@ import mujoco
 import numpy as np
 
 from ..sand.geoms import bodies_without_collision, mesh_vertices, moving_collision_geoms
+from . import joint_limits
 
 #: deg: the robot fell once its base has turned this far from how it started.
 TILT_LIMIT_DEG = 45.0
-#: deg: an articulated robot is upside down once its base's z axis points this far from up
-#: (below the horizontal).
-UPSIDE_DOWN_DEG = 90.0
+#: deg: an articulated robot is upside down once its base's z axis points this far from up:
+#: within TILT_LIMIT_DEG of straight down.
+UPSIDE_DOWN_DEG = 180.0 - TILT_LIMIT_DEG
 #: m: a point this far below the surface is reported in the words (a foot sinking under its
 #: robot's weight stays well within it on zeta 3.75 N/cm^3 sand); a fallen robot whose
 #: lowest point ends within it lies on the sand.
@@ -213,6 +221,7 @@ class OutcomeWatch:
                                     dtype=int)
         self._base_origin = int(welded)
         self._up = self._stance_set_down = self.up_angle_set_down = None
+        self._limits = joint_limits.LimitWatch(model)
         self.start()
 
     def set_down(self, data):
@@ -233,6 +242,7 @@ class OutcomeWatch:
         self.min_stance, self.base_depth = math.inf, -math.inf
         self.deepest = None  # (depth m, index into the watched bodies, time s)
         self.uncovered = 0.0 if (~self._has_plates).any() else None
+        self._limits.start()
 
     @property
     def down(self):
@@ -327,6 +337,7 @@ class OutcomeWatch:
         self.max_tilt = max(self.max_tilt, tilt)
         if self.fell_at is None and tilt > self.tilt_limit_deg:
             self.fell_at = time
+        self._limits.observe(data, time)
         if self._watch_up:
             up = self.up_angle(data)
             self.max_up_angle = max(self.max_up_angle, up)
@@ -394,6 +405,7 @@ class OutcomeWatch:
             'unsettled_step_share': unsettled / steps if steps else 0.0,
             'rows_handed_back_step_share': handed_back / steps if steps else 0.0,
             'max_uncovered_sinkage_m': self.uncovered,
+            'joint_past_limit': self._limits.result(),
         }
         which, now = self._watched(data, surface)
         final_depth, final_body = -math.inf, ''  # (nothing watched: nothing below)
@@ -441,7 +453,11 @@ def words(outcome, final_depth, final_body):
                  f"bodies, from {length(outcome['stance_height_set_down_m'])} as set "
                  f'down', turned]
     else:
-        parts = [('' if outcome.get('sank') else 'upright: ') + turned]
+        set_down = outcome.get('up_angle_set_down_deg')
+        parts = [('' if outcome.get('sank') else
+                  f'set down tilted {set_down:.0f} deg from up: '
+                  if set_down is not None and set_down > TILT_LIMIT_DEG else 'upright: ')
+                 + turned]
     if outcome.get('sank'):
         parts.insert(0, f"sank at t = {outcome['sank_at_s']:.2f} s: its base went "
                         f"{length(outcome['max_base_depth_m'])} into the sand")
@@ -458,6 +474,8 @@ def words(outcome, final_depth, final_body):
     uncovered = outcome['max_uncovered_sinkage_m']
     if uncovered is not None and uncovered > DEEP_M and (deepest or {}).get('has_plates'):
         parts.append(f'a body without plates reached {length(uncovered)} into the sand')
+    if outcome.get('joint_past_limit'):
+        parts.append(joint_limits.words(outcome['joint_past_limit']))
     share = outcome['unsettled_step_share']
     if share > UNSETTLED_SAID:
         parts.append(f'in {share * 100:.0f} % of steps the implicit solve froze plates whose '

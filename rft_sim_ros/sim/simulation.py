@@ -252,8 +252,9 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self._outcome.set_down(self.data)
         up = self._outcome.up_angle_set_down
-        if up is not None and up > UPSIDE_DOWN_DEG:
-            notice = (f"the base ({self.base_body}) is set down upside down: its z axis "
+        if up is not None and up > TILT_LIMIT_DEG:
+            notice = (f"the base ({self.base_body}) is set down "
+                      f'{"upside down" if up > UPSIDE_DOWN_DEG else "tilted"}: its z axis '
                       f'{up:.0f} deg from up (a standing robot\'s base frame has z up, REP '
                       '103); the outcome says so')
             if notice not in self.notices:  # (a reset sets it down again)
