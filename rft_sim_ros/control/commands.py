@@ -329,9 +329,9 @@ class CommandHandler:
         sim time `now` (s): hybrid mode from now on (module docstring); entering it, every
         joint's position target is its target now, velocity and effort 0."""
         if self._hybrid is None:
-            self._hybrid = HybridTargets(self.sample(now).positions)
+            self._hybrid = HybridTargets(self.sample(now).positions, now)
         self._pending = self._efforts = None
-        self._hybrid.update(command)
+        self._hybrid.update(command, now)
         return ACCEPTED
 
     @property

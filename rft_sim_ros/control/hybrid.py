@@ -15,6 +15,10 @@ ROS-free. `HybridTargets` holds q*, dq*, tau_ff of every commanded joint and tak
 `JointStateCommand`s (`joint_state_commands`): a finite value sets that interface, NaN leaves
 it. It starts from the joints' targets at the moment hybrid commands begin, velocity and
 feed-forward 0, so a position-only command stream is the position servo with these gains.
+A joint no command has given a position (one whose <ros2_control> block declares a velocity
+command interface and no position one: a wheel under a velocity controller) has its q*
+move at its dq* (`advance`), so that it turns at that speed as a velocity servo with
+integral action does, rather than kp holding it where hybrid commands began.
 
 Gains come from glob patterns over joint names, later patterns overriding earlier ones (as
 the scene's `servos`): {pattern: {kp: ..., kd: ...}}; joints no pattern names keep their
@@ -84,16 +88,31 @@ class HybridTargets:
     """q* (rad or m), dq* (rad/s or m/s), tau_ff (N m or N) of every commanded joint, in the
     command handler's joint order; starts at `positions`, velocity and effort 0."""
 
-    def __init__(self, positions):
+    def __init__(self, positions, now=0.0):
         self.positions = np.array(positions, dtype=float)
         self.velocities = np.zeros_like(self.positions)
         self.efforts = np.zeros_like(self.positions)
+        self._positioned = np.zeros(self.positions.shape, dtype=bool)  # given a position
+        self._time = float(now)  # sim time s q* was last advanced to
 
-    def update(self, command):
-        """Apply a `JointStateCommand`: its finite values set their interfaces."""
+    def update(self, command, now=None):
+        """Apply a `JointStateCommand` at sim time `now` (s; None: the time last advanced
+        to): its finite values set their interfaces."""
+        if now is not None:
+            self.advance(now)
         for target, values in ((self.positions, command.positions),
                                (self.velocities, command.velocities),
                                (self.efforts, command.efforts)):
             given = ~np.isnan(values)
             target[command.joints[given]] = values[given]
+        self._positioned[command.joints[~np.isnan(command.positions)]] = True
+
+    def advance(self, now):
+        """Move the position target of every joint no command has given a position at its
+        velocity target, to sim time `now` (s); returns self."""
+        moving = ~self._positioned
+        if moving.any():
+            self.positions[moving] += self.velocities[moving] * (now - self._time)
+        self._time = float(now)
+        return self
 

@@ -440,7 +440,8 @@ class Simulation:
                 if not drive.engaged:
                     drive.engage()
                     self._ctrl[interfaces.effort_actuators] = 0.0
-                self._ctrl[interfaces.position_actuators] = drive.controls(hybrid)
+                self._ctrl[interfaces.position_actuators] = drive.controls(
+                    hybrid.advance(self.time))
                 commands.track(self.data.qpos[self._command_qpos], self.time)
                 return
             if drive.engaged:
