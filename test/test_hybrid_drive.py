@@ -92,3 +92,20 @@ def test_a_50_hz_policy_stream_holds_the_quadruped_standing(sim):
     assert np.max(np.abs(joints - stand)) < 0.15  # the soft gains' sag under the weight
     assert np.linalg.norm(sim.data.qvel[:6]) < 0.05  # at rest
     sim.hybrid_drive.set_gains({})
+
+
+def test_a_position_target_beyond_the_joints_range_is_held_at_its_end(sim):
+    """q* beyond a joint's range (the URDF's limits): the law pulls to the end of the range
+    (as the position servos' targets are held within it), not into MuJoCo's soft limit."""
+    sim.reset()
+    names = sim.servo_joint_names
+    knee = names.index('fl_knee')
+    low, high = sim.model.jnt_range[sim.model.joint('fl_knee').id]
+    target = sim.data.qpos[sim._command_qpos].copy()
+    target[knee] = low - 2.0
+    sim.commands.set_joint_states(command(sim, position=target), sim.time)
+    sim.step(2)
+    controls = sim.data.ctrl[sim.interfaces.position_actuators]
+    assert controls[knee] == pytest.approx(sim.hybrid_drive.kp[knee] * low)
+    sim.step(1000)
+    assert sim.data.joint('fl_knee').qpos[0] == pytest.approx(low, abs=0.05)

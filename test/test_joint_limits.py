@@ -44,10 +44,11 @@ def test_the_joint_farthest_past_its_range_is_recorded_and_said():
     assert watch.result() is None
 
 
-def test_a_servo_without_an_effort_limit_pushing_past_the_stop_is_in_the_outcome(tmp_path):
-    """A hinge commanded to twice its range: its default servo (no effort limit in the
-    model) overpowers MuJoCo's soft limit; the outcome names the joint, with an effort
-    limit it stops at its range."""
+def test_a_command_beyond_the_range_holds_at_the_stop_and_a_push_through_it_is_said(
+        tmp_path):
+    """A hinge commanded to twice its range: its servo's target is held within the range
+    (the servo's control range), so it stops there; an effort far beyond what MuJoCo's soft
+    limit holds pushes it through, and the outcome names the joint."""
     from rft_sim_ros.scenes.config import load_scene
     from rft_sim_ros.sim.simulation import Simulation
     arm = tmp_path / 'arm.xml'
@@ -56,16 +57,18 @@ def test_a_servo_without_an_effort_limit_pushing_past_the_stop_is_in_the_outcome
       <body name="link"><joint name="swing" axis="0 1 0" range="-0.5 0.5"/>
       <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.01" mass="0.2"/></body></body>
       </worldbody></mujoco>""")
-    settings = {'sand.surface_height': -1.0, 'rft.sand_bodies': ['link'],
-                'rft.plates_per_body': 50}
-    outcomes = []
-    for servos in ({}, {'swing': {'effort': 0.5}}):
-        sim = Simulation(load_scene(arm, {**settings, 'servos': servos}))
-        sim.commands.set_positions([1.0], sim.time)
-        sim.step(500)
-        outcomes.append(sim.outcome())
-    pushed, capped = outcomes
-    assert pushed['joint_past_limit']['joint'] == 'swing'
-    assert pushed['joint_past_limit']['past_limit_rad'] > OVERRUN_RAD
-    assert 'joint swing went' in pushed['words']
-    assert capped['joint_past_limit'] is None and 'joint swing' not in capped['words']
+    scene = load_scene(arm, {'sand.surface_height': -1.0, 'rft.sand_bodies': ['link'],
+                             'rft.plates_per_body': 50})
+    held = Simulation(scene)
+    held.commands.set_positions([1.0], held.time)
+    held.step(500)
+    assert held.data.joint('swing').qpos[0] == pytest.approx(0.5, abs=OVERRUN_RAD)
+    assert held.outcome()['joint_past_limit'] is None
+    pushed = Simulation(scene)
+    pushed.commands.set_efforts([50.0], pushed.time)
+    pushed.step(500)
+    outcome = pushed.outcome()
+    assert outcome['joint_past_limit']['joint'] == 'swing'
+    assert outcome['joint_past_limit']['limit_rad'] == 0.5
+    assert outcome['joint_past_limit']['past_limit_rad'] > OVERRUN_RAD
+    assert 'joint swing went' in outcome['words']

@@ -13,9 +13,12 @@ are the model's; a closed loop's or a spring leg's free joints stay free) unless
   by a torque `<motor>`, or by no actuator, gets a PD actuator that MuJoCo integrates itself
   (a `general` actuator with gain kp and bias -kp q - kd qdot, its force clamped to the
   effort limit), so the damping is implicit in MuJoCo's implicitfast step and in the sand
-  engine's implicit solve, and stays stable at the scene timestep. Gains per joint come from
-  the scene's `servos` (glob pattern -> {kp, kd, effort}; later patterns win) or, by
-  default, from the robot's mass (`default_gains`).
+  engine's implicit solve, and stays stable at the scene timestep; on a joint with limits its
+  target is held within the joint's range (its control range: a command beyond it holds
+  the joint at its stop, as ros2_control's joint limiters and MuJoCo's own position
+  actuators with a ctrlrange do, instead of driving it into MuJoCo's soft limit). Gains per
+  joint come from the scene's `servos` (glob pattern -> {kp, kd, effort}; later patterns
+  win) or, by default, from the robot's mass (`default_gains`).
 * effort: a `<motor>` already on the joint, else an added motor (N m or N; clamped to the
   effort limit).
 
@@ -299,6 +302,10 @@ class JointInterfaces:
             gains = JointGains(settings.get('kp', kp), settings.get('kd', kd), limit)
             self._set_gains(servo[0], gains.kp, gains.kd)
             self.gains[name] = gains
+            if model.actuator(servo[0]).name == _PD_PREFIX + name:
+                if model.jnt_limited[joint]:  # (its target within the joint's range)
+                    model.actuator_ctrllimited[servo[0]] = 1
+                    model.actuator_ctrlrange[servo[0]] = model.jnt_range[joint]
             if model.actuator(servo[0]).name == _PD_PREFIX + name or 'effort' in settings:
                 self._limit(servo[0], limit)
             self._limit(motor[0], limit)

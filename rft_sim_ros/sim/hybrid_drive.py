@@ -6,7 +6,8 @@ range +-effort limit, no control range, and
 
     ctrl = kp q* + kd dq* + tau_ff
 
-so its force is exactly kp (q* - q) + kd (dq* - dq) + tau_ff clipped to the effort limit,
+so its force is exactly kp (q* - q) + kd (dq* - dq) + tau_ff clipped to the effort limit
+(q* held within the joint's range where it has one, as the position servos' targets are),
 with the -kd dq term integrated implicitly by MuJoCo (implicitfast) and by the sand engine's
 implicit solve, as the position servos' damping is. Leaving hybrid mode restores every
 parameter it changed. The effort motors stay at 0 meanwhile.
@@ -30,6 +31,11 @@ class HybridDrive:
         names = interfaces.joint_names
         self._default = resolve_gains(gains or {}, names, [interfaces.gains[n].kp for n in names],
                                       [interfaces.gains[n].kd for n in names])
+        joints = [model.joint(name).id for name in names]
+        limited = model.jnt_limited[joints].astype(bool)
+        ranges = model.jnt_range[joints]
+        self._low = np.where(limited, ranges[:, 0], -np.inf)  # q* within these (rad or m)
+        self._high = np.where(limited, ranges[:, 1], np.inf)
         limits = np.array([interfaces.gains[n].effort for n in names], dtype=float)
         self._limited = np.isfinite(limits)
         self._limits = limits
@@ -85,5 +91,6 @@ class HybridDrive:
 
     def controls(self, targets):
         """ctrl values of the position actuators for `targets` (control.hybrid.HybridTargets)."""
-        return self.kp * targets.positions + self.kd * targets.velocities + targets.efforts
+        positions = np.clip(targets.positions, self._low, self._high)
+        return self.kp * positions + self.kd * targets.velocities + targets.efforts
 

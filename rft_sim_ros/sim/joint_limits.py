@@ -1,10 +1,11 @@
 """Joints pushed through their limits, said rather than left to look like a robot's pose.
 
 MuJoCo's joint limits are soft constraints (their solref: a spring and damper that lets the
-joint into the stop by what pushes it), so a servo far stiffer than that spring and without
-an effort limit (a model without `<limit effort>` or actuator force ranges; default gains
-from the robot's mass) pushes its joint well past the range the model gives it: a hip
-commanded to 3 rad against a 1.5 rad stop ends at 2.9 rad, which no real stop allows.
+joint into the stop by what pushes it), so a push far beyond what that spring holds drives
+a joint well past the range the model gives it: an effort command, a model's own position
+actuator without a control range, a heavy load. (The position servos this package adds
+hold their targets within the joint's range: robot/joints.py.) A real stop allows none of
+that.
 
 `LimitWatch` looks, at the outcome's looks (sim/outcome.py), at every limited hinge and
 slide joint of the model and records the one that went farthest past its range, counted in
@@ -75,5 +76,6 @@ def words(past):
     else:
         amount, limit = f"{past['past_limit_m'] * 100:.3g} cm", f"{past['limit_m']:.3g} m"
     return (f"joint {past['joint']} went {amount} past its limit ({limit}) at t = "
-            f"{past['time_s']:.2f} s: MuJoCo's joint limits are soft, and a servo without an "
-            'effort limit pushes through them (servos: {JOINT: {effort: ...}} caps it)')
+            f"{past['time_s']:.2f} s: MuJoCo's joint limits are soft, and what pushed it (its "
+            "actuator, an effort command, the load) went through (an effort limit, servos: "
+            '{JOINT: {effort: ...}}, caps a servo)')

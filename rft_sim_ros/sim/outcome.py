@@ -84,9 +84,9 @@ The summary's `outcome` (summary.json, /diagnostics):
                               body origins included (null: every watched body carries
                               plates);
   joint_past_limit            {joint, past_limit_rad (or _m), limit_rad (or _m), time_s}: the
-                              joint pushed farthest past its range, beyond 5 deg (5 mm),
-                              MuJoCo's soft limits yielding to a servo without an effort
-                              limit (sim/joint_limits.py; null: none);
+                              joint pushed farthest past its range, beyond 5 deg (5 mm):
+                              MuJoCo's soft limits yielding to an effort, a model's own
+                              servo, a load (sim/joint_limits.py; null: none);
   words                       all that in a line: "fell at t = 0.80 s: base turned 95 deg;
                               lying on the sand"; "collapsed at t = 0.40 s: its centre of
                               mass came down to 15 cm above its sand bodies, from 54 cm as
