@@ -224,10 +224,14 @@ class Sensors:
     def active(self):
         return bool(self.imu or self.contact_legs is not None or self._model_sensors)
 
-    def read(self, data, legs, feet):
+    def read(self, data, legs, feet, stepped=True):
         """SensorReadings of `data` now; legs: the state's LegWrenches (their points); feet:
-        (legs, 3) the mean sand force on each leg's foot, N, world axes."""
-        imu = self.imu.read(data) if self.imu is not None else None
+        (legs, 3) the mean sand force on each leg's foot, N, world axes; stepped: whether a
+        step has been taken since the simulation (re)started. Before one, no IMU reading:
+        the state's accelerations are not yet those of a step with the sand's forces (the
+        model's forward dynamics of the pose as set: a spike of many g), so the IMU's first
+        sample comes with the first state after a step."""
+        imu = self.imu.read(data) if self.imu is not None and stepped else None
         contacts = None
         if self.contact_legs is not None:
             forces = np.asarray(feet, dtype=float).reshape(-1, 3)

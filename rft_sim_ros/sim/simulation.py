@@ -604,7 +604,8 @@ class Simulation:
             positions, forces, areas = self.engine.active_plates()
             plates = ActivePlates(positions, forces, areas)
         legs, feet = self._legs_and_feet()
-        sensors = self.sensors.read(d, legs, feet) if self.sensors.active else None
+        sensors = (self.sensors.read(d, legs, feet, stepped=self._since_start > 0)
+                   if self.sensors.active else None)
         return SimState(
             time=self.time,
             joint_names=self.joint_names,
