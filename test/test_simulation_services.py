@@ -97,4 +97,10 @@ def test_reset_restores_the_state_and_says_time_runs_on(rig):
     assert h.sim.data.joint('hip').qpos[0] == pytest.approx(0.0, abs=1e-9)
     assert h.sim.time == pytest.approx(before)
     assert services.reset(si.SCOPE_TIME).result == si.RESULT_FEATURE_UNSUPPORTED
+    h.sim.commands.set_positions([0.5, -0.5], h.sim.time)
+    h.run(0.3)
+    spawned = services.reset(si.SCOPE_SPAWNED)  # (nothing spawned: nothing to do)
+    assert spawned.result == si.RESULT_OK and 'nothing removed' in spawned.message
+    assert h.sim.data.joint('hip').qpos[0] == pytest.approx(0.5, abs=0.05)
+    assert services.reset(8).result == si.RESULT_FEATURE_UNSUPPORTED
     assert services.reset(si.SCOPE_STATE).message.startswith('reset at sim time')

@@ -15,7 +15,7 @@ What this simulator supports, as GetSimulatorFeatures says it:
   state (robot, sand, commands), as ~/reset. Sim time keeps running forward (a ROS clock never
   goes back), so SCOPE_TIME alone is not supported (SIMULATION_RESET_TIME is not listed);
   SCOPE_DEFAULT and SCOPE_ALL reset everything else and say so. Nothing is ever spawned, so
-  SCOPE_SPAWNED has nothing to remove.
+  SCOPE_SPAWNED has nothing to remove: alone it changes nothing (and says so).
 * StepSimulation (STEP_SIMULATION_SINGLE, STEP_SIMULATION_MULTIPLE) and the SimulateSteps
   action (STEP_SIMULATION_ACTION, feedback after each step): while paused, `steps`
   iterations of the simulation loop, each one publish period of sim time followed by its
@@ -74,14 +74,21 @@ class SimulationServices:
 
     def reset(self, scope):
         """ResetSimulation with `scope` (bits)."""
-        if scope == SCOPE_TIME:
-            return Answer(RESULT_FEATURE_UNSUPPORTED, 'sim time does not go back (a ROS clock '
-                                                      'never does): reset with SCOPE_STATE')
+        everything = scope in (SCOPE_DEFAULT, SCOPE_ALL)
+        if not everything and not scope & SCOPE_STATE:
+            if scope & SCOPE_TIME:
+                return Answer(RESULT_FEATURE_UNSUPPORTED, 'sim time does not go back (a ROS '
+                                                          'clock never does): reset with '
+                                                          'SCOPE_STATE')
+            if scope & ~SCOPE_SPAWNED:
+                return Answer(RESULT_FEATURE_UNSUPPORTED, f'scope {scope}: none of '
+                                                          'SCOPE_TIME, _STATE, _SPAWNED')
+            return Answer(RESULT_OK, 'nothing is spawned in this simulator: nothing removed, '
+                                     'nothing reset')
         done = self._runtime.reset()
         if not done.success:
             return Answer(RESULT_OPERATION_FAILED, done.message)
-        note = '; sim time keeps running forward' if scope in (SCOPE_DEFAULT, SCOPE_ALL) or \
-            scope & SCOPE_TIME else ''
+        note = '; sim time keeps running forward' if everything or scope & SCOPE_TIME else ''
         return Answer(RESULT_OK, done.message + note)
 
     def step(self, steps, feedback=None):
@@ -132,4 +139,6 @@ class SimulationServices:
             runtime.stopped = False
             return Answer(RESULT_OK, f'paused at sim time {runtime.sim.time:.6f} s')
         done = runtime.reset()
+        if not done.success:
+            return Answer(STATE_TRANSITION_ERROR, f'paused, not reset: {done.message}')
         return Answer(RESULT_OK, f'stopped: {done.message}')
