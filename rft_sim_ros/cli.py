@@ -48,7 +48,7 @@ from pathlib import Path
 from . import __version__
 from .render import VIDEO_FILE
 from .interrupts import held_while_compiling, interrupts_never_lost, release_quietly
-from .sim.outcome import DOWN
+from .sim.ways_down import DOWN
 from .sim.summary import significant
 from .scenes.config import (SceneError, anchor_paths, bundled_scenes, load_scene,
                             parse_assignment, robot_overrides)

@@ -129,6 +129,7 @@ def test_gain_patterns_from_parameter_strings_later_ones_win():
                            [0.1, 0.2, 0.3])
     assert kp.tolist() == [20.0, 40.0, 20.0] and kd.tolist() == [0.5, 0.5, 0.5]
     assert gain_patterns({'x': {'kd': 0}}) == {'x': {'kd': 0.0}}
+    assert gain_patterns(['']) == {} == gain_patterns([])  # (the defaults: the CLI's way)
     for bad in (['kp: 3'], ['a: {kp: -1}'], ['a: {ki: 1}'], 'a', ['a: {kp: .nan}']):
         with pytest.raises(ValueError):
             gain_patterns(bad)

@@ -25,7 +25,8 @@ for _package in ('std_srvs.srv', 'trajectory_msgs.msg', 'sensor_msgs.msg', 'nav_
 from builtin_interfaces.msg import Duration, Time  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
-from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters  # noqa: E402
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, ListParameters,  # noqa: E402
+                                SetParameters)
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -287,6 +288,20 @@ def test_number_parameters_stay_doubles_when_given_integers(ros):
     request = SetParameters.Request(parameters=[Parameter('zeta', value=3).to_parameter_msg()])
     assert ros.call(ros.probe.set_parameters, request).results[0].successful
     assert typed_values()[1][0] == (double, 3.0) and sim.runtime.sim.zeta == 3.0
+
+
+def test_every_parameter_has_a_value_so_a_dump_gets_them_all(ros):
+    """GetParameters of every parameter the node lists (what `ros2 param dump` asks) answers
+    a value for each: one declared without a value (joint_gains, before this was given one)
+    made rclpy answer none at all. joint_gains: an empty string list, the defaults."""
+    start_sim(ros)
+    listed = ros.call(ros.probe.create_client(ListParameters, '/rft_sim/list_parameters'),
+                      ListParameters.Request()).result.names
+    values = ros.call(ros.probe.create_client(GetParameters, '/rft_sim/get_parameters'),
+                      GetParameters.Request(names=listed)).values
+    assert 'joint_gains' in listed and len(values) == len(listed)
+    gains = values[list(listed).index('joint_gains')]
+    assert gains.type == ParameterType.PARAMETER_STRING_ARRAY and gains.string_array_value == []
 
 
 def test_a_trajectory_moves_a_joint_and_a_malformed_one_is_rejected(ros):

@@ -54,11 +54,13 @@ def _gain_entry(text):
 
 def gain_patterns(entries):
     """{pattern: {'kp'?: float, 'kd'?: float}} from a mapping of the same shape or a list of
-    'PATTERN: {kp: X, kd: Y}' strings (YAML); raises ValueError naming the bad entry."""
+    'PATTERN: {kp: X, kd: Y}' strings (YAML; an empty one names nothing, so that `['']`, which
+    the ros2 command line can type where it cannot type an empty string list, gives the
+    defaults back); raises ValueError naming the bad entry."""
     if isinstance(entries, dict):
         items = list(entries.items())
     elif isinstance(entries, (list, tuple)):
-        items = [_gain_entry(str(text)) for text in entries]
+        items = [_gain_entry(str(text)) for text in entries if str(text).strip()]
     else:
         raise ValueError(f'joint gains must map joint patterns to {{kp, kd}}, got {entries!r}')
     patterns = {}

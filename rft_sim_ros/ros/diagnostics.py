@@ -9,7 +9,7 @@ upside down, a collapse or sinking).
 """
 import math
 
-from rft_sim_ros.sim.outcome import DOWN
+from rft_sim_ros.sim.ways_down import DOWN
 
 
 def status_key(zeta, stable, paused, down=False):
@@ -22,7 +22,7 @@ def status_key(zeta, stable, paused, down=False):
 
 def outcome_values(outcome):
     """[(key, value)] of /diagnostics for a run's `outcome` (summary.json's, sim/outcome.py;
-    None: none yet): outcome (its words); for each way down (sim/outcome.py's DOWN) whether
+    None: none yet): outcome (its words); for each way down (sim/ways_down.py's DOWN) whether
     it happened and when (fell, fell_at_s, upside_down, upside_down_at_s, collapsed,
     collapsed_at_s, sank, sank_at_s; nan: it did not); max_tilt_deg, final_up_angle_deg
     (nan: not watched), deepest_body ('' where no geom went below the surface),

@@ -24,7 +24,7 @@ import numpy as np
 
 from rft_sim_ros.ros import topics
 from rft_sim_ros.ros.diagnostics import outcome_values
-from rft_sim_ros.sim.outcome import is_down
+from rft_sim_ros.sim.ways_down import is_down
 from rft_sim_ros.stamps import seconds_to_ns, split_ns
 from rft_sim_ros.units import zeta_to_si
 

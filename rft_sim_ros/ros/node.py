@@ -126,6 +126,7 @@ class SimNode(Node):
         self._description_subscription = None
         self._topic_publishers = {}
         self._factory = RclpyFactory()
+        self._filling = None  # a string list parameter `_declare` is giving its empty value
         self._robot = {name: self._declare(name, '') for name in (
             parameters.SCENE, parameters.MODEL, parameters.ROBOT_DESCRIPTION,
             parameters.SAND_BODIES)}
@@ -443,13 +444,30 @@ class SimNode(Node):
 
     def _declare(self, name, default):
         """Declare parameter `name` from its spec; returns its value (None if unset). One
-        declared already (a second description from the topic) keeps its value."""
+        declared already (a second description from the topic) keeps its value. A string
+        list given no value gets the empty list: a parameter without a value makes rclpy's
+        GetParameters, so `ros2 param dump`, answer no value at all for any request naming
+        it. (rclpy reads a bare [] as a byte array, and refuses to set a read-only one, so
+        it is declared writable and typed, set, and then made read-only.)"""
         if self.has_parameter(name):
             return self._value(name)
         spec = parameters.SPECS[name]
         descriptor = ParameterDescriptor(description=spec.description,
                                          read_only=not spec.dynamic)
-        return self.declare_parameter(name, default, descriptor).value
+        if default != Parameter.Type.STRING_ARRAY:
+            return self.declare_parameter(name, default, descriptor).value
+        value = self.declare_parameter(name, default, ParameterDescriptor(
+            description=spec.description)).value  # (writable until it has a value)
+        if value is None:
+            self._filling = name  # (no check: the empty list is every list's default)
+            try:
+                self.set_parameters([Parameter(name, Parameter.Type.STRING_ARRAY, [])])
+            finally:
+                self._filling = None
+        if not spec.dynamic:
+            descriptor.type = Parameter.Type.STRING_ARRAY.value
+            self.set_descriptor(name, descriptor)
+        return [] if value is None else value
 
     def _value(self, name):
         """The value of declared parameter `name`; None while unset (declared without a
@@ -586,6 +604,8 @@ class SimNode(Node):
         check = (parameters.parameter_problem if self.runtime is None
                  else self.runtime.parameter_problem)
         for change in changes:
+            if change.name == self._filling:
+                continue
             if change.name in parameters.SPECS and self.has_parameter(change.name):
                 problem = check(change.name, change.value)
                 if problem:

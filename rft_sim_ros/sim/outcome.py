@@ -122,15 +122,6 @@ COLLAPSE_SHARE = 0.5
 #: m/s: a fallen robot whose base moves faster than this at the end is still moving
 #: (sliding, tumbling), not lying on the sand.
 LYING_SPEED = 0.1
-#: The outcome's ways of going down: (key, its time's key, as a run's first line says it).
-DOWN = (('fell', 'fell_at_s', 'fell'), ('upside_down', 'upside_down_at_s', 'was upside down'),
-        ('collapsed', 'collapsed_at_s', 'collapsed'), ('sank', 'sank_at_s', 'sank'))
-
-
-def is_down(outcome):
-    """Whether an `outcome` mapping (OutcomeWatch.result) says the robot went down in any
-    way (DOWN)."""
-    return any((outcome or {}).get(key) for key, _, _ in DOWN)
 
 _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = (
     int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE),

@@ -19,7 +19,7 @@ from typing import NamedTuple
 from urllib.parse import quote
 
 from .labels import label, run_name
-from .outcome import DOWN, is_down
+from .ways_down import DOWN, is_down
 
 #: The page's own style (no external assets).
 STYLE = """

@@ -30,7 +30,7 @@ import matplotlib.pyplot as plt  # noqa: E402  (backend must be chosen first)
 import numpy as np  # noqa: E402
 
 from .labels import run_name  # noqa: E402
-from .outcome import DOWN  # noqa: E402
+from .ways_down import DOWN  # noqa: E402
 from .series import joint_columns  # noqa: E402
 
 #: The force axis's clipping (module docstring): quantile of the forces, ratio of the peak
