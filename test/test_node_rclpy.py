@@ -619,3 +619,19 @@ def test_as_fast_as_possible_a_command_takes_effect_at_the_next_cycle(ros):
     after = [hip(m) for m in ros.probe.joint_states
              if seconds(m.header.stamp) > sent + 2 * PERIOD]
     assert after and min(after) > 0.01, (sent, after)
+
+
+def test_a_second_clock_publisher_is_warned_of():
+    """Two simulators in one ROS domain (two namespaces share the one /clock): each warns
+    that another node publishes /clock."""
+    first = _start_executable('rft_sim_ros.ros.node', '-p', f'scene:={SERVO_RIG}',
+                              '-r', '__ns:=/one')
+    second = _start_executable('rft_sim_ros.ros.node', '-p', f'scene:={SERVO_RIG}',
+                               '-r', '__ns:=/two')
+    try:
+        lines = _wait_for_output(first, 'other publisher of /clock', timeout=60)
+        assert 'Run one simulator per ROS domain' in lines[-1]
+    finally:
+        for process in (first, second):
+            process.send_signal(signal.SIGINT)
+            process.communicate(timeout=30)

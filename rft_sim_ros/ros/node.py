@@ -56,6 +56,8 @@ QUEUE_DEPTH = 10
 #: /diagnostics (and at once when zeta or paused change meanwhile).
 STARTUP_POLL_S = 0.1
 STARTUP_DIAGNOSTICS_PERIOD_S = 1.0
+#: s of wall time between two looks for another publisher of /clock (`_check_clock`).
+CLOCK_CHECK_PERIOD_S = 2.0
 #: Sim time of the start-up's /diagnostics stamps: the simulation's start, s.
 START_TIME = 0.0
 TF_QUEUE_DEPTH = 100  # as tf2_ros.TransformBroadcaster
@@ -331,6 +333,9 @@ class SimNode(Node):
         self._serve_simulation_interfaces()
         self._timer = self.create_timer(self.runtime.tick_period, self._tick,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._clock_publishers = 1  # (this node's)
+        self._clock_check = self.create_timer(CLOCK_CHECK_PERIOD_S, self._check_clock,
+                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         logger.info(f'scene {sim.scene.name}: built in {self._startup.elapsed():.1f} s; '
                     f'publishing every {self.runtime.publish_period:g} s '
                     f'of sim time at real-time factor {self.runtime.real_time_factor:g}'
@@ -512,6 +517,21 @@ class SimNode(Node):
                 self._view.show()
             else:  # (the window was closed: the node runs on without it)
                 self._view = None
+
+    def _check_clock(self):
+        """Warn (once each time it starts) when another node publishes this node's /clock:
+        a second simulator (another namespace shares the one /clock), or `ros2 bag play
+        --clock`. Each drives sim time its own way, so the nodes using sim time see it jump
+        back and forth."""
+        topic = self._topic_publishers[topics.CLOCK].topic_name
+        count = self.count_publishers(topic)
+        if count > 1 and self._clock_publishers <= 1:
+            self.get_logger().warning(
+                f'{count - 1} other publisher{"s" * (count > 2)} of {topic}: another '
+                'simulator (a second namespace shares the one /clock) or a bag played with '
+                '--clock; each drives sim time its own way, so nodes using sim time see it '
+                'jump back and forth. Run one simulator per ROS domain (ROS_DOMAIN_ID)')
+        self._clock_publishers = count
 
     def _take_commands(self):
         """Hand every message the command subscriptions hold to its callback now, in the
