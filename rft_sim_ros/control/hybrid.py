@@ -18,7 +18,9 @@ feed-forward 0, so a position-only command stream is the position servo with the
 A joint no command has given a position (one whose <ros2_control> block declares a velocity
 command interface and no position one: a wheel under a velocity controller) has its q*
 move at its dq* (`advance`), so that it turns at that speed as a velocity servo with
-integral action does, rather than kp holding it where hybrid commands began.
+integral action does, rather than kp holding it where hybrid commands began; one no
+command has given a position or a velocity (an effort interface alone) is not `tracked`:
+its kp and kd terms are off, tau = tau_ff.
 
 Gains come from glob patterns over joint names, later patterns overriding earlier ones (as
 the scene's `servos`): {pattern: {kp: ..., kd: ...}}; joints no pattern names keep their
@@ -95,6 +97,7 @@ class HybridTargets:
         self.velocities = np.zeros_like(self.positions)
         self.efforts = np.zeros_like(self.positions)
         self._positioned = np.zeros(self.positions.shape, dtype=bool)  # given a position
+        self.tracked = np.zeros(self.positions.shape, dtype=bool)  # given a position or speed
         self._time = float(now)  # sim time s q* was last advanced to
 
     def update(self, command, now=None):
@@ -108,6 +111,8 @@ class HybridTargets:
             given = ~np.isnan(values)
             target[command.joints[given]] = values[given]
         self._positioned[command.joints[~np.isnan(command.positions)]] = True
+        self.tracked[command.joints[~(np.isnan(command.positions)
+                                      & np.isnan(command.velocities))]] = True
 
     def advance(self, now):
         """Move the position target of every joint no command has given a position at its

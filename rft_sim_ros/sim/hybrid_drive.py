@@ -7,7 +7,8 @@ range +-effort limit, no control range, and
     ctrl = kp q* + kd dq* + tau_ff
 
 so its force is exactly kp (q* - q) + kd (dq* - dq) + tau_ff clipped to the effort limit
-(q* held within the joint's range where it has one, as the position servos' targets are),
+(q* held within the joint's range where it has one, as the position servos' targets are;
+kp and kd 0 for a joint whose commands gave no position or velocity: `HybridTargets.tracked`),
 with the -kd dq term integrated implicitly by MuJoCo (implicitfast) and by the sand engine's
 implicit solve, as the position servos' damping is. Leaving hybrid mode restores every
 parameter it changed. The effort motors stay at 0 meanwhile.
@@ -40,6 +41,7 @@ class HybridDrive:
         self._limited = np.isfinite(limits)
         self._limits = limits
         self._saved = None
+        self._tracked = np.ones(len(names), dtype=bool)  # joints whose kp, kd act
         self.set_gains({})
 
     @property
@@ -57,8 +59,8 @@ class HybridDrive:
     def _set_bias(self):
         m, a = self._model, self._actuators
         m.actuator_biasprm[a, 0] = 0.0
-        m.actuator_biasprm[a, 1] = -self.kp
-        m.actuator_biasprm[a, 2] = -self.kd
+        m.actuator_biasprm[a, 1] = -self.kp * self._tracked
+        m.actuator_biasprm[a, 2] = -self.kd * self._tracked
 
     def engage(self):
         """Position actuators in hybrid form (module docstring); the effort motors off."""
@@ -91,6 +93,10 @@ class HybridDrive:
 
     def controls(self, targets):
         """ctrl values of the position actuators for `targets` (control.hybrid.HybridTargets)."""
+        if not np.array_equal(targets.tracked, self._tracked):
+            self._tracked = targets.tracked.copy()
+            self._set_bias()
         positions = np.clip(targets.positions, self._low, self._high)
-        return self.kp * positions + self.kd * targets.velocities + targets.efforts
+        return self._tracked * (self.kp * positions + self.kd * targets.velocities) \
+            + targets.efforts
 
