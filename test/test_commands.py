@@ -307,6 +307,15 @@ def busy_handler():
     return h
 
 
+def test_a_passive_joint_named_in_a_command_is_said_to_be_passive():
+    handler = CommandHandler(JOINTS, [0.0, 0.0, 0.0], passive_joint_names=('pin',))
+    result = handler.set_trajectory(traj(('a', 'pin', 'x'), (1.0, [1, 1, 1])), now=0.0)
+    assert result.reason is Reason.UNKNOWN_JOINT
+    assert result.message.startswith("passive joint(s) pin (no command interfaces: the "
+                                      "scene's servos can give them a servo); unknown "
+                                      'joint(s) x; commanded joints: a, b, c')
+
+
 @pytest.mark.parametrize('command, reason, detail', BAD_TRAJECTORIES)
 def test_bad_trajectory_is_rejected_and_changes_nothing(busy_handler, command, reason, detail):
     before = snapshot(busy_handler)

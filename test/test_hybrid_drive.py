@@ -111,19 +111,22 @@ def test_a_position_target_beyond_the_joints_range_is_held_at_its_end(sim):
     assert sim.data.joint('fl_knee').qpos[0] == pytest.approx(low, abs=0.05)
 
 
-def test_joints_given_only_efforts_are_pure_effort_and_only_velocities_turn(sim):
-    """Commands that give a joint no position and no velocity (its <ros2_control> block
-    declares an effort interface alone): tau = tau_ff, no kp or kd; a velocity alone: its
-    target moves at that velocity, so the joint turns at it (kp does not hold it)."""
+def test_joints_declaring_only_efforts_are_pure_effort_and_only_velocities_turn(sim):
+    """A joint whose <ros2_control> block declares an effort command interface alone: tau =
+    tau_ff, no kp or kd; one declaring a velocity interface and no position one: its target
+    moves at its velocity, so the joint turns at it (kp does not hold it)."""
     sim.reset()
     names = list(sim.servo_joint_names)
+    declared = {name: ('position', 'velocity', 'effort') for name in names}
+    declared['fl_knee'], declared['fr_hip_pitch'] = ('effort',), ('velocity',)
     nan = np.full(len(names), np.nan)
-    effort = nan.copy()
+    effort, velocity = nan.copy(), nan.copy()
     effort[names.index('fl_knee')] = 2.5
-    velocity = nan.copy()
     velocity[names.index('fr_hip_pitch')] = 0.5
-    sim.commands.set_joint_states(command(sim, position=nan, velocity=velocity,
-                                          effort=effort), sim.time)
+    index = {name: i for i, name in enumerate(sim.commands.joint_names)}
+    sim.commands.set_joint_states(read_joint_state_command(
+        JointState(names, position=nan, velocity=velocity, effort=effort), index, declared),
+        sim.time)
     sim.step(2)
     assert sim.data.actuator(sim.interfaces.position_actuators[
         names.index('fl_knee')]).force[0] == pytest.approx(2.5)  # (tau_ff alone)

@@ -89,20 +89,25 @@ def test_nan_leaves_an_interface_as_it_was():
     assert targets.efforts.tolist() == [0.0, 5.0, 0.0]
 
 
-def test_a_joint_given_velocities_and_no_position_has_its_target_move_at_that_velocity():
+def test_a_joint_declaring_velocity_and_no_position_has_its_target_move_at_that_velocity():
     """(A wheel whose <ros2_control> declares a velocity command interface only: kp would
-    otherwise hold it where hybrid commands began.) A joint given a position is held there."""
+    otherwise hold it where hybrid commands began.) A joint declaring a position interface is
+    held where its position was, NaN or not; one declaring an effort interface alone is not
+    tracked (no kp, kd)."""
+    declared = {'a': ('position', 'velocity'), 'b': ('velocity',), 'c': ('effort',)}
     handler = CommandHandler(JOINTS, [0.1, 0.2, 0.3])
-    handler.set_joint_states(read_joint_state_command(
-        joint_state(['a', 'b'], position=[0.5, NAN], velocity=[1.0, 4.0]), INDEX), now=1.0)
+
+    def command(**fields):
+        return read_joint_state_command(joint_state(['a', 'b', 'c'], **fields), INDEX,
+                                        declared)
+    handler.set_joint_states(command(position=[0.5, NAN, NAN], velocity=[1.0, 4.0, NAN],
+                                     effort=[NAN, NAN, 2.0]), now=1.0)
     targets = handler.hybrid
+    assert targets.tracked.tolist() == [True, True, False]
     assert targets.advance(1.5).positions.tolist() == [0.5, 0.2 + 2.0, 0.3]
-    handler.set_joint_states(read_joint_state_command(  # (from 2.0 s on: -2 rad/s)
-        joint_state(['b'], velocity=[-2.0]), INDEX), now=2.0)
+    handler.set_joint_states(command(position=[NAN, NAN, NAN], velocity=[NAN, -2.0, NAN],
+                                     effort=[NAN, NAN, NAN]), now=2.0)  # (-2 rad/s from 2 s)
     assert targets.advance(2.5).positions == pytest.approx([0.5, 0.2 + 4.0 - 1.0, 0.3])
-    handler.set_joint_states(read_joint_state_command(  # given a position: held from then
-        joint_state(['b'], position=[1.0]), INDEX), now=3.0)
-    assert targets.advance(4.0).positions == pytest.approx([0.5, 1.0, 0.3])
 
 
 def test_hybrid_mode_starts_from_the_targets_and_ends_with_a_position_command():

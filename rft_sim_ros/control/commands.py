@@ -133,10 +133,11 @@ class _Rejected(Exception):
         self.reason = reason
 
 
-def check_joint_names(names, known, empty):
+def check_joint_names(names, known, empty, passive=()):
     """Raise _Rejected unless the joint `names` of a command are strings, at least one
     (`empty`: the reason given when there is none), each named once and all in `known` (the
-    joints commands may address, a mapping or sequence in their order)."""
+    joints commands may address, a mapping or sequence in their order); `passive`: the
+    robot's joints without command interfaces, said as such where named."""
     if not all(isinstance(n, str) for n in names):
         raise _Rejected(Reason.MALFORMED, f'joint names must be strings, got '
                                           f'{reprlib.repr(names)}')
@@ -148,7 +149,12 @@ def check_joint_names(names, known, empty):
                         f'joint(s) named more than once: {", ".join(duplicates)}')
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise _Rejected(Reason.UNKNOWN_JOINT, f'unknown joint(s) {", ".join(unknown)}; known: '
+        free = [n for n in unknown if n in passive]
+        others = [n for n in unknown if n not in passive]
+        said = ([f'passive joint(s) {", ".join(free)} (no command interfaces: the scene\'s '
+                 'servos can give them a servo)'] if free else []) + (
+            [f'unknown joint(s) {", ".join(others)}'] if others else [])
+        raise _Rejected(Reason.UNKNOWN_JOINT, f'{"; ".join(said)}; commanded joints: '
                                               f'{", ".join(known)}')
 
 
@@ -255,8 +261,9 @@ class CommandHandler:
     command (rad or m).
     """
 
-    def __init__(self, joint_names, initial_positions):
+    def __init__(self, joint_names, initial_positions, passive_joint_names=()):
         self.joint_names = tuple(str(n) for n in joint_names)
+        self._passive = tuple(passive_joint_names)  # (named in rejections as such)
         if not self.joint_names or len(set(self.joint_names)) != len(self.joint_names):
             raise ValueError(f'joint names must be non-empty and unique: {self.joint_names}')
         initial = np.array(initial_positions, dtype=float)
@@ -431,7 +438,7 @@ class CommandHandler:
             start_value = command.start_time
         except (AttributeError, TypeError) as error:
             raise _Rejected(Reason.MALFORMED, f'not a joint trajectory ({error})') from None
-        check_joint_names(names, self._index, 'trajectory has no joint names')
+        check_joint_names(names, self._index, 'trajectory has no joint names', self._passive)
         if not points:
             raise _Rejected(Reason.EMPTY, 'trajectory has no points')
         start = _float_scalar(start_value, 'start time')

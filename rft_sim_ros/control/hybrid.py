@@ -15,12 +15,12 @@ ROS-free. `HybridTargets` holds q*, dq*, tau_ff of every commanded joint and tak
 `JointStateCommand`s (`joint_state_commands`): a finite value sets that interface, NaN leaves
 it. It starts from the joints' targets at the moment hybrid commands begin, velocity and
 feed-forward 0, so a position-only command stream is the position servo with these gains.
-A joint no command has given a position (one whose <ros2_control> block declares a velocity
-command interface and no position one: a wheel under a velocity controller) has its q*
-move at its dq* (`advance`), so that it turns at that speed as a velocity servo with
-integral action does, rather than kp holding it where hybrid commands began; one no
-command has given a position or a velocity (an effort interface alone) is not `tracked`:
-its kp and kd terms are off, tau = tau_ff.
+A joint whose <ros2_control> block declares a velocity command interface and no position
+one (a wheel under a velocity controller) has its q* move at its dq* (`advance`), so that
+it turns at that speed as a velocity servo with integral action does, rather than kp
+holding it where hybrid commands began; one that declares neither (an effort interface
+alone) is not `tracked`: its kp and kd terms are off, tau = tau_ff. (The declarations come
+with each command: `JointStateCommand.position_declared`, `velocity_declared`.)
 
 Gains come from glob patterns over joint names, later patterns overriding earlier ones (as
 the scene's `servos`): {pattern: {kp: ..., kd: ...}}; joints no pattern names keep their
@@ -96,8 +96,8 @@ class HybridTargets:
         self.positions = np.array(positions, dtype=float)
         self.velocities = np.zeros_like(self.positions)
         self.efforts = np.zeros_like(self.positions)
-        self._positioned = np.zeros(self.positions.shape, dtype=bool)  # given a position
-        self.tracked = np.zeros(self.positions.shape, dtype=bool)  # given a position or speed
+        self._moving = np.zeros(self.positions.shape, dtype=bool)  # q* moves at dq*
+        self.tracked = np.ones(self.positions.shape, dtype=bool)  # kp and kd act
         self._time = float(now)  # sim time s q* was last advanced to
 
     def update(self, command, now=None):
@@ -110,14 +110,16 @@ class HybridTargets:
                                (self.efforts, command.efforts)):
             given = ~np.isnan(values)
             target[command.joints[given]] = values[given]
-        self._positioned[command.joints[~np.isnan(command.positions)]] = True
-        self.tracked[command.joints[~(np.isnan(command.positions)
-                                      & np.isnan(command.velocities))]] = True
+        if command.position_declared is not None:
+            joints, position = command.joints, command.position_declared
+            self._moving[joints] = ~position
+            self.tracked[joints] = position | command.velocity_declared
 
     def advance(self, now):
-        """Move the position target of every joint no command has given a position at its
-        velocity target, to sim time `now` (s); returns self."""
-        moving = ~self._positioned
+        """Move the position target of every joint that declares a velocity command
+        interface and no position one at its velocity target, to sim time `now` (s);
+        returns self."""
+        moving = self._moving & self.tracked
         if moving.any():
             self.positions[moving] += self.velocities[moving] * (now - self._time)
         self._time = float(now)

@@ -41,11 +41,14 @@ INTERFACES = ('position', 'velocity', 'effort')
 class JointStateCommand:
     """A read JointState command over `joints` (indices into the handler's joint names):
     per interface, one value per joint of `joints`, NaN where it leaves the interface as it
-    was (positions rad or m, velocities rad/s or m/s, efforts N m or N)."""
+    was (positions rad or m, velocities rad/s or m/s, efforts N m or N); per joint, whether
+    it declares a position and a velocity command interface (all do without declarations)."""
     joints: np.ndarray
     positions: np.ndarray
     velocities: np.ndarray
     efforts: np.ndarray
+    position_declared: Optional[np.ndarray] = None
+    velocity_declared: Optional[np.ndarray] = None
 
 
 def _field(msg, interface):
@@ -105,4 +108,7 @@ def _read(msg, joint_index, declared):
             bad = [names[i] for i in np.flatnonzero(infinite)]
             raise _Rejected(Reason.NOT_FINITE, f'{interface} is infinite for joint(s) '
                                                f'{", ".join(bad)} (NaN leaves it as it was)')
-    return JointStateCommand(np.array([joint_index[n] for n in names], dtype=int), *values)
+    declares = [declared.get(n, INTERFACES) if declared else INTERFACES for n in names]
+    return JointStateCommand(np.array([joint_index[n] for n in names], dtype=int), *values,
+                             np.array(['position' in d for d in declares], dtype=bool),
+                             np.array(['velocity' in d for d in declares], dtype=bool))

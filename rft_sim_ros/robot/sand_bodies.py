@@ -198,9 +198,11 @@ def match_bodies(names, patterns, shaped=None):
         hits = [n for n in names if fnmatch.fnmatchcase(n, pattern)
                 and (shaped is None or not glob or n in shaped)]
         if not hits:
+            listed = [n for n in names if n and (shaped is None or not glob or n in shaped)]
             raise ValueError(f'sand body {pattern!r} matches no body of the model'
                              f'{" with geoms" if glob and shaped is not None else ""} '
-                             f'(bodies: {", ".join(n for n in names if n)})')
+                             f'(bodies{" with geoms" if glob and shaped is not None else ""}: '
+                             f'{", ".join(listed) or "none"})')
         chosen += [n for n in hits if n not in chosen]
     return chosen
 

@@ -8,7 +8,8 @@ range +-effort limit, no control range, and
 
 so its force is exactly kp (q* - q) + kd (dq* - dq) + tau_ff clipped to the effort limit
 (q* held within the joint's range where it has one, as the position servos' targets are;
-kp and kd 0 for a joint whose commands gave no position or velocity: `HybridTargets.tracked`),
+kp and kd 0 for a joint that declares an effort command interface alone:
+`HybridTargets.tracked`),
 with the -kd dq term integrated implicitly by MuJoCo (implicitfast) and by the sand engine's
 implicit solve, as the position servos' damping is. Leaving hybrid mode restores every
 parameter it changed. The effort motors stay at 0 meanwhile.

@@ -264,7 +264,8 @@ class Simulation:
         self.commands = None
         if self.servo_joint_names:
             self.commands = CommandHandler(self.servo_joint_names,
-                                           self.data.qpos[self._command_qpos])
+                                           self.data.qpos[self._command_qpos],
+                                           self.passive_joint_names)
         if kind == 'rest':
             self._settle()
         self._counts_before = self._engine_counts() - self._settle_counts
