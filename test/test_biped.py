@@ -108,7 +108,9 @@ def test_summary_json_carries_the_outcome_next_to_stable(tmp_path):
                             'stance_height_set_down_m', 'min_stance_height_m', 'sank',
                             'sank_at_s', 'max_base_depth_m', 'final_base_speed_mps',
                             'deepest', 'unsettled_step_share', 'rows_handed_back_step_share',
-                            'max_uncovered_sinkage_m', 'words'}
+                            'max_uncovered_sinkage_m', 'upside_down', 'upside_down_at_s',
+                            'up_angle_set_down_deg', 'max_up_angle_deg', 'final_up_angle_deg',
+                            'joint_past_limit', 'words'}
     assert set(outcome['deepest']) == {'body', 'sinkage_m', 'time_s', 'has_plates'}
     assert outcome['fell'] is False and outcome['tilt_limit_deg'] == 45.0
     assert outcome['collapsed'] is False and outcome['sank'] is False

@@ -284,7 +284,7 @@ def test_a_velocity_actuated_joint_is_named_and_servos_gives_it_commands(tmp_pat
     off and gives it a PD and a motor, so a velocity command turns it; a servos pattern
     that matches no joint is refused, naming the joints."""
     velocity = ARM.replace('<position name="shoulder" joint="shoulder" kp="50" kv="1"/>',
-                           '<velocity name="spin" joint="shoulder" kv="5"/>')
+                           '<velocity name="spin" joint="shoulder" kv="5" ctrlrange="-20 20"/>')
     (tmp_path / 'arm.xml').write_text(velocity)
     settings = {'duration': 0.5, 'sand.surface_height': -1.0, 'rft.sand_bodies': ['forearm'],
                 'rft.plates_per_body': 50}
@@ -299,6 +299,10 @@ def test_a_velocity_actuated_joint_is_named_and_servos_gives_it_commands(tmp_pat
     assert served.servo_joint_names == ('shoulder',)
     assert any("actuator spin of another kind than position or motor switched off" in n
                for n in served.notices)
+    assert served.interfaces.gains['shoulder'].effort == float('inf')  # (not the actuator's
+    # control range, a speed)
+    effort = served.interfaces.effort_actuators[0]
+    assert served.model.actuator(effort).name == 'effort_shoulder'
     served.commands.set_velocities([2.0], served.time)
     served.step(200)
     start = served.data.joint('shoulder').qpos[0]

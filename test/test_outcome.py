@@ -360,3 +360,20 @@ def test_lengths_in_the_words_are_in_cm_below_a_metre_and_in_m_above():
     from rft_sim_ros.sim.outcome import length
     assert length(0.147) == '14.7 cm' and length(0.0083) == '0.83 cm'
     assert length(11.9) == '11.9 m' and length(-1.5) == '-1.5 m'
+
+
+def test_a_robot_set_down_on_its_back_that_rolls_upright_has_not_fallen():
+    model = mujoco.MjModel.from_xml_string(FALLER)
+    data = mujoco.MjData(model)
+    base, sand = model.body('base').id, Plane(0.0)
+    watch = OutcomeWatch(model, base, plated=[base])
+    _turn(model, data, 180.0, 0.3)
+    watch.set_down(data)
+    watch.start()
+    for time, angle in ((0.0, 180.0), (0.5, 90.0), (1.0, 2.0)):
+        _turn(model, data, angle, 0.3)
+        watch.observe(data, sand, time)
+    outcome = watch.result(data, sand, steps=10, unsettled=0)
+    assert not outcome['fell'] and outcome['upside_down'] and outcome['max_tilt_deg'] > 170
+    assert outcome['words'].startswith("set down upside down: its base's z axis 180 deg from "
+                                       'up, 2 deg at the end; upright again at the end')

@@ -51,7 +51,7 @@ def test_a_robot_file_names_its_scene_by_its_stem_or_a_generic_stems_folder(tmp_
     assert robot_file_name('/w/anymal_c/anymal_c.xml') == 'anymal_c'
     assert robot_file_name('desc/urdf/my_robot.urdf.xacro') == 'my_robot'
     assert robot_file_name('/m/unitree_go2/scene.xml') == 'unitree_go2'
-    assert robot_file_name('scene.xml') == 'scene'  # (no folder named: the stem)
+    assert robot_file_name('scene.xml') == Path.cwd().name  # (the folder it is in)
     menagerie = tmp_path / 'plate_robot'
     menagerie.mkdir()
     (menagerie / 'scene.xml').write_text(

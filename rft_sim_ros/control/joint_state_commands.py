@@ -83,23 +83,24 @@ def _spread(values, interface, names, declared):
 
 
 def read_joint_state_command(msg, joint_index: Mapping[str, int],
-                             declared: Optional[Mapping[str, tuple]] = None):
+                             declared: Optional[Mapping[str, tuple]] = None, passive=()):
     """`JointStateCommand` of the sensor_msgs/JointState `msg` (any backend: rclpy, rosbags
     or anything with name, position, velocity, effort); joint_index: {joint name: index}
     of the joints commands may address; declared: {joint: command interfaces} of the
-    robot's `<ros2_control>` block, or None. Raises `CommandRejected` (module docstring)."""
+    robot's `<ros2_control>` block, or None; passive: the robot's joints without command
+    interfaces (a rejection says so). Raises `CommandRejected` (module docstring)."""
     try:
-        return _read(msg, joint_index, declared)
+        return _read(msg, joint_index, declared, passive)
     except _Rejected as rejected:
         raise CommandRejected(CommandResult(rejected.reason, str(rejected))) from None
 
 
-def _read(msg, joint_index, declared):
+def _read(msg, joint_index, declared, passive=()):
     try:
         names = list(msg.name)
     except (AttributeError, TypeError) as error:
         raise _Rejected(Reason.MALFORMED, f'not a joint state ({error})') from None
-    check_joint_names(names, joint_index, 'joint state command names no joint')
+    check_joint_names(names, joint_index, 'joint state command names no joint', passive)
     values = [_spread(_field(msg, interface), interface, names, declared)
               for interface in INTERFACES]
     for interface, spread in zip(INTERFACES, values):

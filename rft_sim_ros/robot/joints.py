@@ -148,11 +148,10 @@ def add_joint_interfaces(spec, servos):
     every_joint = not spec.actuators  # no actuator of its own: every joint is commanded
     followers = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT
                  and e.active}
-    unmatched = [pattern for pattern in servos if not any(
-        fnmatch.fnmatchcase(joint.name, pattern) for joint in spec.joints if joint.name)]
+    names = [joint.name for joint in spec.joints if joint.name and joint.type in _MOVABLE]
+    unmatched = [pattern for pattern in servos
+                 if not any(fnmatch.fnmatchcase(name, pattern) for name in names)]
     if unmatched:
-        names = [joint.name for joint in spec.joints
-                 if joint.name and joint.type in _MOVABLE]
         raise ValueError(f'servos: {", ".join(map(repr, unmatched))} match'
                          f'{"es" * (len(unmatched) == 1)} no joint of the model (its joints: '
                          f'{", ".join(names) or "none"})')
@@ -288,7 +287,9 @@ class JointInterfaces:
             servo = [a for a in mine if _is_position_servo(
                 model.actuator_gaintype[a], model.actuator_biastype[a],
                 model.actuator_dyntype[a], model.actuator_gainprm[a], model.actuator_biasprm[a])]
-            motor = [a for a in mine if a not in servo]
+            motor = [a for a in mine if _is_motor(  # (not one switched off: a gain of 0)
+                model.actuator_gaintype[a], model.actuator_biastype[a],
+                model.actuator_dyntype[a]) and model.actuator_gainprm[a, 0] != 0.0]
             position.append(servo[0])
             effort.append(motor[0])
             settings = servo_settings(servos, name)

@@ -9,7 +9,6 @@ upside down, a collapse or sinking).
 """
 import math
 
-from rft_sim_ros.sim.ways_down import DOWN
 
 
 def status_key(zeta, stable, paused, down=False):
@@ -22,28 +21,32 @@ def status_key(zeta, stable, paused, down=False):
 
 def outcome_values(outcome):
     """[(key, value)] of /diagnostics for a run's `outcome` (summary.json's, sim/outcome.py;
-    None: none yet): outcome (its words); for each way down (sim/ways_down.py's DOWN) whether
-    it happened and when (fell, fell_at_s, upside_down, upside_down_at_s, collapsed,
-    collapsed_at_s, sank, sank_at_s; nan: it did not); max_tilt_deg, final_up_angle_deg
-    (nan: not watched), deepest_body ('' where no geom went below the surface),
-    deepest_sinkage_m, deepest_has_plates, unsettled_step_share and max_uncovered_sinkage_m
-    (nan: every watched body carries plates)."""
+    None: none yet): outcome (its words), fell, fell_at_s (nan: it did not fall),
+    max_tilt_deg, collapsed, collapsed_at_s (nan: it did not collapse), sank, sank_at_s (nan:
+    it did not sink), deepest_body ('' where no geom went below the surface), deepest_sinkage_m,
+    deepest_has_plates, unsettled_step_share, max_uncovered_sinkage_m (nan: every watched
+    body carries plates), upside_down, upside_down_at_s (nan: it was not) and
+    final_up_angle_deg (nan: not judged); the last three after the others, which keep their
+    places."""
     if outcome is None:
         return []
     deepest = outcome['deepest'] or {'body': '', 'sinkage_m': 0.0, 'has_plates': True}
 
     def number(value):
         return float('nan') if value is None else float(value)
-    values = [('outcome', outcome['words'])]
-    for key, at_key, _ in DOWN:
-        values += [(key, bool(outcome[key])), (at_key, number(outcome[at_key]))]
-    return values + [
-        ('max_tilt_deg', float(outcome['max_tilt_deg'])),
-        ('final_up_angle_deg', number(outcome['final_up_angle_deg'])),
-        ('deepest_body', deepest['body']), ('deepest_sinkage_m', float(deepest['sinkage_m'])),
-        ('deepest_has_plates', bool(deepest['has_plates'])),
-        ('unsettled_step_share', float(outcome['unsettled_step_share'])),
-        ('max_uncovered_sinkage_m', number(outcome['max_uncovered_sinkage_m']))]
+    return [('outcome', outcome['words']), ('fell', bool(outcome['fell'])),
+            ('fell_at_s', number(outcome['fell_at_s'])),
+            ('max_tilt_deg', float(outcome['max_tilt_deg'])),
+            ('collapsed', bool(outcome['collapsed'])),
+            ('collapsed_at_s', number(outcome['collapsed_at_s'])),
+            ('sank', bool(outcome['sank'])), ('sank_at_s', number(outcome['sank_at_s'])),
+            ('deepest_body', deepest['body']), ('deepest_sinkage_m', float(deepest['sinkage_m'])),
+            ('deepest_has_plates', bool(deepest['has_plates'])),
+            ('unsettled_step_share', float(outcome['unsettled_step_share'])),
+            ('max_uncovered_sinkage_m', number(outcome['max_uncovered_sinkage_m'])),
+            ('upside_down', bool(outcome['upside_down'])),
+            ('upside_down_at_s', number(outcome['upside_down_at_s'])),
+            ('final_up_angle_deg', number(outcome['final_up_angle_deg']))]
 
 
 class DiagnosticsSchedule:

@@ -66,7 +66,8 @@ def _apply(sim, command):
         index = {name: i for i, name in enumerate(commands.joint_names)}
         try:
             read = read_joint_state_command(command.content, index,
-                                            sim.description.command_interfaces)
+                                            sim.description.command_interfaces,
+                                            sim.passive_joint_names)
         except CommandRejected as rejected:
             return rejected.result
         return commands.set_joint_states(read, now)

@@ -269,7 +269,8 @@ class SimRuntime:
         else:
             try:
                 command = read_joint_state_command(msg, self._command_index,
-                                                   self.sim.description.command_interfaces)
+                                                   self.sim.description.command_interfaces,
+                                                   self.sim.passive_joint_names)
             except CommandRejected as rejected:
                 result = rejected.result
             else:

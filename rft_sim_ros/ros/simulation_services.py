@@ -139,6 +139,4 @@ class SimulationServices:
             runtime.stopped = False
             return Answer(RESULT_OK, f'paused at sim time {runtime.sim.time:.6f} s')
         done = runtime.reset()
-        if not done.success:
-            return Answer(STATE_TRANSITION_ERROR, f'paused, not reset: {done.message}')
         return Answer(RESULT_OK, f'stopped: {done.message}')

@@ -146,7 +146,7 @@ def robot_file_name(model_path):
     """The name of a bare robot file's scene, and so of its runs' folders: the file's stem
     ('anymal_c' for anymal_c.xml, 'my_robot' for my_robot.urdf.xacro), or its folder's name
     where the stem says nothing (GENERIC_STEMS: 'unitree_go2' for unitree_go2/scene.xml)."""
-    path = Path(model_path)
+    path = Path(model_path).resolve()  # (a bare scene.xml: the folder it is in)
     stem = path.name.split('.')[0]
     return path.parent.name if stem in GENERIC_STEMS and path.parent.name else stem
 

@@ -97,7 +97,8 @@ class HybridDrive:
         if not np.array_equal(targets.tracked, self._tracked):
             self._tracked = targets.tracked.copy()
             self._set_bias()
-        positions = np.clip(targets.positions, self._low, self._high)
+        positions = np.clip(targets.positions, self._low, self._high,
+                            out=targets.positions)  # (kept so: a moving q* does not wind up)
         return self._tracked * (self.kp * positions + self.kd * targets.velocities) \
             + targets.efforts
 

@@ -50,8 +50,9 @@ class LimitWatch:
         q = data.qpos[self._address]
         past = np.maximum(self._low - q, q - self._high)
         score = past / self._scale
+        score[~np.isfinite(score)] = -np.inf  # (a diverged joint hides no other)
         i = int(np.argmax(score))
-        if score[i] > 1.0 and math.isfinite(score[i]) and (
+        if score[i] > 1.0 and (
                 self._worst is None or score[i] > self._worst[0]):
             limit = self._high[i] if q[i] > self._high[i] else self._low[i]
             self._worst = (float(score[i]), i, float(past[i]), float(limit), time)

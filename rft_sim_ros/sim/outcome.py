@@ -6,7 +6,9 @@ deep any of its bodies went into the sand, and how often the implicit solve did 
 - the base's tilt: the angle (deg) between its up axis (body z) now and as the robot was set
   down (`set_down`: its spawn's pose, before spawn rest settled it; on a slope, turned to
   it); the robot fell once it exceeds TILT_LIMIT_DEG (a quadruped on its side, a humanoid on
-  its back; standing and walking robots stay well within it);
+  its back; standing and walking robots stay well within it), an articulated robot only
+  where it was set down upright and its up angle (below) exceeds it too (one set down on
+  its back that rolls upright has not fallen: it was upside down);
 - an articulated robot's up angle: the angle (deg) between its base's z axis and the world's
   up (against gravity). A standing robot's base frame has z up (REP 103: x forward, y left, z
   up), so the robot is upside down once that exceeds UPSIDE_DOWN_DEG (its z axis within
@@ -212,6 +214,7 @@ class OutcomeWatch:
                                     dtype=int)
         self._base_origin = int(welded)
         self._up = self._stance_set_down = self.up_angle_set_down = None
+        self._upright_set_down = True
         self._limits = joint_limits.LimitWatch(model)
         self.start()
 
@@ -222,6 +225,9 @@ class OutcomeWatch:
         within DEEP_M: set down lying)."""
         self._up = data.xmat[self._base].reshape(3, 3)[:, 2].tolist()
         self.up_angle_set_down = self.up_angle(data) if self._watch_up else None
+        # (one set down tilted or upside down can turn over or upright, not fall)
+        self._upright_set_down = (self.up_angle_set_down is None
+                                  or self.up_angle_set_down <= self.tilt_limit_deg)
         stance = self.stance_height(data) if self._watch_body else None
         self._stance_set_down = stance if stance is not None and stance > DEEP_M else None
 
@@ -326,14 +332,15 @@ class OutcomeWatch:
         if not np.isfinite(tilt):  # (a diverged state: nothing to learn from it)
             return
         self.max_tilt = max(self.max_tilt, tilt)
-        if self.fell_at is None and tilt > self.tilt_limit_deg:
-            self.fell_at = time
-        self._limits.observe(data, time)
-        if self._watch_up:
-            up = self.up_angle(data)
+        up = self.up_angle(data) if self._watch_up else None
+        if up is not None:
             self.max_up_angle = max(self.max_up_angle, up)
             if self.upside_down_at is None and up > UPSIDE_DOWN_DEG:
                 self.upside_down_at = time
+        if self.fell_at is None and tilt > self.tilt_limit_deg and self._upright_set_down and (
+                up is None or up > self.tilt_limit_deg):
+            self.fell_at = time
+        self._limits.observe(data, time)
         if self._stance_set_down is not None:
             stance, depth, collapsed, sank = self._judge(data, surface)
             self.min_stance = min(self.min_stance, stance)
@@ -435,7 +442,10 @@ def words(outcome, final_depth, final_body):
                  f"{outcome['max_tilt_deg']:.0f} deg"] if outcome['fell'] else []
         if outcome.get('upside_down'):
             parts.append(_upside_down(outcome))
-        parts.append(below if final_depth > DEEP_M else
+        final_up = outcome.get('final_up_angle_deg')
+        parts.append('upright again at the end'
+                     if final_up is not None and final_up <= TILT_LIMIT_DEG else
+                     below if final_depth > DEEP_M else
                      f'still moving at {speed:.2g} m/s at the end' if speed > LYING_SPEED else
                      'lying on the sand')
     elif outcome.get('collapsed'):

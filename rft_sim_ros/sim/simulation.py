@@ -557,8 +557,8 @@ class Simulation:
         return self._legs_and_feet()[0]
 
     def no_commands_reason(self):
-        """Why `commands` is None, in words: 'this scene has no commanded joints: ...' with
-        its joints that move freely and those the model's actuators of other kinds drive."""
+        """Why `commands` is None, in words: 'this scene has no commanded joints (passive:
+        ...; driven by the model's own actuators of another kind: ...; ...)'."""
         kinds = [(self.passive_joint_names, 'passive'),
                  (self._other_driven, "driven by the model's own actuators of another kind")]
         said = '; '.join(f'{what}: {", ".join(names)}' for names, what in kinds if names)
