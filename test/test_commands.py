@@ -307,6 +307,17 @@ def busy_handler():
     return h
 
 
+def test_a_velocity_commands_target_stops_at_the_joints_range_and_reverses_from_there():
+    handler = CommandHandler(JOINTS, [0.0, 0.0, 0.0],
+                             ranges=[[-1.0, 1.0], [-np.inf, np.inf], [-0.5, 0.5]])
+    assert handler.set_velocities([1.0, 1.0, -1.0], now=0.0).accepted
+    targets = handler.sample(3.0)  # (3 rad on: a and c at their stops, b free)
+    assert targets.positions.tolist() == [1.0, 3.0, -0.5]
+    assert targets.velocities.tolist() == [0.0, 1.0, 0.0]  # (stopped)
+    assert handler.set_velocities([-1.0, 0.0, 1.0], now=3.0).accepted
+    assert handler.sample(3.5).positions.tolist() == [0.5, 3.0, 0.0]  # (from the stops)
+
+
 def test_a_passive_joint_named_in_a_command_is_said_to_be_passive():
     handler = CommandHandler(JOINTS, [0.0, 0.0, 0.0], passive_joint_names=('pin',))
     result = handler.set_trajectory(traj(('a', 'pin', 'x'), (1.0, [1, 1, 1])), now=0.0)

@@ -21,8 +21,9 @@ ROS-free: the rclpy node and headless runs feed the same `CommandHandler`. Two i
   JointGroupVelocityController): velocities for all joints in `joint_names` order (rad/s or
   m/s), held from now on: each joint's target moves at its velocity from the target it has
   now, so the servo turns a wheel at that speed (its position lags the target by what the
-  load asks of the servo's gain); cancels any trajectory, and a later trajectory takes over
-  from the moving target, velocity included.
+  load asks of the servo's gain), and stops at the end of a limited joint's range
+  (`ranges`); cancels any trajectory, and a later trajectory takes over from the moving
+  target, velocity included.
 * `set_efforts` (std_msgs/Float64MultiArray to the effort forward controller): efforts for
   all joints in `joint_names` order (N m or N), applied from now on instead of the position
   targets (`efforts` is then not None) until the next position command or trajectory; the
@@ -204,14 +205,18 @@ class _Hold:
 
 
 class _Ramp:
-    """Targets moving at constant `velocities` (J,) from `positions` (J,) at `time` (s) on."""
+    """Targets moving at constant `velocities` (J,) from `positions` (J,) at `time` (s) on,
+    each stopping at its end of (`low`, `high`) (J,): a joint's range, so that a target
+    driven past it does not run on (and a reversed command starts from the stop)."""
 
-    def __init__(self, time, positions, velocities):
+    def __init__(self, time, positions, velocities, low, high):
         self.time, self.positions, self.velocities = time, positions, velocities
+        self._low, self._high = low, high
 
     def sample(self, t):
-        return Targets(self.positions + self.velocities * (t - self.time),
-                       self.velocities.copy())
+        moved = self.positions + self.velocities * (t - self.time)
+        positions = np.clip(moved, self._low, self._high)
+        return Targets(positions, np.where(positions == moved, self.velocities, 0.0))
 
 
 @dataclass(frozen=True)
@@ -258,12 +263,18 @@ class CommandHandler:
 
     joint_names: the joints commands may address; array commands list positions in this
     order and `sample` returns targets in it. initial_positions: targets until the first
-    command (rad or m).
+    command (rad or m). passive_joint_names: the robot's joints without command interfaces
+    (a rejection naming one says so). ranges: (joints, 2) each joint's range, rad or m (+-inf
+    where it has none; None: none has), where a velocity command's target stops.
     """
 
-    def __init__(self, joint_names, initial_positions, passive_joint_names=()):
+    def __init__(self, joint_names, initial_positions, passive_joint_names=(), ranges=None):
         self.joint_names = tuple(str(n) for n in joint_names)
         self._passive = tuple(passive_joint_names)  # (named in rejections as such)
+        count = len(self.joint_names)
+        bounds = (np.array(ranges, dtype=float).reshape(count, 2) if ranges is not None
+                  else np.tile([-np.inf, np.inf], (count, 1)))
+        self._low, self._high = bounds[:, 0].copy(), bounds[:, 1].copy()  # (a velocity's)
         if not self.joint_names or len(set(self.joint_names)) != len(self.joint_names):
             raise ValueError(f'joint names must be non-empty and unique: {self.joint_names}')
         initial = np.array(initial_positions, dtype=float)
@@ -316,7 +327,7 @@ class CommandHandler:
         start = self.sample(now).positions
         self._pending = None
         self._efforts = self._hybrid = None
-        self._active = _Ramp(now, start, values)
+        self._active = _Ramp(now, start, values, self._low, self._high)
         return ACCEPTED
 
     def set_efforts(self, efforts, now):

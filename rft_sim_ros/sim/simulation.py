@@ -263,9 +263,12 @@ class Simulation:
         self.interfaces.set_mode('position')
         self.commands = None
         if self.servo_joint_names:
+            joints = [self.model.joint(name).id for name in self.servo_joint_names]
+            ranges = np.where(self.model.jnt_limited[joints, None].astype(bool),
+                              self.model.jnt_range[joints], [-np.inf, np.inf])
             self.commands = CommandHandler(self.servo_joint_names,
                                            self.data.qpos[self._command_qpos],
-                                           self.passive_joint_names)
+                                           self.passive_joint_names, ranges)
         if kind == 'rest':
             self._settle()
         self._counts_before = self._engine_counts() - self._settle_counts
