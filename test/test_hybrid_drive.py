@@ -134,3 +134,24 @@ def test_joints_declaring_only_efforts_are_pure_effort_and_only_velocities_turn(
     start, time = hip.qpos[0], sim.time
     sim.step(200)
     assert (hip.qpos[0] - start) / (sim.time - time) == pytest.approx(0.5, rel=0.1)
+
+
+def test_a_velocity_only_joint_that_cannot_follow_does_not_wind_its_target_up(sim):
+    """A joint declaring a velocity interface alone, commanded far faster than its effort
+    limit lets it turn: its q* stays within the lag whose kp term reaches that limit (it
+    pushes at its limit), not running away from the joint."""
+    sim.reset()
+    names = list(sim.servo_joint_names)
+    declared = {name: ('position', 'velocity', 'effort') for name in names}
+    declared['fr_hip_pitch'] = ('velocity',)
+    velocity = np.full(len(names), np.nan)
+    velocity[names.index('fr_hip_pitch')] = 200.0
+    index = {name: i for i, name in enumerate(sim.commands.joint_names)}
+    sim.commands.set_joint_states(read_joint_state_command(
+        JointState(names, velocity=velocity), index, declared), sim.time)
+    sim.step(8)
+    i = names.index('fr_hip_pitch')
+    lag = sim.commands.hybrid.positions[i] - sim.data.joint('fr_hip_pitch').qpos[0]
+    limit, kp = sim.interfaces.gains['fr_hip_pitch'].effort, sim.hybrid_drive.kp[i]
+    assert 0.0 < lag <= limit / kp * 1.05  # (the joint moved a step since the last tick)
+    assert 200.0 * 0.008 > 5 * limit / kp  # (unclamped, it would be far ahead)

@@ -96,7 +96,7 @@ class HybridTargets:
         self.positions = np.array(positions, dtype=float)
         self.velocities = np.zeros_like(self.positions)
         self.efforts = np.zeros_like(self.positions)
-        self._moving = np.zeros(self.positions.shape, dtype=bool)  # q* moves at dq*
+        self.moving = np.zeros(self.positions.shape, dtype=bool)  # q* moves at dq*
         self.tracked = np.ones(self.positions.shape, dtype=bool)  # kp and kd act
         self._time = float(now)  # sim time s q* was last advanced to
 
@@ -112,14 +112,14 @@ class HybridTargets:
             target[command.joints[given]] = values[given]
         if command.position_declared is not None:
             joints, position = command.joints, command.position_declared
-            self._moving[joints] = ~position
+            self.moving[joints] = ~position
             self.tracked[joints] = position | command.velocity_declared
 
     def advance(self, now):
         """Move the position target of every joint that declares a velocity command
         interface and no position one at its velocity target, to sim time `now` (s);
         returns self."""
-        moving = self._moving & self.tracked
+        moving = self.moving & self.tracked
         if moving.any():
             self.positions[moving] += self.velocities[moving] * (now - self._time)
         self._time = float(now)

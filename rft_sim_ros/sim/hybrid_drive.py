@@ -92,13 +92,22 @@ class HybridDrive:
         self._saved = None
         self._interfaces.mode = 'position'
 
-    def controls(self, targets):
-        """ctrl values of the position actuators for `targets` (control.hybrid.HybridTargets)."""
+    def controls(self, targets, positions_now):
+        """ctrl values of the position actuators for `targets` (control.hybrid.HybridTargets)
+        with the joints at `positions_now` (rad or m, the same order). q* is kept within the
+        joint's range and, where it moves at dq* (`HybridTargets.moving`), within the lag
+        whose kp term alone reaches the effort limit: a stalled joint (a wheel held in the
+        sand) pushes at its limit without winding q* up, so it does not race to catch up
+        once free, as a velocity servo's integrator with anti-windup does not."""
         if not np.array_equal(targets.tracked, self._tracked):
             self._tracked = targets.tracked.copy()
             self._set_bias()
-        positions = np.clip(targets.positions, self._low, self._high,
-                            out=targets.positions)  # (kept so: a moving q* does not wind up)
+        lag = np.where(targets.moving & self._limited & (self.kp > 0.0),
+                       self._limits / np.maximum(self.kp, 1e-300), np.inf)
+        low = np.maximum(self._low, positions_now - lag)
+        high = np.minimum(self._high, positions_now + lag)
+        positions = np.clip(targets.positions, low, high,
+                            out=targets.positions)  # (kept so: no windup)
         return self._tracked * (self.kp * positions + self.kd * targets.velocities) \
             + targets.efforts
 

@@ -445,7 +445,7 @@ class Simulation:
                     drive.engage()
                     self._ctrl[interfaces.effort_actuators] = 0.0
                 self._ctrl[interfaces.position_actuators] = drive.controls(
-                    hybrid.advance(self.time))
+                    hybrid.advance(self.time), self.data.qpos[self._command_qpos])
                 commands.track(self.data.qpos[self._command_qpos], self.time)
                 return
             if drive.engaged:
