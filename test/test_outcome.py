@@ -281,19 +281,25 @@ def test_start_up_names_the_robots_bodies_without_collision_geoms(tmp_path):
     assert not [n for n in rig.notices if n.startswith('bodies without a collision geom')]
 
 
+def _set_down_turned(angle_deg, z):
+    """(model, data, watch) of FALLER set down turned `angle_deg` about x at height z (m)."""
+    model = mujoco.MjModel.from_xml_string(FALLER)
+    data = mujoco.MjData(model)
+    base = model.body('base').id
+    watch = OutcomeWatch(model, base, plated=[base])
+    _turn(model, data, angle_deg, z)
+    watch.set_down(data)
+    watch.start()
+    return model, data, watch
+
+
 def test_a_robot_on_its_back_is_upside_down_never_upright_set_down_so_or_turned_over():
     """The base's z axis against the world's up (REP 103: a standing robot's base frame has
     z up): a robot set down on its back has not turned from there, yet is upside down from
     the first look; one set down upright that turns past 135 deg is upside down from then;
-    one set down on its side is not upright; a
-    rigid body (no joints) is not judged."""
-    model = mujoco.MjModel.from_xml_string(FALLER)
-    data = mujoco.MjData(model)
-    base, sand = model.body('base').id, Plane(0.0)
-    watch = OutcomeWatch(model, base, plated=[base])
-    _turn(model, data, 180.0, 0.05)
-    watch.set_down(data)
-    watch.start()
+    one set down on its side is not upright; a rigid body (no joints) is not judged."""
+    model, data, watch = _set_down_turned(180.0, 0.05)
+    sand = Plane(0.0)
     for time in (0.0, 0.5):
         watch.observe(data, sand, time)
     outcome = watch.result(data, sand, steps=10, unsettled=0)
@@ -363,13 +369,8 @@ def test_lengths_in_the_words_are_in_cm_below_a_metre_and_in_m_above():
 
 
 def test_a_robot_set_down_on_its_back_that_rolls_upright_has_not_fallen():
-    model = mujoco.MjModel.from_xml_string(FALLER)
-    data = mujoco.MjData(model)
-    base, sand = model.body('base').id, Plane(0.0)
-    watch = OutcomeWatch(model, base, plated=[base])
-    _turn(model, data, 180.0, 0.3)
-    watch.set_down(data)
-    watch.start()
+    model, data, watch = _set_down_turned(180.0, 0.3)
+    sand = Plane(0.0)
     for time, angle in ((0.0, 180.0), (0.5, 90.0), (1.0, 2.0)):
         _turn(model, data, angle, 0.3)
         watch.observe(data, sand, time)
