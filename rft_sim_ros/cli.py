@@ -316,12 +316,12 @@ SHOWN_METRICS = 4
 
 def human_summary(summary, out, elapsed):
     """The few lines `rft-sim run` prints at the end: how the run ended (stable, and
-    whether the robot fell, was upside down, collapsed or sank; its real-time factor, and `elapsed`, s, the
-    command's wall time since it started (`main`'s `started`: through `rft-sim`, its
-    imports too), the model's set-up and the outputs written, the figure's included), what
-    happened to the robot (the summary's outcome words, where it has them), its key metrics
-    (the scenario's first SHOWN_METRICS, else the base's displacement and final speed), and
-    where its files are."""
+    whether the robot fell, was upside down, collapsed or sank; its real-time factor, and
+    `elapsed`, s, the command's wall time since it started (`main`'s `started`: through
+    `rft-sim`, its imports too), the model's set-up and the outputs written, the figure's
+    included), what happened to the robot (the summary's outcome words, where it has them),
+    its key metrics (the scenario's first SHOWN_METRICS, else the base's displacement and
+    final speed), and where its files are."""
     if summary['interrupted']:
         ended = 'interrupted'
     elif summary['stable']:

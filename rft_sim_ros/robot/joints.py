@@ -33,12 +33,12 @@ force; actuators on tendons or sites across it are kept), that has no actuator w
 model has some (above), that is driven by another actuator kind (velocity, integrated
 velocity, a muscle...; `other_driven`: its control stays 0, a velocity actuator holds it
 still) unless `servos` names it (then those actuators are switched off, as for passive, and
-it gets a PD and a motor as a joint without an actuator does: `replaced`), that has no name (no command could name it; /joint_states leaves it
-out too), or that an active joint equality sets from another joint or a constant (a URDF
-`<mimic>` joint, which MuJoCo's importer makes one; MJCF `<equality><joint joint1=...>`)
-gets no interfaces: it follows, as a ros2_control mimic joint does, instead of a servo
-fighting the equality. Other equality constraints (an MJCF's closed loops: `connect`,
-`weld`) are kept as written.
+it gets a PD and a motor as a joint without an actuator does: `replaced`), that has no
+name (no command could name it; /joint_states leaves it out too), or that an active joint
+equality sets from another joint or a constant (a URDF `<mimic>` joint, which MuJoCo's
+importer makes one; MJCF `<equality><joint joint1=...>`) gets no interfaces: it follows,
+as a ros2_control mimic joint does, instead of a servo fighting the equality. Other
+equality constraints (an MJCF's closed loops: `connect`, `weld`) are kept as written.
 """
 import fnmatch
 import math
@@ -269,8 +269,9 @@ class JointInterfaces:
     """The position and effort interfaces of the joints `joint_names` of a compiled model.
 
     position_actuators / effort_actuators: actuator ids (= ctrl indices), joint order.
-    gains: {joint: JointGains} of the position interfaces. `set_mode('position'|'effort')`
-    switches the position actuators on or off.
+    gains: {joint: JointGains} of the position interfaces. ranges: (joints, 2) each joint's
+    range, rad or m, -inf / inf where it has none: where its targets are held.
+    `set_mode('position'|'effort')` switches the position actuators on or off.
     """
 
     def __init__(self, model, data, joint_names, servos, timestep, effort_limits=None):
@@ -303,13 +304,15 @@ class JointInterfaces:
             gains = JointGains(settings.get('kp', kp), settings.get('kd', kd), limit)
             self._set_gains(servo[0], gains.kp, gains.kd)
             self.gains[name] = gains
-            if model.actuator(servo[0]).name == _PD_PREFIX + name:
-                if model.jnt_limited[joint]:  # (its target within the joint's range)
-                    model.actuator_ctrllimited[servo[0]] = 1
-                    model.actuator_ctrlrange[servo[0]] = model.jnt_range[joint]
+            if model.actuator(servo[0]).name == _PD_PREFIX + name and model.jnt_limited[joint]:
+                model.actuator_ctrllimited[servo[0]] = 1  # (its target within the range)
+                model.actuator_ctrlrange[servo[0]] = model.jnt_range[joint]
             if model.actuator(servo[0]).name == _PD_PREFIX + name or 'effort' in settings:
                 self._limit(servo[0], limit)
             self._limit(motor[0], limit)
+        joints = [model.joint(name).id for name in self.joint_names]
+        self.ranges = np.where(model.jnt_limited[joints, None].astype(bool),
+                               model.jnt_range[joints], [-np.inf, np.inf]).reshape(-1, 2)
         self.position_actuators = np.array(position, dtype=int)
         self.effort_actuators = np.array(effort, dtype=int)
         self._position_params = (model.actuator_gainprm[self.position_actuators].copy(),

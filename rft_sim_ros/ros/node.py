@@ -128,7 +128,6 @@ class SimNode(Node):
         self._description_subscription = None
         self._topic_publishers = {}
         self._factory = RclpyFactory()
-        self._filling = None  # a string list parameter `_declare` is giving its empty value
         self._robot = {name: self._declare(name, '') for name in (
             parameters.SCENE, parameters.MODEL, parameters.ROBOT_DESCRIPTION,
             parameters.SAND_BODIES)}
@@ -463,12 +462,8 @@ class SimNode(Node):
             return self.declare_parameter(name, default, descriptor).value
         value = self.declare_parameter(name, default, ParameterDescriptor(
             description=spec.description)).value  # (writable until it has a value)
-        if value is None:
-            self._filling = name  # (no check: the empty list is every list's default)
-            try:
-                self.set_parameters([Parameter(name, Parameter.Type.STRING_ARRAY, [])])
-            finally:
-                self._filling = None
+        if value is None:  # (`_check_parameters` lets its first value, [], through)
+            self.set_parameters([Parameter(name, Parameter.Type.STRING_ARRAY, [])])
         if not spec.dynamic:
             descriptor.type = Parameter.Type.STRING_ARRAY.value
             self.set_descriptor(name, descriptor)
@@ -624,8 +619,8 @@ class SimNode(Node):
         check = (parameters.parameter_problem if self.runtime is None
                  else self.runtime.parameter_problem)
         for change in changes:
-            if change.name == self._filling:
-                continue
+            if change.value == [] and self._value(change.name) is None:
+                continue  # (`_declare` giving a string list without a value the empty one)
             if change.name in parameters.SPECS and self.has_parameter(change.name):
                 problem = check(change.name, change.value)
                 if problem:

@@ -33,11 +33,7 @@ class HybridDrive:
         names = interfaces.joint_names
         self._default = resolve_gains(gains or {}, names, [interfaces.gains[n].kp for n in names],
                                       [interfaces.gains[n].kd for n in names])
-        joints = [model.joint(name).id for name in names]
-        limited = model.jnt_limited[joints].astype(bool)
-        ranges = model.jnt_range[joints]
-        self._low = np.where(limited, ranges[:, 0], -np.inf)  # q* within these (rad or m)
-        self._high = np.where(limited, ranges[:, 1], np.inf)
+        self._low, self._high = interfaces.ranges.T  # q* within these (rad or m)
         limits = np.array([interfaces.gains[n].effort for n in names], dtype=float)
         self._limited = np.isfinite(limits)
         self._limits = limits

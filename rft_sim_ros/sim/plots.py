@@ -14,9 +14,9 @@ Every legend lies outside the axes. A landing's spike (a drop's impact: 95 N on 
 walking at 0-20 N a foot) would squash the gait's forces, so when the largest force is over
 CLIP_RATIO times the FORCE_QUANTILE of all of them, the force axis stops at FORCE_HEADROOM
 times that quantile and the panel says the peak it leaves off ('landing peak 95 N at 0.12 s,
-off the axis'). Scheduled changes (--set-at) are dashed lines on every panel, the outcome's
-fall, collapse and sinking (summary `outcome.fell_at_s`, `collapsed_at_s`, `sank_at_s`) red
-lines; all named in the legend of the first panel
+off the axis'). Scheduled changes (--set-at) are dashed lines on every panel, the times the
+outcome saw the robot go down (a fall, upside down, a collapse, sinking: sim/ways_down.py)
+red lines; all named in the legend of the first panel
 and in the title, which names the robot and the scene (labels.run_name).
 """
 import math
@@ -109,7 +109,7 @@ def _joint_groups(series, summary):
 
 
 def _time_marks(axes, summary):
-    """Scheduled changes, a fall, a collapse and a sinking as vertical lines on every time
+    """Scheduled changes and the robot going down (`DOWN`) as vertical lines on every time
     axis; returns the title's words for them."""
     words = []
     for change in (c for c in summary.get('schedule') or () if c.get('applied')):

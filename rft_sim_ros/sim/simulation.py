@@ -162,8 +162,8 @@ class Simulation:
         self.joint_names = tuple(model.joint(j).name for j in self._joints)
         self._qpos_adr = model.jnt_qposadr[self._joints]
         self._dof_adr = model.jnt_dofadr[self._joints]
-        # actuator forces (qfrc_actuator) summed over the steps since the last state
-        self._effort_sum, self._effort_steps = np.zeros(model.nv), 0
+        # actuator forces (qfrc_actuator) summed over the steps since step `_effort_since`
+        self._effort_sum, self._effort_since = np.zeros(model.nv), 0
         legs = legs_of(scene, model, engine, self.sand_bodies, self.other_bodies, base)
         self.legs, self._leg_names, self._leg_feet = legs.legs, legs.names, legs.feet
         self._leg_rows, self._leg_membership = legs.rows, legs.membership
@@ -227,7 +227,7 @@ class Simulation:
         self._ticks = 0
         self._since_start = 0  # engine steps since this (re)start: the ticks' phase
         self._steps_before = self.steps  # (the outcome counts from here)
-        self._effort_sum[:], self._effort_steps = 0.0, 0
+        self._effort_sum[:], self._effort_since = 0.0, self.steps
         self._warnings = self._warning_count()
         self._left_bed = self._entered = False  # (said once a run: `run_warnings`)
         self._next_entry_check = 0.0  # sim time, s
@@ -263,12 +263,9 @@ class Simulation:
         self.interfaces.set_mode('position')
         self.commands = None
         if self.servo_joint_names:
-            joints = [self.model.joint(name).id for name in self.servo_joint_names]
-            ranges = np.where(self.model.jnt_limited[joints, None].astype(bool),
-                              self.model.jnt_range[joints], [-np.inf, np.inf])
             self.commands = CommandHandler(self.servo_joint_names,
                                            self.data.qpos[self._command_qpos],
-                                           self.passive_joint_names, ranges)
+                                           self.passive_joint_names, self.interfaces.ranges)
         if kind == 'rest':
             self._settle()
         self._counts_before = self._engine_counts() - self._settle_counts
@@ -411,7 +408,6 @@ class Simulation:
                 before = data.time
                 engine_step()
                 add(effort_sum, actuation, out=effort_sum)
-                self._effort_steps += 1
                 self.steps += 1
                 self._since_start += 1
                 if data.time <= before:  # MuJoCo reset a non-finite state
@@ -572,7 +568,7 @@ class Simulation:
     def _mean_efforts(self):
         """(joints,) N m or N: each joint's actuator force, the mean over the steps since the
         last call (with none since, the last step's); then restarts the mean."""
-        steps, self._effort_steps = self._effort_steps, 0
+        steps, self._effort_since = self.steps - self._effort_since, self.steps
         if not steps:
             return self.data.qfrc_actuator[self._dof_adr]
         mean = self._effort_sum[self._dof_adr] / steps
